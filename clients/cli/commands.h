@@ -1,0 +1,19 @@
+// The CLI's subcommands. Each takes the arguments after its name and returns the exit code;
+// bad input is thrown as InputError and reported by main() in one line.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "strokelab/model.h"
+
+namespace strokelab::cli {
+
+int RunSimulate(const std::vector<std::string>& argv);
+int RunPaper(const std::vector<std::string>& argv);
+
+// --model (a preset name or a JSON model file) followed by every --set key=value, validated.
+ActuatorModel LoadModel(const Args& args);
+
+}  // namespace strokelab::cli

@@ -1,0 +1,116 @@
+// The CLI end to end: bad input gets one clear line naming the field and exit code 2, never a
+// crash; --json prints the promised figures.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace {
+
+using ::testing::HasSubstr;
+
+struct Result {
+  int exit_code = -1;
+  std::string stdout_text, stderr_text;
+};
+
+Result RunCli(const std::string& args) {
+  const std::string err_path = ::testing::TempDir() + "/cli_test_stderr.txt";
+  const std::string command = std::string(STROKELAB_BINARY) + " " + args + " 2>" + err_path;
+  Result result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return result;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.stdout_text.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  std::ifstream err(err_path);
+  result.stderr_text.assign(std::istreambuf_iterator<char>(err), {});
+  return result;
+}
+
+const std::string kSimulate = "simulate --frequency-hz 8 --amplitude-v 0.4 --duration-s 2 ";
+
+// One line, exit code 2, naming what is wrong.
+void ExpectInputError(const std::string& args, const std::string& expected) {
+  const Result r = RunCli(args);
+  EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.stderr_text;
+  EXPECT_THAT(r.stderr_text, HasSubstr(expected)) << args;
+  EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1) << r.stderr_text;
+  EXPECT_TRUE(r.stdout_text.empty()) << r.stdout_text;
+}
+
+TEST(CliTest, BadInputNamesTheField) {
+  ExpectInputError(kSimulate + "--set m_p=-0.1", "strokelab: error: m_p: must be > 0, got -0.1");
+  ExpectInputError(kSimulate + "--set k_p=nan", "--set k_p: must not be NaN");
+  ExpectInputError("simulate --frequency-hz 8 --amplitude-v nan", "--amplitude-v: must not be NaN");
+  ExpectInputError(kSimulate + "--set k9=1", "--set k9: unknown model parameter");
+  ExpectInputError(kSimulate + "--sample-rate-hz 0", "--sample-rate-hz: must be a finite number > 0");
+  ExpectInputError(kSimulate + "--method rk4", "--method: unknown method 'rk4' (known: exact, cvode, ode3)");
+  ExpectInputError(kSimulate + "--model papr", "--model: unknown model preset 'papr'");
+  ExpectInputError(kSimulate + "--frobnicate 1", "--frobnicate: unknown option");
+  ExpectInputError("simulate --amplitude-v 0.3", "--frequency-hz: is required");
+  ExpectInputError("simulate --frequency-hz -3 --amplitude-v 0.3", "--frequency-hz: must be a finite number > 0");
+  ExpectInputError("simulate --frequency-hz 8 --amplitude-v 0.4 --duration-s abc", "--duration-s: expected a number, got 'abc'");
+  ExpectInputError(kSimulate + "--set k3=4e7 --method exact", "method: the exact engine needs a piecewise-linear model");
+  ExpectInputError(kSimulate + "--duration-s 3", "--duration-s: given more than once");
+  ExpectInputError("frobnicate", "unknown command 'frobnicate'");
+}
+
+TEST(CliTest, ModelFileErrorsNameTheFileAndField) {
+  const std::string dir = ::testing::TempDir();
+  std::ofstream(dir + "/bad_key.json") << R"({"preset": "paper", "k_q": 3})";
+  std::ofstream(dir + "/bad_value.json") << R"({"mass_kg": -1})";
+  std::ofstream(dir + "/not_json.json") << R"({"mass_kg": )";
+  ExpectInputError(kSimulate + "--model " + dir + "/bad_key.json", "bad_key.json:/k_q: unknown model parameter");
+  ExpectInputError(kSimulate + "--model " + dir + "/bad_value.json", "bad_value.json:/mass_kg: must be > 0");
+  ExpectInputError(kSimulate + "--model " + dir + "/not_json.json", "not valid JSON");
+  ExpectInputError(kSimulate + "--model " + dir + "/missing.json", "--model: model file");
+}
+
+TEST(CliTest, JsonSummaryHasThePromisedFields) {
+  const Result r = RunCli("simulate --model paper --frequency-hz 8 --amplitude-v 0.4 --duration-s 10 "
+                          "--sample-rate-hz 51200 --method exact --json");
+  ASSERT_EQ(r.exit_code, 0) << r.stderr_text;
+  const nlohmann::json j = nlohmann::json::parse(r.stdout_text);
+  for (const char* key : {"min_displacement_m", "max_displacement_m", "contacts", "mean_contact_ms", "peak_force_n",
+                          "first_harmonic_force_n", "first_harmonic_phase_rad", "method", "wall_time_s"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["method"], "exact");
+  EXPECT_EQ(j["contacts"], 8);  // one impact per period over the last second at 8 Hz
+  EXPECT_NEAR(j["min_displacement_m"].get<double>(), -1.008e-3, 0.001e-3);  // just inside d = -1 mm
+  EXPECT_NEAR(j["mean_contact_ms"].get<double>(), 0.49, 0.01);
+}
+
+TEST(CliTest, OverridesChangeTheModel) {
+  // A hardening suspension (k3) raises the drive needed to reach the stop: no contact at 0.3 V.
+  const Result base = RunCli("simulate --frequency-hz 8 --amplitude-v 0.3 --method cvode --duration-s 6 --json");
+  const Result hard =
+      RunCli("simulate --frequency-hz 8 --amplitude-v 0.3 --method cvode --duration-s 6 --json --set k3=4e7");
+  ASSERT_EQ(base.exit_code, 0) << base.stderr_text;
+  ASSERT_EQ(hard.exit_code, 0) << hard.stderr_text;
+  EXPECT_GT(nlohmann::json::parse(base.stdout_text)["contacts"].get<int>(), 0);
+  EXPECT_EQ(nlohmann::json::parse(hard.stdout_text)["contacts"].get<int>(), 0);
+  EXPECT_EQ(nlohmann::json::parse(hard.stdout_text)["model"]["cubic_stiffness_n_per_m3"].get<double>(), 4e7);
+}
+
+TEST(CliTest, WritesTheSeriesAsCsv) {
+  const std::string path = ::testing::TempDir() + "/series.csv";
+  const Result r = RunCli(kSimulate + "--out " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.stderr_text;
+  std::ifstream in(path);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "time_s,voltage_V,displacement_m,velocity_m_per_s,force_N,contact");
+  size_t rows = 0;
+  for (std::string line; std::getline(in, line);) ++rows;
+  EXPECT_EQ(rows, 102400u);
+}
+
+}  // namespace

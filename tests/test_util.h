@@ -1,0 +1,32 @@
+// Shared test helpers: relative comparisons with named tolerances, Eigen comparisons.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+
+namespace strokelab::testing {
+
+// |actual - expected| <= rel * |expected|, printed with both values and the relative error.
+inline ::testing::AssertionResult NearRelative(double actual, double expected, double rel) {
+  const double err = std::abs(actual - expected) / std::abs(expected);
+  if (std::isfinite(err) && err <= rel) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "actual " << actual << " vs expected " << expected
+                                       << ": relative error " << err << " > " << rel;
+}
+
+inline ::testing::AssertionResult NearRelative(std::complex<double> actual, std::complex<double> expected,
+                                               double rel) {
+  const double err = std::abs(actual - expected) / std::abs(expected);
+  if (std::isfinite(err) && err <= rel) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "actual " << actual << " vs expected " << expected
+                                       << ": relative error " << err << " > " << rel;
+}
+
+}  // namespace strokelab::testing
+
+#define EXPECT_REL_NEAR(actual, expected, rel) \
+  EXPECT_TRUE(::strokelab::testing::NearRelative((actual), (expected), (rel)))
+#define ASSERT_REL_NEAR(actual, expected, rel) \
+  ASSERT_TRUE(::strokelab::testing::NearRelative((actual), (expected), (rel)))
