@@ -15,6 +15,7 @@ usage: strokelab COMMAND [options]
 
 commands:
   simulate   one time-domain record of a model under a sine drive (summary as text or --json, series as CSV)
+  sweep      steady states over a frequency x amplitude grid: FRF branches, saturation thresholds, jumps
   paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 Run 'strokelab COMMAND --help' for a command's options.
@@ -32,6 +33,7 @@ int main(int argc, char** argv) {
   try {
     if (command == "simulate") return strokelab::cli::RunSimulate(rest);
     if (command == "paper") return strokelab::cli::RunPaper(rest);
+    if (command == "sweep") return strokelab::cli::RunSweep(rest);
     std::cerr << "strokelab: error: unknown command '" << command << "' (see strokelab --help)\n";
     return 2;
   } catch (const strokelab::InputError& e) {

@@ -162,6 +162,63 @@ int PiecewiseLinearSystem::ActiveSurfaces(PwlMode mode, State y, std::array<Surf
   return n;
 }
 
+double PiecewiseLinearSystem::SafeSpanS(PwlMode mode, const LinearRegion& r, double t, State y) const {
+  std::array<Surface, 6> surfaces;
+  const int count = ActiveSurfaces(mode, y, &surfaces);
+  if (count == 0) return INFINITY;
+  const double b2 = r.beta_squared();
+  if (!(b2 > 0.0)) return 0.0;  // the bounds below are for the underdamped form
+  const double omega = drive_.AngularFrequency();
+  const double a = r.decay_rate(), b = std::sqrt(b2), omega0_sq = r.stiffness() / r.mass_kg();
+  const State p = r.ParticularAt(t);
+  const double zx = y.x_m - p.x_m, zv = y.v_m_per_s - p.v_m_per_s;
+  // Amplitudes (for all later times, e^{-a tau} <= 1) of the particular and homogeneous parts of
+  // x, x' and x'' (linear_region.h: z_x = e^{-a tau}(zx cos + (a zx + zv)/b sin), z_v likewise).
+  const double particular_x = std::hypot(r.ps(), r.pc());
+  const double homogeneous_x = std::hypot(zx, (a * zx + zv) / b);
+  const double homogeneous_v = std::hypot(zv, (omega0_sq * zx + a * zv) / b);
+  const double bound_x = particular_x + homogeneous_x;
+  const double bound_v = omega * particular_x + homogeneous_v;
+  const double bound_a = omega * omega * particular_x + omega0_sq * homogeneous_x + 2.0 * a * homogeneous_v;
+  const double theta = omega * t + drive_.phase_rad;
+  double safe = INFINITY;
+  for (int i = 0; i < count; ++i) {
+    const Surface& s = surfaces[i];
+    const double lowest = s.alpha * r.offset_m() + s.gamma - std::abs(s.alpha) * bound_x - std::abs(s.beta) * bound_v -
+                          std::abs(s.delta);
+    if (lowest > 0.0) continue;  // never reachable in this region
+    const double h = s.alpha * y.x_m + s.beta * y.v_m_per_s + s.gamma + s.delta * std::sin(theta);
+    if (!(h > 0.0)) return 0.0;
+    const double rate = std::abs(s.alpha) * bound_v + std::abs(s.beta) * bound_a + std::abs(s.delta) * omega;
+    safe = std::min(safe, h / rate);
+  }
+  return safe;
+}
+
+void PiecewiseLinearSystem::AppendExtrema(PwlMode mode, double t0, State y0, double span,
+                                          std::vector<std::pair<double, State>>* out) const {
+  const LinearRegion& region = Region(mode);
+  const double w = drive_.AngularFrequency(), phase = drive_.phase_rad;
+  const Surface velocity{Surface::Kind::kLowerEnter, 0, 1, 0, 0};  // h = v: its zeros are the extrema of x
+  auto value_at = [&](const Surface& s, double tau) {
+    return Evaluate(s, region, w, phase, t0 + tau, region.Propagate(y0, t0, tau));
+  };
+  const int substeps = std::max(1, static_cast<int>(std::ceil(span / MaxSubstepS(mode))));
+  double tau_a = 0.0;
+  double v_a = y0.v_m_per_s;
+  for (int i = 1; i <= substeps; ++i) {
+    const double tau_b = span * i / substeps;
+    const State y_b = region.Propagate(y0, t0, tau_b);
+    const double v_b = y_b.v_m_per_s;
+    if ((v_a < 0.0 && v_b > 0.0) || (v_a > 0.0 && v_b < 0.0)) {
+      const double tau = LocateRoot(value_at, velocity, tau_a, tau_b);
+      out->emplace_back(t0 + tau, region.Propagate(y0, t0, tau));
+    }
+    tau_a = tau_b;
+    v_a = v_b;
+  }
+}
+
 void PiecewiseLinearSystem::ThrowStuck(double time_s, State y) {
   char message[200];
   std::snprintf(message, sizeof message,
@@ -206,7 +263,7 @@ std::optional<PiecewiseLinearSystem::LocatedSwitch> PiecewiseLinearSystem::First
     if (a.h <= 0.0) {
       // On the surface already (just after a switch, or rounding): it switches now only if it is
       // heading across.
-      if (a.dh < 0.0 && !skip_immediate) return LocatedSwitch{0.0, s.kind};
+      if (a.dh < 0.0 && !skip_immediate) return LocatedSwitch{0.0, s};
       if (b.h > 0.0) continue;
       if (!(a.dh > 0.0 && b.dh < 0.0)) continue;
       // Rose off the surface and came back: the crossing lies after the maximum.
@@ -220,7 +277,7 @@ std::optional<PiecewiseLinearSystem::LocatedSwitch> PiecewiseLinearSystem::First
     }
     if (first && lo >= first->tau_s) continue;
     const double tau = LocateRoot(value_at, s, lo, hi);
-    if (!first || tau < first->tau_s) first = LocatedSwitch{tau, s.kind};
+    if (!first || tau < first->tau_s) first = LocatedSwitch{tau, s};
   }
   return first;
 }

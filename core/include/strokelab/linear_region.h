@@ -41,6 +41,8 @@ class LinearRegion {
   double ps() const { return ps_; }
   double pc() const { return pc_; }
   double offset_m() const { return offset_m_; }
+  double decay_rate() const { return alpha_; }    // alpha = c / 2m [1/s]
+  double beta_squared() const { return beta2_; }  // k/m - alpha^2 [1/s^2]
   // Period of the free oscillation 2 pi / beta (or a decay time when overdamped) [s].
   double NaturalTimeScaleS() const;
 
