@@ -192,9 +192,43 @@ bool PeriodDoublingLike(const BranchPoint& unstable) {
   return false;
 }
 
+// Where continuation stalls next to a grazing point: the grazing point itself and the first orbit
+// past it on the other leg (the one with the other contact state), tried in the direction of
+// travel first (a smooth passage) and then back (a corner).
+struct GrazingRestart {
+  BranchPoint graze, point;
+  Vec3 u, tangent;
+};
+
+std::optional<GrazingRestart> RestartPastGrazing(const ActuatorModel& model, ContinuationParameter which,
+                                                 double fixed_value, const BranchProblem& problem,
+                                                 const BranchPoint& last, const Vec3& travel) {
+  const std::optional<BranchPoint> graze = LocateGrazing(model, which, fixed_value, last);
+  if (!graze) return std::nullopt;
+  const double direction = travel.p >= 0 ? 1.0 : -1.0;
+  const Vec3 at_graze = problem.ToScaled(graze->parameter, graze->start);
+  for (double sign : {direction, -direction}) {
+    for (double offset : {1e-6, 1e-5, 1e-4}) {
+      const double p = graze->parameter * (1.0 + sign * offset);
+      const std::optional<BranchPoint> orbit = SolveAt(model, which, fixed_value, p, graze->start);
+      if (!orbit || orbit->contacting() == last.contacting()) continue;
+      GrazingRestart restart;
+      restart.graze = *graze;
+      restart.u = problem.ToScaled(p, orbit->start);
+      const Evaluation e = problem.Evaluate(restart.u);
+      restart.tangent = e.Tangent();
+      if (restart.tangent.Dot(restart.u - at_graze) < 0) restart.tangent = restart.tangent * -1.0;
+      restart.point = problem.MakePoint(restart.u, e, restart.tangent, 0.0);
+      return restart;
+    }
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 double BranchPoint::MaxMultiplier()
+
  const { return std::max(std::abs(multipliers[0]), std::abs(multipliers[1])); }
 
 const char* ToString(BranchEvent::Kind kind) {
@@ -237,25 +271,65 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
   branch.points.push_back(problem.MakePoint(u, e, t, arclength));
 
   double h = options.initial_step;
+  bool restarted_here = false;
   while (static_cast<int>(branch.points.size()) < options.max_points) {
     if (cancel && cancel->load()) {
       branch.stopped_because = "cancelled";
       return branch;
     }
     const std::optional<BranchProblem::Corrected> c = problem.Correct(u + t * h, t, options);
+    const BranchPoint& last = branch.points.back();
     // Reject a corrector that failed or wandered far from the predictor (a jump to another branch).
-    if (!c || (c->u - u).Norm() > 3.0 * h) {
+    bool accepted = c && (c->u - u).Norm() <= 3.0 * h;
+    Vec3 t_new;
+    std::optional<BranchPoint> graze;
+    if (accepted) {
+      // Orient the new tangent along the secant: at a grazing corner the branch can turn by more
+      // than a right angle, where "same direction as the old tangent" would send it back.
+      t_new = c->evaluation.Tangent();
+      if (t_new.Dot(c->u - u) < 0) t_new = t_new * -1.0;
+      const bool contact_change = last.contacting() != (c->evaluation.figures.contacts > 0);
+      if (!contact_change) {
+        // A sharp turn of the tangent: a fold taken in too long a stride; look closer (down to a
+        // stride of 1e-3, below which a turn is a non-smooth kink, e.g. a second impact grazing).
+        if (t_new.Dot(t) < 0.9 && h > 1e-3) accepted = false;
+      } else {
+        // Across a grazing point the step must pass near it; otherwise it skipped a stretch of
+        // branch (a fold and its unstable side) and landed on another leg.
+        const BranchPoint noncontacting_side =
+            last.contacting() ? problem.MakePoint(c->u, c->evaluation, t_new, 0.0) : last;
+        graze = LocateGrazing(model, which, fixed_value, noncontacting_side);
+        if (graze) {
+          const Vec3 g = problem.ToScaled(graze->parameter, graze->start);
+          const double detour = (g - u).Norm() + (c->u - g).Norm();
+          if (detour > 2.0 * (c->u - u).Norm() + 1e-9 && h > 1e-3) accepted = false;
+        }
+      }
+    }
+    if (!accepted) {
       h *= 0.5;
       if (h < options.min_step) {
+        // Newton can lose its footing next to a grazing point, where the map is not smooth:
+        // restart on the other side of it.
+        if (!restarted_here) {
+          if (auto restart = RestartPastGrazing(model, which, fixed_value, problem, last, t)) {
+            restarted_here = true;
+            branch.events.push_back({BranchEvent::Kind::kGrazing, branch.points.size() - 1, restart->graze, false});
+            restart->point.arclength = arclength + (restart->u - u).Norm();
+            arclength = restart->point.arclength;
+            branch.points.push_back(restart->point);
+            u = restart->u;
+            t = restart->tangent;
+            h = options.initial_step;
+            continue;
+          }
+        }
         branch.stopped_because = "corrector failed at p = " + std::to_string(problem.ParameterOf(u));
         return branch;
       }
       continue;
     }
-    // Orient the new tangent along the secant: at a grazing corner the branch can turn by more
-    // than a right angle, where "same direction as the old tangent" would send it back.
-    Vec3 t_new = c->evaluation.Tangent();
-    if (t_new.Dot(c->u - u) < 0) t_new = t_new * -1.0;
+    restarted_here = false;
     const double step = (c->u - u).Norm();
     BranchPoint next = problem.MakePoint(c->u, c->evaluation, t_new, arclength + step);
     const BranchPoint previous = branch.points.back();
@@ -274,10 +348,6 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
           event.period_doubling = PeriodDoublingLike(previous.stable ? next : previous);
         branch.events.push_back(event);
       };
-      const BranchPoint* noncontacting = previous.contacting() ? (next.contacting() ? nullptr : &next) : &previous;
-      std::optional<BranchPoint> graze;
-      if (previous.contacting() != next.contacting() && noncontacting)
-        graze = LocateGrazing(model, which, fixed_value, *noncontacting);
       if (graze) {
         // A grazing point explains any turn or change of stability in this segment (a corner).
         branch.events.push_back({BranchEvent::Kind::kGrazing, branch.points.size() - 1, *graze, false});
@@ -361,21 +431,23 @@ std::optional<BranchPoint> LocateGrazing(const ActuatorModel& model, Continuatio
   const std::optional<double> c0 = clearance(p0);
   const double dp = 1e-6 * p0;
   const std::optional<double> c1 = clearance(p0 + dp);
-  if (!c0 || !c1 || *c0 <= 0.0 || *c1 == *c0) return std::nullopt;
-  // Secant steps toward the root until the clearance changes sign.
+  if (!c0 || !c1 || *c1 == *c0) return std::nullopt;
+  // Secant steps toward the root until the clearance changes sign (from either side: the free
+  // orbit may already reach into the stop at p0).
+  const bool positive = *c0 > 0.0;
   double pa = p0, ca = *c0, slope = (*c1 - *c0) / dp, pb = p0, cb = ca;
-  for (int i = 0; i < 40 && cb > 0.0; ++i) {
+  for (int i = 0; i < 40 && (cb > 0.0) == positive; ++i) {
     pb = pa - 1.5 * ca / slope;
     const std::optional<double> c = clearance(pb);
     if (!c) return std::nullopt;
     cb = *c;
-    if (cb > 0.0) {
+    if ((cb > 0.0) == positive) {
       slope = (cb - ca) / (pb - pa);
       pa = pb;
       ca = cb;
     }
   }
-  if (cb > 0.0) return std::nullopt;
+  if ((cb > 0.0) == positive) return std::nullopt;
   for (int i = 0; i < 200 && std::abs(pb - pa) > 1e-12 * std::abs(pa); ++i) {
     const double pm = pa - ca * (pb - pa) / (cb - ca);
     const double mid = (pm > std::min(pa, pb) && pm < std::max(pa, pb)) ? pm : 0.5 * (pa + pb);
@@ -392,7 +464,7 @@ std::optional<BranchPoint> LocateGrazing(const ActuatorModel& model, Continuatio
     }
   }
   std::optional<BranchPoint> point = SolveAt(free_model, which, fixed_value, 0.5 * (pa + pb), guess);
-  if (point) point->stable = noncontacting.stable;
+  if (point && noncontacting.figures.contacts == 0) point->stable = noncontacting.stable;
   return point;
 }
 

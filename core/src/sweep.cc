@@ -62,9 +62,16 @@ Boundary BoundaryInSegment(const ContinuedBranch& branch, size_t k) {
   const BranchEvent* fold = nullptr;
   const BranchEvent* graze = nullptr;
   const BranchEvent* stability = nullptr;
+  // A grazing corner is sometimes seen as a fold in one segment and as grazing in the next, a
+  // hair apart: look at the neighbouring segments too and let grazing win where they coincide.
+  for (const BranchEvent& e : branch.events) {
+    if (e.kind == BranchEvent::Kind::kGrazing && e.after + 1 >= k && e.after <= k + 1) {
+      const double p = branch.points[k].parameter;
+      if (e.after == k || std::abs(e.point.parameter - p) < 1e-3 * p) graze = &e;
+    }
+  }
   for (const BranchEvent& e : branch.events) {
     if (e.after != k) continue;
-    if (e.kind == BranchEvent::Kind::kGrazing) graze = &e;
     if (e.kind == BranchEvent::Kind::kFold) fold = &e;
     if (e.kind == BranchEvent::Kind::kStabilityChange) stability = &e;
   }

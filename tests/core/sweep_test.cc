@@ -1,0 +1,213 @@
+// Steady-state sweeps of the paper's model against closed forms, against time-domain stepped-sine
+// sweeps (the second method), and against what the paper and paper-notes report.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "strokelab/continuation.h"
+#include "strokelab/engine.h"
+#include "strokelab/linear_response.h"
+#include "strokelab/record_summary.h"
+#include "strokelab/signal.h"
+#include "strokelab/stepped_sine.h"
+#include "strokelab/sweep.h"
+#include "test_util.h"
+
+namespace strokelab {
+namespace {
+
+double Omega(double f_hz) { return 2 * std::numbers::pi * f_hz; }
+
+// The contacting response where it coexists with the free one: reached from a state at the stop.
+SteadyState ContactingAttractor(double f_hz, double amplitude_v) {
+  const PeriodMap map(PaperModel(), f_hz, amplitude_v);
+  return SolveAttractor(map, {-0.9e-3, 0.0});
+}
+
+SweepResult Sweep(GridAxis frequency, GridAxis amplitude, int threads = 1, bool thresholds = true) {
+  SweepSpec spec;
+  spec.model = PaperModel();
+  spec.frequency_hz = frequency;
+  spec.amplitude_v = amplitude;
+  spec.threads = threads;
+  spec.thresholds = thresholds;
+  return RunSweep(spec);
+}
+
+TEST(SaturationThresholdTest, GrazingAmplitudeIsTheClosedForm) {
+  const SweepResult r = Sweep({8.0, 13.0, 2}, {0.3, 0.3, 1});
+  ASSERT_EQ(r.saturation_threshold.size(), 2u);
+  // paper-notes: 0.2610 V at 8 Hz, 0.4629 V at 13 Hz. Root-finding on the orbit, not the grid.
+  EXPECT_NEAR(r.saturation_threshold[0].grazing_amplitude_v, 0.2610, 5e-5);
+  EXPECT_NEAR(r.saturation_threshold[1].grazing_amplitude_v, 0.4629, 5e-5);
+  for (const SaturationThreshold& t : r.saturation_threshold)
+    EXPECT_REL_NEAR(t.grazing_amplitude_v, LinearSaturationThresholdV(PaperModel(), Omega(t.frequency_hz)), 1e-9);
+  // Below resonance the contacting response reaches down to grazing; above it, well below.
+  EXPECT_REL_NEAR(r.saturation_threshold[0].lowest_contact_amplitude_v, r.saturation_threshold[0].grazing_amplitude_v,
+                  1e-9);
+  EXPECT_LT(r.saturation_threshold[1].lowest_contact_amplitude_v, 0.92 * r.saturation_threshold[1].grazing_amplitude_v);
+}
+
+TEST(SaturationThresholdTest, LowestContactAmplitudeAgreesWithTheTimeDomain) {
+  // At 13 Hz the contacting response is bistable with the free one down to a fold near 0.41 V.
+  const SweepResult r = Sweep({13.0, 13.0, 1}, {0.3, 0.3, 1});
+  const double lowest = r.saturation_threshold[0].lowest_contact_amplitude_v;
+  EXPECT_NEAR(lowest, 0.4136, 0.001);  // paper-notes: from rest the stop is reached near 0.415 V
+  // Second method: start on the contacting orbit at 0.45 V and run 300 periods at the lower amplitude.
+  const SteadyState contacting = ContactingAttractor(13.0, 0.45);
+  ASSERT_EQ(contacting.figures.contacts, 1);
+  auto keeps_contact = [&](double amplitude_v) {
+    SimulationOptions options;
+    options.duration_s = 300 / 13.0;
+    options.sample_rate_hz = 13.0 * 512;
+    options.initial = contacting.start;
+    const SineDrive drive{amplitude_v, 13.0, 0.0};
+    return Summarize(MakeExactEngine()->Simulate(PaperModel(), drive, options), drive).contacts > 0;
+  };
+  EXPECT_TRUE(keeps_contact(lowest + 0.002));
+  EXPECT_FALSE(keeps_contact(lowest - 0.002));
+}
+
+// The jump interval at one amplitude from continuation, and where stepped-sine sweeps jump.
+void ExpectJumpMatchesSteppedSine(double amplitude_v) {
+  const GridAxis eq1{5.0, 5.0 * std::pow(1.02, 116), 117, true};
+  const SweepResult r = Sweep(eq1, {amplitude_v, amplitude_v, 1}, 1, false);
+  ASSERT_EQ(r.jump.size(), 1u) << amplitude_v;
+  const JumpInterval& jump = r.jump[0];
+  EXPECT_EQ(jump.from_kind, "grazing");
+  EXPECT_EQ(jump.to_kind, "fold");
+  // The grazing end is where the free response touches the stop: V_sat(f) = V (paper-notes).
+  EXPECT_REL_NEAR(LinearSaturationThresholdV(PaperModel(), Omega(jump.bistable_from_hz)), amplitude_v, 1e-9);
+
+  const std::vector<double> grid = PaperFrequencyGridHz();
+  std::vector<double> down(grid.rbegin(), grid.rend());
+  SteppedSineOptions options;
+  options.settle_periods = 100;
+  const auto up_sweep = SteppedSineSweep(PaperModel(), amplitude_v, grid, options);
+  const auto down_sweep = SteppedSineSweep(PaperModel(), amplitude_v, down, options);
+  const std::vector<size_t> up_jumps = JumpIndices(up_sweep), down_jumps = JumpIndices(down_sweep);
+  ASSERT_EQ(up_jumps.size(), 1u);
+  ASSERT_EQ(down_jumps.size(), 1u);
+  // The up-sweep leaves the contacting branch at its fold, within one frequency step.
+  EXPECT_LE(up_sweep[up_jumps[0]].frequency_hz, jump.bistable_to_hz);
+  EXPECT_GT(up_sweep[up_jumps[0] + 1].frequency_hz, jump.bistable_to_hz);
+  // The down-sweep leaves the free branch where it grazes, within one step.
+  EXPECT_GE(down_sweep[down_jumps[0]].frequency_hz, jump.bistable_from_hz);
+  EXPECT_LT(down_sweep[down_jumps[0] + 1].frequency_hz, jump.bistable_from_hz);
+
+  // Where the sweep reports both branches, their FRFs are the stepped-sine ones. The stepped sine
+  // settles for 100 periods only, hence 1e-6.
+  for (size_t i = 0; i < grid.size(); ++i) {
+    const SweepPoint* up = nullptr;
+    for (const SweepPoint& p : r.points)
+      if (p.frequency_hz == r.frequency_hz[i] && p.branch == Branch::kUp) up = &p;
+    ASSERT_NE(up, nullptr);
+    EXPECT_TRUE(::strokelab::testing::NearRelative(up->h, up_sweep[i].h, 1e-6)) << grid[i] << " Hz";
+  }
+}
+
+TEST(JumpTest, AtHalfAVoltMatchesSteppedSineSweeps) { ExpectJumpMatchesSteppedSine(0.5); }
+TEST(JumpTest, AtSixTenthsOfAVoltMatchesSteppedSineSweeps) { ExpectJumpMatchesSteppedSine(0.6); }
+
+TEST(JumpTest, FoldIsWhereAMultiplierReachesOne) {
+  const SteadyState start = ContactingAttractor(13.8, 0.5);
+  ASSERT_EQ(start.figures.contacts, 1);
+  const ContinuedBranch branch =
+      ContinueBranch(PaperModel(), ContinuationParameter::kFrequencyHz, 0.5, 13.8, start.start, 13.0, 14.5, true);
+  const BranchEvent* fold = nullptr;
+  for (const BranchEvent& e : branch.events)
+    if (e.kind == BranchEvent::Kind::kFold) fold = &e;
+  ASSERT_NE(fold, nullptr);
+  double closest = INFINITY;
+  for (const auto& mu : fold->point.multipliers) closest = std::min(closest, std::abs(mu - 1.0));
+  EXPECT_LT(closest, 1e-4);
+  EXPECT_NEAR(fold->point.parameter, 14.0683387, 1e-6);
+}
+
+TEST(PeriodDoublingTest, JustPastGrazingAt8HzTheResponseIsPeriod2) {
+  // paper-notes / build-notes: at 8 Hz, 0.262-0.267 V, the period-1 orbit is unstable (a Floquet
+  // multiplier below -1) and the response is period-2.
+  const SweepResult r = Sweep({8.0, 8.0, 1}, {0.264, 0.264, 1}, 1, false);
+  bool saw_unstable_period1 = false;
+  for (const SweepPoint& p : r.points) {
+    if (p.branch == Branch::kUp || p.branch == Branch::kDown) {
+      EXPECT_EQ(p.period, 2);
+      EXPECT_TRUE(p.stable);
+      EXPECT_NEAR(p.contacts_per_period, 0.5, 1e-12);  // one impact every other period
+    } else {
+      saw_unstable_period1 = true;
+      EXPECT_EQ(p.period, 1);
+      EXPECT_GT(p.max_multiplier, 1.0);
+    }
+  }
+  EXPECT_TRUE(saw_unstable_period1);
+}
+
+TEST(SweepEngineTest, ResultsDoNotDependOnTheThreadCount) {
+  const GridAxis f{6.0, 16.0, 24}, v{0.2, 0.6, 5};
+  const SweepResult one = Sweep(f, v, 1), two = Sweep(f, v, 2);
+  ASSERT_EQ(one.points.size(), two.points.size());
+  for (size_t i = 0; i < one.points.size(); ++i) {
+    EXPECT_EQ(one.points[i].frequency_hz, two.points[i].frequency_hz);
+    EXPECT_EQ(one.points[i].branch, two.points[i].branch);
+    EXPECT_EQ(one.points[i].h, two.points[i].h);
+    EXPECT_EQ(one.points[i].min_displacement_m, two.points[i].min_displacement_m);
+    EXPECT_EQ(one.points[i].period, two.points[i].period);
+  }
+  ASSERT_EQ(one.jump.size(), two.jump.size());
+  for (size_t i = 0; i < one.jump.size(); ++i) EXPECT_EQ(one.jump[i].bistable_to_hz, two.jump[i].bistable_to_hz);
+  for (size_t i = 0; i < one.saturation_threshold.size(); ++i)
+    EXPECT_EQ(one.saturation_threshold[i].lowest_contact_amplitude_v,
+              two.saturation_threshold[i].lowest_contact_amplitude_v);
+}
+
+TEST(SweepEngineTest, LinearResponseBelowSaturationIsEq3) {
+  const SweepResult r = Sweep({5.0, 50.0, 30}, {0.1, 0.2, 2}, 1, false);
+  for (const SweepPoint& p : r.points) {
+    EXPECT_EQ(p.contacts_per_period, 0.0);
+    EXPECT_REL_NEAR(p.h, ForceFrf(PaperModel(), Omega(p.frequency_hz)), 1e-9);
+  }
+}
+
+TEST(SweepEngineTest, CancellationStopsTheSweep) {
+  SweepSpec spec;
+  spec.model = PaperModel();
+  spec.frequency_hz = {5.0, 50.0, 200};
+  spec.amplitude_v = {0.1, 0.6, 50};
+  std::atomic<bool> cancel{false};
+  size_t calls = 0;
+  EXPECT_THROW(RunSweep(spec,
+                        [&](const SweepProgress& p) {
+                          ++calls;
+                          EXPECT_EQ(p.total, 250u);
+                          cancel = true;
+                        },
+                        &cancel),
+               Cancelled);
+  EXPECT_EQ(calls, 1u);
+}
+
+TEST(SweepEngineTest, BadSpecsNameTheField) {
+  SweepSpec spec;
+  spec.frequency_hz = {50.0, 5.0, 10};
+  try {
+    spec.Validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "frequency_hz.to");
+  }
+  spec.frequency_hz = {5.0, 50.0, 0};
+  EXPECT_THROW(spec.Validate(), InputError);
+  spec.frequency_hz = {5.0, 50.0, 10};
+  spec.threads = 0;
+  try {
+    spec.Validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "threads");
+  }
+}
+
+}  // namespace
+}  // namespace strokelab
