@@ -2,6 +2,8 @@
 // crash; --json prints the promised figures.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "run_cli.h"
 #include <sys/wait.h>
 
 #include <array>
@@ -14,26 +16,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-struct Result {
-  int exit_code = -1;
-  std::string stdout_text, stderr_text;
-};
-
-Result RunCli(const std::string& args) {
-  const std::string err_path = ::testing::TempDir() + "/cli_test_stderr.txt";
-  const std::string command = std::string(STROKELAB_BINARY) + " " + args + " 2>" + err_path;
-  Result result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return result;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.stdout_text.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  std::ifstream err(err_path);
-  result.stderr_text.assign(std::istreambuf_iterator<char>(err), {});
-  return result;
-}
+using Result = ::strokelab::testing::CliResult;
+using ::strokelab::testing::RunCli;
 
 const std::string kSimulate = "simulate --frequency-hz 8 --amplitude-v 0.4 --duration-s 2 ";
 

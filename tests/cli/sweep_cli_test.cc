@@ -3,6 +3,8 @@
 // the stop, and writes its folder; Ctrl-C cancels with exit code 130.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "run_cli.h"
 #include <signal.h>
 #include <spawn.h>
 #include <fcntl.h>
@@ -29,27 +31,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-struct Result {
-  int exit_code = -1;
-  std::string stdout_text, stderr_text;
-};
-
-// As in cli_test.cc.
-Result RunCli(const std::string& args) {
-  const std::string err_path = ::testing::TempDir() + "/sweep_cli_test_stderr.txt";
-  const std::string command = std::string(STROKELAB_BINARY) + " " + args + " 2>" + err_path;
-  Result result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return result;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.stdout_text.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  std::ifstream err(err_path);
-  result.stderr_text.assign(std::istreambuf_iterator<char>(err), {});
-  return result;
-}
+using Result = ::strokelab::testing::CliResult;
+using ::strokelab::testing::RunCli;
 
 // One line, exit code 2, naming what is wrong.
 void ExpectInputError(const std::string& args, const std::string& expected) {
@@ -180,8 +163,8 @@ TEST(SweepCliTest, InterruptCancels) {
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   // A grid far too big to finish within the wait below.
-  std::vector<std::string> args = {STROKELAB_BINARY,    "sweep", "--frequency-points", "2000",
-                                   "--amplitude-points", "40",   "--threads",          "1"};
+  std::vector<std::string> args = {STROKELAB_BINARY,    "sweep", "--frequency-points", "4000",
+                                   "--amplitude-points", "80",   "--threads",          "1"};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

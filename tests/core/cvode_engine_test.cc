@@ -19,12 +19,16 @@
 
 #include "strokelab/engine.h"
 #include "strokelab/errors.h"
+#include "engine_test_util.h"
 #include "test_util.h"
 
 namespace strokelab {
 namespace {
 
 using ::testing::HasSubstr;
+using ::strokelab::testing::ComplexAmplitude;
+using ::strokelab::testing::LastSecond;
+using ::strokelab::testing::PaperEq3;
 using Complex = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
 
@@ -38,27 +42,7 @@ constexpr double kContactTimeToleranceS = 1e-9;
 // Free decay, max |error| / amplitude: measured 1.0e-9 for x, v and the force.
 constexpr double kFreeDecayRelativeTolerance = 1e-8;
 
-// Complex amplitude A of signal[first..] at f_hz, so that signal ~ Re(A e^{j 2 pi f t}). Exact (a
-// DFT bin) when the window holds a whole number of periods, as the last second does at integer f.
-Complex ComplexAmplitude(const std::vector<double>& signal, size_t first, double sample_rate_hz, double f_hz) {
-  Complex sum = 0.0;
-  for (size_t n = first; n < signal.size(); ++n) {
-    const double phase = 2.0 * kPi * f_hz * static_cast<double>(n) / sample_rate_hz;
-    sum += signal[n] * Complex(std::cos(phase), -std::sin(phase));
-  }
-  return 2.0 * sum / static_cast<double>(signal.size() - first);
-}
 
-// First sample of the record's last whole second.
-size_t LastSecond(const Record& record) { return record.size() - static_cast<size_t>(record.sample_rate_hz); }
-
-// Paper Eq. 3 for a model's linear part.
-Complex PaperEq3(const ActuatorModel& m, double w_rad_per_s) {
-  const double w_p = std::sqrt(m.stiffness_n_per_m / m.mass_kg);
-  const double zeta_p = m.damping_n_s_per_m / (2.0 * std::sqrt(m.stiffness_n_per_m * m.mass_kg));
-  return -m.gain_n_per_v * w_rad_per_s * w_rad_per_s /
-         Complex(w_p * w_p - w_rad_per_s * w_rad_per_s, 2.0 * zeta_p * w_p * w_rad_per_s);
-}
 
 // Damped natural frequency in contact with a linear stop [rad/s].
 double ContactDampedFrequency(const ActuatorModel& m) {

@@ -16,32 +16,20 @@
 
 #include "strokelab/engine.h"
 #include "strokelab/errors.h"
+#include "engine_test_util.h"
 #include "test_util.h"
 
 namespace strokelab {
 namespace {
 
 using ::testing::HasSubstr;
+using ::strokelab::testing::ComplexAmplitude;
+using ::strokelab::testing::LastSecond;
+using ::strokelab::testing::PaperEq3;
 using Complex = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
 
-Complex ComplexAmplitude(const std::vector<double>& signal, size_t first, double sample_rate_hz, double f_hz) {
-  Complex sum = 0.0;
-  for (size_t n = first; n < signal.size(); ++n) {
-    const double phase = 2.0 * kPi * f_hz * static_cast<double>(n) / sample_rate_hz;
-    sum += signal[n] * Complex(std::cos(phase), -std::sin(phase));
-  }
-  return 2.0 * sum / static_cast<double>(signal.size() - first);
-}
 
-size_t LastSecond(const Record& record) { return record.size() - static_cast<size_t>(record.sample_rate_hz); }
-
-Complex PaperEq3(const ActuatorModel& m, double w_rad_per_s) {
-  const double w_p = std::sqrt(m.stiffness_n_per_m / m.mass_kg);
-  const double zeta_p = m.damping_n_s_per_m / (2.0 * std::sqrt(m.stiffness_n_per_m * m.mass_kg));
-  return -m.gain_n_per_v * w_rad_per_s * w_rad_per_s /
-         Complex(w_p * w_p - w_rad_per_s * w_rad_per_s, 2.0 * zeta_p * w_p * w_rad_per_s);
-}
 
 double ContactDampedFrequency(const ActuatorModel& m) {
   const double a = (m.damping_n_s_per_m + m.contact_damping_n_s_per_m) / (2.0 * m.mass_kg);

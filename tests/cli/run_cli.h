@@ -1,0 +1,35 @@
+// Runs the strokelab binary with arguments and captures exit code, stdout and stderr.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+namespace strokelab::testing {
+
+struct CliResult {
+  int exit_code = -1;
+  std::string stdout_text, stderr_text;
+};
+
+inline CliResult RunCli(const std::string& args) {
+  const std::string err_path = ::testing::TempDir() + "/strokelab_cli_stderr.txt";
+  const std::string command = std::string(STROKELAB_BINARY) + " " + args + " 2>" + err_path;
+  CliResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return result;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.stdout_text.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  std::ifstream err(err_path);
+  result.stderr_text.assign(std::istreambuf_iterator<char>(err), {});
+  return result;
+}
+
+}  // namespace strokelab::testing
