@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-machine set-up: installs what is missing (Debian packages), builds, then runs or tests.
-#   deploy/local.sh run    build and run the main job
+#   deploy/local.sh run    build and run the main job: the service with a demo sweep
+#   deploy/local.sh demo   build and write the demo sweep and the paper's figures as files
 #   deploy/local.sh test   build and run every test (what .ci/run calls)
 #   deploy/local.sh build  build only
 set -euo pipefail
@@ -32,6 +33,15 @@ build() {
 
 case "${1:-}" in
   run)
+    # The service on its embedded SQLite file with one worker per core; once it is up it submits
+    # a demo sweep of the paper's model and prints the URL of its saturation map. Ctrl-C stops it.
+    install_missing
+    build
+    mkdir -p var
+    exec "$BUILD_DIR/strokelab" serve --db var/strokelab.db --port "${STROKELAB_PORT:-8080}" --demo
+    ;;
+  demo)
+    # The same studies offline, as files: a sweep folder and the paper's figures under var/.
     install_missing
     build
     exec deploy/demo.sh "$BUILD_DIR/strokelab"
@@ -46,7 +56,7 @@ case "${1:-}" in
     build
     ;;
   *)
-    echo "usage: deploy/local.sh run|test|build" >&2
+    echo "usage: deploy/local.sh run|demo|test|build" >&2
     exit 2
     ;;
 esac

@@ -19,7 +19,7 @@
 #include <sstream>
 
 #include "commands.h"
-#include "csv_table.h"
+#include "strokelab/csv_table.h"
 #include "strokelab/engine.h"
 #include "strokelab/errors.h"
 #include "strokelab/linear_response.h"
@@ -28,6 +28,8 @@
 #include "strokelab/svg_plot.h"
 
 namespace strokelab::cli {
+
+using report::CsvTable;
 namespace {
 
 constexpr const char* kHelp = R"(usage: strokelab paper --out DIR [options]

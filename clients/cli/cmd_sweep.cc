@@ -19,9 +19,14 @@
 #include "strokelab/errors.h"
 #include "strokelab/parse.h"
 #include "strokelab/sweep.h"
-#include "sweep_output.h"
+#include "strokelab/sweep_report.h"
 
 namespace strokelab::cli {
+
+using report::SweepFolderFiles;
+using report::SweepSummaryText;
+using report::SweepToJson;
+using report::WriteSweepFolder;
 namespace {
 
 constexpr const char* kHelp = R"(usage: strokelab sweep [options]

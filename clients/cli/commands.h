@@ -13,6 +13,11 @@ namespace strokelab::cli {
 int RunSimulate(const std::vector<std::string>& argv);
 int RunPaper(const std::vector<std::string>& argv);
 int RunSweep(const std::vector<std::string>& argv);
+int RunServe(const std::vector<std::string>& argv);
+int RunWorker(const std::vector<std::string>& argv);
+int RunSubmit(const std::vector<std::string>& argv);
+int RunStatus(const std::vector<std::string>& argv);
+int RunResults(const std::vector<std::string>& argv);
 
 // --model (a preset name or a JSON model file) followed by every --set key=value, validated.
 ActuatorModel LoadModel(const Args& args);

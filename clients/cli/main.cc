@@ -16,6 +16,13 @@ usage: strokelab COMMAND [options]
 commands:
   simulate   one time-domain record of a model under a sine drive (summary as text or --json, series as CSV)
   sweep      steady states over a frequency x amplitude grid: FRF branches, saturation thresholds, jumps
+
+service:
+  serve      the REST service: SQLite job store, worker pool, web page at /
+  worker     a remote worker leasing tasks from a server (--server http://HOST:PORT)
+  submit     submit a job file to a server (--wait: progress bar until it finishes)
+  status     a job's status (--wait: until it finishes)
+  results    a job's steady states as JSON or --csv
   paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 Run 'strokelab COMMAND --help' for a command's options.
@@ -34,6 +41,11 @@ int main(int argc, char** argv) {
     if (command == "simulate") return strokelab::cli::RunSimulate(rest);
     if (command == "paper") return strokelab::cli::RunPaper(rest);
     if (command == "sweep") return strokelab::cli::RunSweep(rest);
+    if (command == "serve") return strokelab::cli::RunServe(rest);
+    if (command == "worker") return strokelab::cli::RunWorker(rest);
+    if (command == "submit") return strokelab::cli::RunSubmit(rest);
+    if (command == "status") return strokelab::cli::RunStatus(rest);
+    if (command == "results") return strokelab::cli::RunResults(rest);
     std::cerr << "strokelab: error: unknown command '" << command << "' (see strokelab --help)\n";
     return 2;
   } catch (const strokelab::InputError& e) {

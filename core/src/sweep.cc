@@ -118,15 +118,47 @@ std::vector<JumpInterval> JumpIntervals(const ContinuedBranch& branch, double am
   return jumps;
 }
 
-struct RowResult {
-  std::vector<SweepPoint> points;
-  std::vector<JumpInterval> jumps;
-};
+// Runs `count` indexed tasks on `threads` threads; the first exception stops the rest and is rethrown.
+template <class Task>
+void ParallelFor(size_t count, int threads, const std::atomic<bool>* cancel, Task&& task) {
+  std::atomic<size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto worker = [&] {
+    for (size_t i; !failed.load() && (i = next.fetch_add(1)) < count;) {
+      try {
+        if (cancel && cancel->load()) throw Cancelled();
+        task(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        failed = true;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+void ValidateAxis(const GridAxis& axis, const std::string& name, double lowest) {
+  if (!std::isfinite(axis.from) || axis.from < lowest)
+    throw InputError(name + ".from", "must be a finite number >= " + std::to_string(lowest));
+  if (!std::isfinite(axis.to) || axis.to < axis.from) throw InputError(name + ".to", "must be >= " + name + ".from");
+  if (axis.points < 1 || axis.points > 100000) throw InputError(name + ".points", "must be between 1 and 100000");
+  if (axis.points > 1 && axis.to == axis.from) throw InputError(name + ".to", "must be > from when points > 1");
+  if (axis.geometric && axis.from <= 0) throw InputError(name + ".from", "must be > 0 on a geometric grid");
+}
+
+}  // namespace
 
 // The steady states of one amplitude at every grid frequency, by continuation in frequency.
-RowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
+SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
                    const std::atomic<bool>* cancel) {
-  RowResult row;
+  SweepRowResult row;
   const double f_lo = grid_hz.front(), f_hi = grid_hz.back();
   const PeriodMap first(model, f_lo, amplitude_v);
   std::optional<SteadyState> start = Shoot(first, first.ClippedLinearStart(), 1);
@@ -214,43 +246,6 @@ SaturationThreshold SweepColumn(const ActuatorModel& model, double f_hz, const s
   return t;
 }
 
-// Runs `count` indexed tasks on `threads` threads; the first exception stops the rest and is rethrown.
-template <class Task>
-void ParallelFor(size_t count, int threads, const std::atomic<bool>* cancel, Task&& task) {
-  std::atomic<size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  auto worker = [&] {
-    for (size_t i; !failed.load() && (i = next.fetch_add(1)) < count;) {
-      try {
-        if (cancel && cancel->load()) throw Cancelled();
-        task(i);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::current_exception();
-        failed = true;
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-}
-
-void ValidateAxis(const GridAxis& axis, const std::string& name, double lowest) {
-  if (!std::isfinite(axis.from) || axis.from < lowest)
-    throw InputError(name + ".from", "must be a finite number >= " + std::to_string(lowest));
-  if (!std::isfinite(axis.to) || axis.to < axis.from) throw InputError(name + ".to", "must be >= " + name + ".from");
-  if (axis.points < 1 || axis.points > 100000) throw InputError(name + ".points", "must be between 1 and 100000");
-  if (axis.points > 1 && axis.to == axis.from) throw InputError(name + ".to", "must be > from when points > 1");
-  if (axis.geometric && axis.from <= 0) throw InputError(name + ".from", "must be > 0 on a geometric grid");
-}
-
-}  // namespace
-
 std::vector<double> GridAxis::Values() const {
   std::vector<double> values(points);
   for (int i = 0; i < points; ++i) {
@@ -288,7 +283,7 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
   result.amplitude_v = spec.amplitude_v.Values();
   const size_t rows = result.amplitude_v.size();
   const size_t columns = spec.thresholds ? result.frequency_hz.size() : 0;
-  std::vector<RowResult> row_results(rows);
+  std::vector<SweepRowResult> row_results(rows);
   result.saturation_threshold.resize(columns);
 
   std::mutex progress_mutex;
@@ -307,7 +302,7 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
     }
   });
   if (cancel && cancel->load()) throw Cancelled();
-  for (RowResult& r : row_results) {
+  for (SweepRowResult& r : row_results) {
     result.points.insert(result.points.end(), r.points.begin(), r.points.end());
     result.jump.insert(result.jump.end(), r.jumps.begin(), r.jumps.end());
   }

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -17,7 +18,10 @@ struct CliResult {
 };
 
 inline CliResult RunCli(const std::string& args) {
-  const std::string err_path = ::testing::TempDir() + "/strokelab_cli_stderr.txt";
+  // One stderr file per process and call: CTest runs test processes side by side.
+  static int calls = 0;
+  const std::string err_path = ::testing::TempDir() + "/strokelab_cli_stderr_" + std::to_string(::getpid()) + "_" +
+                               std::to_string(++calls) + ".txt";
   const std::string command = std::string(STROKELAB_BINARY) + " " + args + " 2>" + err_path;
   CliResult result;
   FILE* pipe = popen(command.c_str(), "r");
@@ -29,6 +33,7 @@ inline CliResult RunCli(const std::string& args) {
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   std::ifstream err(err_path);
   result.stderr_text.assign(std::istreambuf_iterator<char>(err), {});
+  std::remove(err_path.c_str());
   return result;
 }
 

@@ -81,6 +81,17 @@ struct SweepProgress {
   size_t done = 0, total = 0;  // units of work (grid rows and columns)
 };
 
+// The two units of work a sweep is made of (the service runs them as separate tasks):
+// a row, every grid frequency at one amplitude (continuation in frequency, jump intervals) ...
+struct SweepRowResult {
+  std::vector<SweepPoint> points;   // by frequency, then branch
+  std::vector<JumpInterval> jumps;
+};
+SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& frequencies_hz,
+                        const std::atomic<bool>* cancel = nullptr);
+// ... and a column, the saturation threshold at one frequency.
+SaturationThreshold SweepColumn(const ActuatorModel& model, double frequency_hz, const std::atomic<bool>* cancel = nullptr);
+
 // Runs the sweep on spec.threads threads. Results do not depend on the thread count. `progress` is
 // called from worker threads (serialise inside it if needed); `cancel` stops at the next unit of
 // work and the call throws Cancelled.

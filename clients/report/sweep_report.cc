@@ -1,4 +1,4 @@
-#include "sweep_output.h"
+#include "strokelab/sweep_report.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,11 +9,11 @@
 #include <optional>
 #include <stdexcept>
 
-#include "csv_table.h"
+#include "strokelab/csv_table.h"
 #include "strokelab/model_json.h"
 #include "strokelab/svg_plot.h"
 
-namespace strokelab::cli {
+namespace strokelab::report {
 namespace {
 
 using nlohmann::json;
@@ -360,6 +360,15 @@ const std::vector<std::string>& SweepFolderFiles() {
   return files;
 }
 
+std::string SaturationMapSvg(const SweepResult& r, Branch branch) { return SaturationMap(r, BranchGrid(r), branch); }
+
+std::string FrfMagnitudeSvg(const SweepResult& r, Branch branch) {
+  return plot::LinePlot(FrfSeries(r, BranchGrid(r), branch, false, true),
+                        FrfAxes(branch == Branch::kUp ? "First-order FRF |H|, up-sweep branch (paper Fig. 10)"
+                                                      : "First-order FRF |H|, down-sweep branch",
+                                "|H| [N/V]"));
+}
+
 void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const std::filesystem::path& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -402,12 +411,8 @@ void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const st
   const BranchGrid grid(r);
   WriteFile(dir / "saturation_map.svg", SaturationMap(r, grid, Branch::kUp));
   WriteFile(dir / "saturation_map_down.svg", SaturationMap(r, grid, Branch::kDown));
-  WriteFile(dir / "frf_up.svg",
-            plot::LinePlot(FrfSeries(r, grid, Branch::kUp, false, true),
-                           FrfAxes("First-order FRF |H|, up-sweep branch (paper Fig. 10)", "|H| [N/V]")));
-  WriteFile(dir / "frf_down.svg",
-            plot::LinePlot(FrfSeries(r, grid, Branch::kDown, false, true),
-                           FrfAxes("First-order FRF |H|, down-sweep branch", "|H| [N/V]")));
+  WriteFile(dir / "frf_up.svg", FrfMagnitudeSvg(r, Branch::kUp));
+  WriteFile(dir / "frf_down.svg", FrfMagnitudeSvg(r, Branch::kDown));
   std::vector<plot::Series> phase = FrfSeries(r, grid, Branch::kUp, true, false);
   for (plot::Series& s : FrfSeries(r, grid, Branch::kDown, true, false)) {
     s.label.clear();  // one legend entry per amplitude
@@ -425,4 +430,4 @@ void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const st
   WriteFile(dir / "summary.txt", SweepSummaryText(r));
 }
 
-}  // namespace strokelab::cli
+}  // namespace strokelab::report

@@ -1,6 +1,6 @@
 // The sweep command's output (JSON object, --out folder, summary) on synthetic sweep results, so
 // that the formatting is checked without running a sweep.
-#include "sweep_output.h"
+#include "strokelab/sweep_report.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -14,7 +14,7 @@
 
 #include "strokelab/model.h"
 
-namespace strokelab::cli {
+namespace strokelab::report {
 namespace {
 
 using ::testing::HasSubstr;
@@ -245,4 +245,4 @@ TEST(SweepOutputTest, SpikeFactorIsOneForASinusoid) {
 }
 
 }  // namespace
-}  // namespace strokelab::cli
+}  // namespace strokelab::report

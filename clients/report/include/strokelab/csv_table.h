@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-namespace strokelab::cli {
+namespace strokelab::report {
 
 class CsvTable {
  public:
@@ -23,4 +23,4 @@ class CsvTable {
   std::vector<std::vector<double>> columns_;
 };
 
-}  // namespace strokelab::cli
+}  // namespace strokelab::report

@@ -1,4 +1,4 @@
-// What `strokelab sweep` makes of a SweepResult: the --json object, the --out folder (CSV tables,
+// What `strokelab sweep` (and the service) make of a SweepResult: the --json object, the --out folder (CSV tables,
 // SVG pictures, summary.txt) and the text summary. Pure functions of the result and the model, so
 // they are tested on synthetic results without running a sweep.
 #pragma once
@@ -11,7 +11,7 @@
 #include "strokelab/model.h"
 #include "strokelab/sweep.h"
 
-namespace strokelab::cli {
+namespace strokelab::report {
 
 // One JSON object: points, saturation_threshold, jump, grid, model, wall_time_s, points_per_second.
 // A point's period is a number, or "aperiodic" when SweepPoint::period == 0. Non-finite numbers are
@@ -27,6 +27,10 @@ std::string SweepSummaryText(const SweepResult& result);
 // frequency, and it grows with the impact spikes, so the map shows the saturation itself rather
 // than the resonance ridge that dominates |H| (which the FRF pictures show). NaN if undefined.
 double SpikeFactor(const SweepPoint& point);
+
+// The saturation map of one branch (see WriteSweepFolder) and the |H| family (paper Fig. 10) as SVG.
+std::string SaturationMapSvg(const SweepResult& result, Branch branch);
+std::string FrfMagnitudeSvg(const SweepResult& result, Branch branch);
 
 // The files WriteSweepFolder writes, in order.
 const std::vector<std::string>& SweepFolderFiles();
@@ -46,4 +50,4 @@ const std::vector<std::string>& SweepFolderFiles();
 // Throws std::runtime_error if a file cannot be written.
 void WriteSweepFolder(const SweepResult& result, const ActuatorModel& model, const std::filesystem::path& dir);
 
-}  // namespace strokelab::cli
+}  // namespace strokelab::report

@@ -1,4 +1,4 @@
-#include "csv_table.h"
+#include "strokelab/csv_table.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <fstream>
 #include <stdexcept>
 
-namespace strokelab::cli {
+namespace strokelab::report {
 
 CsvTable::CsvTable(std::vector<std::string> columns) : names_(std::move(columns)), columns_(names_.size()) {}
 
@@ -51,4 +51,4 @@ void CsvTable::Write(const std::filesystem::path& path) const {
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }
 
-}  // namespace strokelab::cli
+}  // namespace strokelab::report

@@ -1,0 +1,50 @@
+// The strokelab service: a REST API over the job store, and an in-process pool of workers that
+// lease tasks from it (design card, "server/, worker/, schema/").
+//
+//   POST   /v1/jobs                        submit (JSON job, validated against schema/job.schema.json)
+//   GET    /v1/jobs?limit=&before=         list, newest first
+//   GET    /v1/jobs/{id}                   status, progress, timings, error
+//   DELETE /v1/jobs/{id}                   cancel
+//   GET    /v1/jobs/{id}/points            steady states (filters, paging; JSON or CSV)
+//   GET    /v1/jobs/{id}/saturation-map    threshold curve and jump intervals (JSON; ?format=svg: picture)
+//   GET    /v1/jobs/{id}/frf?amplitude_v=  FRF branches at one amplitude (?format=svg: |H| family)
+//   POST   /v1/tasks/lease, /v1/tasks/{id}/complete, /v1/tasks/{id}/fail   remote workers
+//   GET    /v1/health, /metrics, /         health, Prometheus text, the web page
+#pragma once
+
+#include <memory>
+#include <string>
+
+namespace strokelab::server {
+
+struct ServiceOptions {
+  std::string host = "127.0.0.1";  // loopback unless told otherwise
+  int port = 8080;                  // 0: any free port
+  std::string db_path = "var/strokelab.db";
+  int workers = -1;                 // in-process workers; -1: one per core; 0: remote workers only
+  std::string token_file;           // empty: no authentication (loopback use)
+  size_t max_body_bytes = 1 << 20;  // larger request bodies get 413
+  int64_t lease_ms = 120000;        // a task lease lasts this long [ms]
+  bool quiet = false;               // no access log on stderr
+};
+
+class Service {
+ public:
+  // Opens the store (throws std::runtime_error naming the file) and loads the tokens (throws
+  // strokelab::InputError naming the file and line).
+  explicit Service(const ServiceOptions& options);
+  ~Service();
+
+  // Binds and starts serving and working in background threads; throws std::runtime_error if the
+  // address cannot be bound. Returns the bound port.
+  int Start();
+  // Blocks until Stop() (from another thread or a signal handler's thread).
+  void Wait();
+  void Stop();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace strokelab::server

@@ -1,0 +1,125 @@
+// The job store and task queue: one SQLite file in WAL mode (schema/migrations/*.sql).
+//
+// A job is split into tasks when it is submitted (one transaction). Workers lease a task with an
+// expiry; a lease that expires makes the task leasable again. Completing a task writes all of its
+// result rows and marks it done in one transaction, and only if the caller still holds the lease,
+// so that a task is never stored twice and a crash at any moment loses at most the work of the
+// leases in flight. Every task has a key (a hash of its spec, the model, the method and the code
+// version); the result of a finished task is kept by key, and a task whose key is known is done at
+// submission from that cache, without recomputation.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace strokelab::server {
+
+enum class JobStatus { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
+const char* ToString(JobStatus status);
+
+struct JobRecord {
+  int64_t id = 0;
+  std::string kind;                // "sweep", "simulate", ...
+  JobStatus status = JobStatus::kQueued;
+  nlohmann::json spec;             // as submitted (validated)
+  int tasks_total = 0, tasks_done = 0;
+  int64_t created_ms = 0, started_ms = 0, finished_ms = 0;  // unix epoch [ms]; 0: not yet
+  std::string error;               // when failed
+};
+
+struct TaskSpec {
+  std::string key;                 // content hash: identical work has the same key
+  nlohmann::json spec;             // what the worker needs to run it
+};
+
+struct TaskLease {
+  int64_t task_id = 0;
+  int64_t job_id = 0;
+  int index = 0;                   // position within the job
+  std::string kind;                // the job's kind
+  nlohmann::json spec;
+  std::string lease_token;         // proves the lease when completing
+  int64_t expires_ms = 0;
+};
+
+// One result row of a task: a table name ("points", "thresholds", "jumps", "records") and its
+// values as a JSON object. Rows are stored as JSON text with their task and row index, which make
+// them unique: (job, task, row).
+struct ResultRow {
+  std::string table;
+  nlohmann::json values;
+};
+
+// Every method is thread-safe (one SQLite connection behind a mutex); errors of the database
+// (disk full, I/O, locked by another process for more than 5 s) throw std::runtime_error naming the
+// file and SQLite's message, with the transaction rolled back.
+class Store {
+ public:
+  // Opens (creating if needed) the database, sets WAL mode, applies pending migrations.
+  // Throws std::runtime_error naming the file on failure (corrupt, locked, not writable).
+  static std::unique_ptr<Store> Open(const std::string& path);
+  virtual ~Store() = default;
+
+  virtual int SchemaVersion() = 0;
+
+  // Inserts the job and its tasks in one transaction; tasks whose key has a cached result are done
+  // at once with that result (the job is succeeded at once when all are, or when there are no
+  // tasks). Returns the job id.
+  virtual int64_t SubmitJob(const std::string& kind, const nlohmann::json& spec, const std::vector<TaskSpec>& tasks,
+                            int64_t now_ms) = 0;
+  virtual std::optional<JobRecord> GetJob(int64_t id) = 0;
+  // Newest first; `before_id` pages (0: from the newest).
+  virtual std::vector<JobRecord> ListJobs(int limit, int64_t before_id) = 0;
+  // Cancels a queued or running job (its leases become void). False if it had already finished
+  // (or does not exist).
+  virtual bool CancelJob(int64_t id, int64_t now_ms) = 0;
+
+  // Leases the oldest leasable task (queued, or leased with an expired lease) of a running or
+  // queued job, for `lease_ms`; nullopt when there is none.
+  virtual std::optional<TaskLease> LeaseTask(const std::string& worker, int64_t now_ms, int64_t lease_ms) = 0;
+  // Returns the tasks leased by workers whose name starts with `owner_prefix` to the queue: the
+  // server does this at start for its own in-process workers, which cannot outlive it, so that a
+  // restart after a crash resumes at once instead of waiting for their leases to expire.
+  virtual int ReleaseLeases(const std::string& owner_prefix) = 0;
+  // Extends a lease still held; false if it was lost.
+  virtual bool RenewLease(const TaskLease& lease, int64_t now_ms, int64_t lease_ms) = 0;
+  // Writes the rows and marks the task done in one transaction, if the lease is still held (same
+  // token, not expired, job not cancelled); caches the rows under the task key; finishes the job
+  // when its last task is done. False if the lease was lost (nothing is written). An expired lease
+  // is lost even before another worker takes the task: renew in time.
+  virtual bool CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) = 0;
+  // Fails the task and its job with a message (a deterministic error: retrying would not help);
+  // the job's other open tasks are cancelled. Does nothing if the lease was lost.
+  virtual void FailTask(const TaskLease& lease, const std::string& error, int64_t now_ms) = 0;
+
+  // Result rows of a job from one table in (task, row) order, with keyset paging: rows after
+  // `cursor` (0: from the start), at most `limit`; `next_cursor` is 0 at the end. Rows whose values
+  // hold "frequency_hz", "amplitude_v" and "branch" can be filtered on them (indexed columns).
+  // A cursor encodes the position (task, row) of the last row returned, so paging a running job
+  // does not see rows of tasks that complete behind the cursor; page a finished job for all rows.
+  // Throws std::invalid_argument for a negative cursor or a limit below 1.
+  struct Filter {
+    std::optional<double> frequency_min_hz, frequency_max_hz;
+    std::optional<double> amplitude_v;  // matched to 1e-9 relative
+    std::optional<std::string> branch;
+  };
+  struct Page {
+    std::vector<nlohmann::json> rows;
+    int64_t next_cursor = 0;
+  };
+  virtual Page Results(int64_t job_id, const std::string& table, const Filter& filter, int64_t cursor, int limit) = 0;
+  virtual int64_t CountResults(int64_t job_id, const std::string& table) = 0;
+
+  // Counts for /metrics: jobs by status, tasks queued (leasable), tasks done in total.
+  struct Counts {
+    int64_t jobs[5] = {0, 0, 0, 0, 0};
+    int64_t tasks_queued = 0, tasks_leased = 0, tasks_done = 0;
+  };
+  virtual Counts GetCounts(int64_t now_ms) = 0;
+};
+
+}  // namespace strokelab::server

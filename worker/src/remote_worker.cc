@@ -1,0 +1,111 @@
+#include "strokelab/worker/remote_worker.h"
+
+#include <httplib.h>
+
+#include <chrono>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <vector>
+
+#include "strokelab/errors.h"
+#include "strokelab/server/jobs.h"
+#include "strokelab/sweep.h"
+
+namespace strokelab::worker {
+namespace {
+
+using nlohmann::json;
+
+httplib::Headers AuthHeaders(const std::string& token) {
+  if (token.empty()) return {};
+  return {{"Authorization", "Bearer " + token}};
+}
+
+void Pause(int ms, const std::atomic<bool>& stop) {
+  for (int waited = 0; waited < ms && !stop; waited += 50) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+}
+
+}  // namespace
+
+std::pair<std::string, int> ParseServerUrl(const std::string& url) {
+  const std::string prefix = "http://";
+  if (url.rfind(prefix, 0) != 0) throw InputError("--server", "expected http://HOST:PORT, got '" + url + "'");
+  std::string rest = url.substr(prefix.size());
+  if (!rest.empty() && rest.back() == '/') rest.pop_back();
+  const size_t colon = rest.rfind(':');
+  if (colon == std::string::npos || colon == 0) throw InputError("--server", "expected http://HOST:PORT, got '" + url + "'");
+  int port = 0;
+  try {
+    port = std::stoi(rest.substr(colon + 1));
+  } catch (...) {
+    port = 0;
+  }
+  if (port <= 0 || port > 65535) throw InputError("--server", "bad port in '" + url + "'");
+  return {rest.substr(0, colon), port};
+}
+
+int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>& stop) {
+  const auto [host, port] = ParseServerUrl(options.server_url);
+  std::atomic<int> completed{0};
+  std::atomic<bool> refused{false};
+  std::string refusal;
+  auto loop = [&, host = host, port = port](int index) {
+    httplib::Client client(host, port);
+    client.set_connection_timeout(5);
+    client.set_read_timeout(60);
+    const httplib::Headers headers = AuthHeaders(options.token);
+    const std::string name = options.name + "-" + std::to_string(index);
+    while (!stop && !refused && (options.max_tasks < 0 || completed < options.max_tasks)) {
+      auto lease = client.Post("/v1/tasks/lease", headers, json({{"worker", name}}).dump(), "application/json");
+      if (!lease) {  // network trouble: the server may be restarting
+        Pause(1000, stop);
+        continue;
+      }
+      if (lease->status == 401 || lease->status == 403) {
+        refusal = "server refused the token (HTTP " + std::to_string(lease->status) + ")";
+        refused = true;
+        break;
+      }
+      if (lease->status == 204) {
+        Pause(options.idle_poll_ms, stop);
+        continue;
+      }
+      if (lease->status != 200) {
+        Pause(1000, stop);
+        continue;
+      }
+      const json task = json::parse(lease->body);
+      json reply = {{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}};
+      std::string endpoint = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>());
+      try {
+        json rows = json::array();
+        for (const server::ResultRow& row : server::RunTask(task.at("spec")))
+          rows.push_back({{"table", row.table}, {"values", row.values}});
+        reply["rows"] = std::move(rows);
+        endpoint += "/complete";
+      } catch (const std::exception& e) {
+        reply["error"] = e.what();
+        endpoint += "/fail";
+      }
+      // Results are sent until the server answers: a lost answer is retried, and the server
+      // refuses a second completion of the same lease (409), so nothing is stored twice.
+      for (int attempt = 0; attempt < 20 && !stop; ++attempt) {
+        auto done = client.Post(endpoint, headers, reply.dump(), "application/json");
+        if (done && (done->status == 200 || done->status == 409)) {
+          if (done->status == 200 && endpoint.ends_with("/complete")) ++completed;
+          break;
+        }
+        Pause(500, stop);
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int i = 1; i < options.threads; ++i) threads.emplace_back(loop, i);
+  loop(0);
+  for (std::thread& t : threads) t.join();
+  if (refused) throw std::runtime_error(refusal);
+  return completed;
+}
+
+}  // namespace strokelab::worker
