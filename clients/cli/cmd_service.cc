@@ -139,7 +139,7 @@ int RunServe(const std::vector<std::string>& argv) {
   if (args.Has("--demo")) {
     httplib::Client client("127.0.0.1", port);
     const json job = {{"kind", "sweep"}, {"name", "demo: paper model, Eq. 1 grid"}, {"model", "paper"},
-                      {"grid", {{"frequency_hz", {{"from", 5}, {"to", 50}, {"points", 117}, {"spacing", "eq1"}}},
+                      {"grid", {{"frequency_hz", {{"from", 5}, {"points", 117}, {"spacing", "eq1"}}},
                                 {"amplitude_v", {{"from", 0.1}, {"to", 0.6}, {"points", 26}}}}}};
     const json reply = Expect(client.Post("/v1/jobs", job.dump(), "application/json"), 201, "demo submit");
     std::fprintf(stderr, "demo sweep submitted as job %lld: its saturation map is at %s/?job=%lld\n",
