@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(build-essential cmake ccache pkg-config libeigen3-dev libsundials-dev libceres-dev nlohmann-json3-dev
-          libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy)
+          libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy chromium)
 
 install_missing() {
   local missing=()

@@ -16,6 +16,7 @@ usage: strokelab COMMAND [options]
 commands:
   simulate   one time-domain record of a model under a sine drive (summary as text or --json, series as CSV)
   sweep      steady states over a frequency x amplitude grid: FRF branches, saturation thresholds, jumps
+  regress    run job files and compare their results with stored baselines (CI regression jobs)
 
 service:
   serve      the REST service: SQLite job store, worker pool, web page at /
@@ -46,6 +47,7 @@ int main(int argc, char** argv) {
     if (command == "submit") return strokelab::cli::RunSubmit(rest);
     if (command == "status") return strokelab::cli::RunStatus(rest);
     if (command == "results") return strokelab::cli::RunResults(rest);
+    if (command == "regress") return strokelab::cli::RunRegress(rest);
     std::cerr << "strokelab: error: unknown command '" << command << "' (see strokelab --help)\n";
     return 2;
   } catch (const strokelab::InputError& e) {
