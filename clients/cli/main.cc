@@ -17,6 +17,7 @@ commands:
   simulate   one time-domain record of a model under a sine drive (summary as text or --json, series as CSV)
   sweep      steady states over a frequency x amplitude grid: FRF branches, saturation thresholds, jumps
   regress    run job files and compare their results with stored baselines (CI regression jobs)
+  synth      a synthetic measurement campaign (recordings layout) from a model, its truth apart
 
 service:
   serve      the REST service: SQLite job store, worker pool, web page at /
@@ -48,6 +49,7 @@ int main(int argc, char** argv) {
     if (command == "status") return strokelab::cli::RunStatus(rest);
     if (command == "results") return strokelab::cli::RunResults(rest);
     if (command == "regress") return strokelab::cli::RunRegress(rest);
+    if (command == "synth") return strokelab::cli::RunSynth(rest);
     std::cerr << "strokelab: error: unknown command '" << command << "' (see strokelab --help)\n";
     return 2;
   } catch (const strokelab::InputError& e) {
