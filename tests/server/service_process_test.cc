@@ -486,7 +486,7 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
 
   // Kill the victim while it holds a lease: freeze it (SIGSTOP) when the file shows it holding one,
   // let requests in flight settle, and kill it only if it still holds that lease; else thaw, retry.
-  std::string victim_task, victim_token;
+  std::string victim_task;
   int64_t victim_expires_ms = 0;
   {
     Db file(db);
@@ -507,7 +507,6 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
       if (!still.empty() && still[0][0] == held[0][1]) {
         victim->Kill();
         victim_task = held[0][0];
-        victim_token = held[0][1];
         victim_expires_ms = std::stoll(held[0][2]);
       } else {
         victim->Signal(SIGCONT);
@@ -558,7 +557,6 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
     by_workers += in_file;
   }
   EXPECT_EQ(by_workers, total);
-  (void)victim_token;
   std::printf("victim killed holding task %s at %.2f s (had completed %d); job done at %.2f s (lease %lld ms); "
               "whole test %.2f s\n",
               victim_task.c_str(), killed_at_s, by_victim, finished_at_s, static_cast<long long>(kLeaseMs),

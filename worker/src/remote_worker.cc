@@ -63,8 +63,8 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         continue;
       }
       if (lease->status == 401 || lease->status == 403) {
-        refusal = "server refused the token (HTTP " + std::to_string(lease->status) + ")";
-        refused = true;
+        // Only the first refused thread writes the message (read after the joins).
+        if (!refused.exchange(true)) refusal = "server refused the token (HTTP " + std::to_string(lease->status) + ")";
         break;
       }
       if (lease->status == 204) {
