@@ -211,7 +211,10 @@ struct Service::Impl {
     const std::optional<Role> role = tokens.Lookup(header.substr(prefix.size()));
     if (!role) throw HttpError{401, "unauthorized", "unknown token", ""};
     if (!TokenTable::Allows(*role, required))
-      throw HttpError{403, "forbidden", "this token may not do that (needs a submit token)", ""};
+      throw HttpError{403, "forbidden",
+                      required == Role::kWorker ? "this token may not lease tasks (needs a worker or submit token)"
+                                                : "this token may not do that (needs a submit token)",
+                      ""};
   }
 
   // Wraps a handler with authorisation, error mapping, metrics and the access log.
@@ -307,6 +310,8 @@ void Service::Impl::SetUpRoutes() {
     if (!res.body.empty()) return;
     if (res.status == 413) SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
     else if (res.status == 404) SendError(res, {404, "not_found", "no such endpoint", ""});
+    else if (res.status == 400) SendError(res, {400, "bad_request", "malformed HTTP request (e.g. a POST without Content-Length)", ""});
+    else if (res.status >= 400) SendError(res, {res.status, "http_error", "HTTP error " + std::to_string(res.status), ""});
   });
 
   http.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(WebPage(), "text/html"); });
@@ -424,8 +429,10 @@ void Service::Impl::SetUpRoutes() {
   // Remote workers.
   http.Post("/v1/tasks/lease", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
               const json body = req.body.empty() ? json::object() : json::parse(req.body);
-              const std::optional<TaskLease> lease =
-                  store->LeaseTask(body.value("worker", std::string("remote")), NowMs(), options.lease_ms);
+              // Remote names are prefixed so that none can pass for this server's own "local-" workers,
+              // whose leases are released at start.
+              const std::optional<TaskLease> lease = store->LeaseTask(
+                  "remote:" + body.value("worker", std::string("unnamed")), NowMs(), options.lease_ms);
               if (!lease) {
                 res.status = 204;
                 return;

@@ -495,7 +495,7 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
       ASSERT_LT(SecondsSince(start), 20) << "the victim never held a lease:\n" << victim->Log();
       ASSERT_FALSE(victim->Poll()) << victim->Log();
       const auto held = file.Query(
-          "SELECT id, lease_token, lease_expires_ms FROM tasks WHERE status = 'leased' AND lease_owner = 'victim-0'");
+          "SELECT id, lease_token, lease_expires_ms FROM tasks WHERE status = 'leased' AND lease_owner = 'remote:victim-0'");
       if (held.empty()) {
         SleepMs(2);
         continue;
@@ -503,7 +503,7 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
       victim->Signal(SIGSTOP);
       SleepMs(100);
       const auto still = file.Query("SELECT lease_token FROM tasks WHERE id = " + held[0][0] +
-                                    " AND status = 'leased' AND lease_owner = 'victim-0'");
+                                    " AND status = 'leased' AND lease_owner = 'remote:victim-0'");
       if (!still.empty() && still[0][0] == held[0][1]) {
         victim->Kill();
         victim_task = held[0][0];
@@ -525,7 +525,7 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
   ASSERT_EQ(task.size(), 1u);
   EXPECT_EQ(task[0][0], "done");
   EXPECT_GE(std::stoi(task[0][1]), 2);
-  EXPECT_NE(task[0][2], "victim-0");
+  EXPECT_NE(task[0][2], "remote:victim-0");
   EXPECT_GE(std::stoll(task[0][3]), victim_expires_ms) << "taken over before the lease expired";
   EXPECT_EQ(file.One("SELECT count(*) FROM tasks WHERE job_id = " + std::to_string(id) + " AND status != 'done'"), "0");
 
@@ -543,14 +543,14 @@ TEST(ServiceProcess, RemoteWorkerKilledMidLease) {
 
   // Who did what: the survivors' own counts agree with the file; all tasks are accounted for.
   int by_workers = std::stoi(file.One("SELECT count(*) FROM tasks WHERE job_id = " + std::to_string(id) +
-                                      " AND status = 'done' AND lease_owner = 'victim-0'"));
+                                      " AND status = 'done' AND lease_owner = 'remote:victim-0'"));
   const int by_victim = by_workers;
   for (size_t i = 0; i < survivors.size(); ++i) {
     const std::string name = "w" + std::to_string(i + 1);
     survivors[i]->Signal(SIGTERM);
     EXPECT_EQ(survivors[i]->WaitExit(20), 0) << survivors[i]->Log();
     const int in_file = std::stoi(file.One("SELECT count(*) FROM tasks WHERE job_id = " + std::to_string(id) +
-                                           " AND status = 'done' AND lease_owner = '" + name + "-0'"));
+                                           " AND status = 'done' AND lease_owner = 'remote:" + name + "-0'"));
     EXPECT_NE(survivors[i]->Log().find("worker " + name + ": " + std::to_string(in_file) + " tasks completed"),
               std::string::npos)
         << survivors[i]->Log();
