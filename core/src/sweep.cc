@@ -226,8 +226,10 @@ SaturationThreshold SweepColumn(const ActuatorModel& model, double f_hz, const s
   // Start on the contacting response well above grazing, where no other response exists.
   const double v_start = 1.3 * t.grazing_amplitude_v;
   const PeriodMap map(model, f_hz, v_start);
-  const SteadyState attractor = SolveAttractor(map, map.ClippedLinearStart());
-  const std::optional<SteadyState> orbit = Shoot(map, attractor.start, 1);
+  // Any period-1 orbit there will do to start the continuation (stable or not); the attractor
+  // search (hundreds of periods where the response is period-doubled) only if shooting fails.
+  std::optional<SteadyState> orbit = Shoot(map, map.ClippedLinearStart(), 1);
+  if (!orbit) orbit = Shoot(map, SolveAttractor(map, map.ClippedLinearStart()).start, 1);
   if (!orbit) return t;
   ContinuationOptions options;
   options.stop_at_first_event = true;
