@@ -20,6 +20,7 @@ int RunStatus(const std::vector<std::string>& argv);
 int RunResults(const std::vector<std::string>& argv);
 int RunRegress(const std::vector<std::string>& argv);
 int RunSynth(const std::vector<std::string>& argv);
+int RunFit(const std::vector<std::string>& argv);
 
 // --model (a preset name or a JSON model file) followed by every --set key=value, validated.
 ActuatorModel LoadModel(const Args& args);

@@ -18,6 +18,7 @@ commands:
   sweep      steady states over a frequency x amplitude grid: FRF branches, saturation thresholds, jumps
   regress    run job files and compare their results with stored baselines (CI regression jobs)
   synth      a synthetic measurement campaign (recordings layout) from a model, its truth apart
+  fit        fit a model (paper, linear) to a campaign directory: parameters with standard errors
 
 service:
   serve      the REST service: SQLite job store, worker pool, web page at /
@@ -50,6 +51,7 @@ int main(int argc, char** argv) {
     if (command == "results") return strokelab::cli::RunResults(rest);
     if (command == "regress") return strokelab::cli::RunRegress(rest);
     if (command == "synth") return strokelab::cli::RunSynth(rest);
+    if (command == "fit") return strokelab::cli::RunFit(rest);
     std::cerr << "strokelab: error: unknown command '" << command << "' (see strokelab --help)\n";
     return 2;
   } catch (const strokelab::InputError& e) {

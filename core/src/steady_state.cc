@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include "strokelab/errors.h"
 #include "strokelab/pwl_system.h"
 #include "strokelab/signal.h"
 
@@ -29,13 +31,17 @@ Complex ExpIntegralLinear(Complex mu, double tau) {
   return (std::exp(z) * (z - 1.0) + 1.0) / (mu * mu);
 }
 
-// int_{t0}^{t0+tau} x(t) e^{-jwt} dt for x in one linear region from the state y0 at t0, in closed
+// int_{t0}^{t0+tau} x(t) e^{-jhwt} dt for x in one linear region from the state y0 at t0, in closed
 // form: the homogeneous part is a sum of (complex) exponentials, the particular part sinusoids.
-Complex SegmentIntegral(const LinearRegion& r, double t0, State y0, double tau, double omega, double phase) {
+// omega is the drive's angular frequency, h = harmonic >= 1 the order of the harmonic wanted.
+Complex SegmentIntegral(const LinearRegion& r, double t0, State y0, double tau, double omega, double phase,
+                        int harmonic = 1) {
   const State p0 = r.ParticularAt(t0);
   const double zx = y0.x_m - p0.x_m, zv = y0.v_m_per_s - p0.v_m_per_s;
   const double a = r.decay_rate(), b2 = r.beta_squared();
-  const Complex rotate = std::exp(-kJ * (omega * t0));  // e^{-jw t0}
+  const double drive_omega = omega;
+  omega = harmonic * drive_omega;                       // h w: the harmonic's angular frequency
+  const Complex rotate = std::exp(-kJ * (omega * t0));  // e^{-jhw t0}
   Complex homogeneous;
   const double omega0_sq = r.stiffness() / r.mass_kg();
   if (std::abs(b2) < 1e-12 * omega0_sq) {
@@ -54,10 +60,14 @@ Complex SegmentIntegral(const LinearRegion& r, double t0, State y0, double tau, 
     homogeneous = 0.5 * ((zx + q) * ExpIntegral(-a + beta - kJ * omega, tau) +
                          (zx - q) * ExpIntegral(-a - beta - kJ * omega, tau));
   }
-  // ps sin(theta) + pc cos(theta) = e^{j theta} (pc - j ps)/2 + e^{-j theta} (pc + j ps)/2.
-  const Complex positive = std::exp(kJ * phase) * Complex(r.pc(), -r.ps()) * 0.5 * tau;
-  const Complex negative = std::exp(-kJ * phase) * Complex(r.pc(), r.ps()) * 0.5 * std::exp(-kJ * (omega * t0)) *
-                           ExpIntegral(-2.0 * kJ * omega, tau);
+  // ps sin(theta) + pc cos(theta) = e^{j theta} (pc - j ps)/2 + e^{-j theta} (pc + j ps)/2, theta = w t + phase;
+  // times e^{-jhwt}: e^{j phase} e^{j (1-h) w t} and e^{-j phase} e^{-j (1+h) w t} (tau alone for h = 1).
+  const double beat = (1 - harmonic) * drive_omega;  // (1 - h) w [rad/s]
+  const Complex positive_integral =
+      harmonic == 1 ? Complex(tau) : std::exp(kJ * (beat * t0)) * ExpIntegral(kJ * beat, tau);
+  const Complex positive = std::exp(kJ * phase) * Complex(r.pc(), -r.ps()) * 0.5 * positive_integral;
+  const Complex negative = std::exp(-kJ * phase) * Complex(r.pc(), r.ps()) * 0.5 * std::exp(-kJ * (drive_omega * t0)) *
+                           ExpIntegral(-(1.0 + harmonic) * kJ * drive_omega, tau);
   const Complex offset = r.offset_m() * ExpIntegral(-kJ * omega, tau);
   return rotate * (homogeneous + offset + negative) + positive;
 }
@@ -236,6 +246,48 @@ State PeriodMap::ClippedLinearStart() const {
   if (m.HasLowerStop()) y.x_m = std::max(y.x_m, m.lower_stop_m);
   if (m.HasUpperStop()) y.x_m = std::min(y.x_m, m.upper_stop_m);
   return y;
+}
+
+std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
+  if (period < 1) throw InputError("period", "must be >= 1 (got " + std::to_string(period) + ")");
+  if (orders < 1) throw InputError("orders", "must be >= 1 (got " + std::to_string(orders) + ")");
+  const ActuatorModel& model = map.model();
+  const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
+  const double t_end = period / drive.frequency_hz;
+  if (!model.IsPiecewiseLinear()) {
+    SimulationOptions options;
+    options.duration_s = t_end;
+    options.sample_rate_hz = 2048 * drive.frequency_hz;
+    options.initial = start;
+    options.record_velocity = false;
+    const Record record = MakeCvodeEngine()->Simulate(model, drive, options);
+    const SampleWindow window{0, record.size(), static_cast<double>(period)};
+    return HarmonicAmplitudes(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window, orders);
+  }
+  // The same segments as PeriodMap's closed-form trace, each integrated at every harmonic.
+  const PiecewiseLinearSystem sys(model, drive);
+  const double omega = drive.AngularFrequency();
+  std::vector<Complex> integral(orders, 0.0);
+  double segment_t = 0.0;
+  State segment_y = start;
+  PwlMode segment_mode = sys.InitialMode(0.0, start);
+  auto close_segment = [&](double t_close) {
+    const LinearRegion& region = sys.Region(segment_mode);
+    for (int h = 1; h <= orders; ++h)
+      integral[h - 1] += SegmentIntegral(region, segment_t, segment_y, t_close - segment_t, omega, 0.0, h);
+  };
+  double t = 0.0;
+  State y = start;
+  PwlMode mode = segment_mode;
+  sys.Advance(&t, &y, &mode, t_end, [&](const SwitchEvent& e) {
+    close_segment(e.time_s);
+    segment_t = e.time_s;
+    segment_y = e.state;
+    segment_mode = e.after;
+  });
+  close_segment(t_end);
+  for (Complex& c : integral) c *= 2.0 / t_end;
+  return integral;
 }
 
 double SteadyState::MaxMultiplier() const { return std::max(std::abs(multipliers[0]), std::abs(multipliers[1])); }

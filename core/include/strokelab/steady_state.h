@@ -22,6 +22,7 @@
 #include <complex>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "strokelab/engine.h"
 #include "strokelab/model.h"
@@ -106,5 +107,12 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
 
 // The length scale of the model used to scale residuals [m]: |d| or the upper stop, else 1 mm.
 double LengthScaleM(const ActuatorModel& model);
+
+// Harmonics C_h, h = 1..orders, of x over `period` drive periods from `start` (on the orbit at phase 0):
+// x(t) ~ c_0 + sum_h Re(C_h e^{jhwt}), C_h = (2 / pT) int_0^{pT} x e^{-jhwt} dt [m], phases relative to
+// the drive. Closed form for piecewise-linear models (as OrbitFigures::x1, which equals C_1), 2048
+// samples per period and least squares otherwise. The blocked force has C_h(f) = -m_p (hw)^2 C_h(x)
+// over a periodic orbit (x and x' are continuous). Throws InputError if period < 1 or orders < 1.
+std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders);
 
 }  // namespace strokelab
