@@ -18,6 +18,8 @@ function(strokelab_embed_migrations out_var dir)
     endif()
     math(EXPR expected "${expected} + 1")
     file(READ "${file}" sql)
+    # file(READ) alone would not make an edited migration re-run cmake.
+    set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS "${file}")
     string(FIND "${sql}" ")strokelab_sql\"" clash)
     if(NOT clash EQUAL -1)
       message(FATAL_ERROR "migration ${name} contains the raw-string delimiter )strokelab_sql\"")

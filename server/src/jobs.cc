@@ -19,7 +19,9 @@ nlohmann::json NullIfNotFinite(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
 
-nlohmann::json PointJson(const SweepPoint& p) {
+}  // namespace
+
+nlohmann::json SweepPointJson(const SweepPoint& p) {
   return {{"frequency_hz", p.frequency_hz},
           {"amplitude_v", p.amplitude_v},
           {"branch", ToString(p.branch)},
@@ -35,6 +37,8 @@ nlohmann::json PointJson(const SweepPoint& p) {
           {"contacts_per_period", p.contacts_per_period},
           {"max_multiplier", p.max_multiplier}};
 }
+
+namespace {
 
 TaskSpec MakeTask(nlohmann::json spec) {
   spec["code_version"] = kCodeVersion;
@@ -93,7 +97,7 @@ std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<boo
   if (type == "sweep_row") {
     const SweepRowResult row =
         SweepRow(model, task.at("amplitude_v").get<double>(), task.at("frequencies_hz").get<std::vector<double>>(), cancel);
-    for (const SweepPoint& p : row.points) rows.push_back({"points", PointJson(p)});
+    for (const SweepPoint& p : row.points) rows.push_back({"points", SweepPointJson(p)});
     for (const JumpInterval& j : row.jumps)
       rows.push_back({"jumps",
                       {{"amplitude_v", j.amplitude_v},

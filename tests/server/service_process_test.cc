@@ -14,6 +14,8 @@
 // process behind; ports are chosen by the server (--port 0) and read from its "serving" line.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+
+#include "strokelab/server/jobs.h"
 #include <httplib.h>
 #include <signal.h>
 #include <spawn.h>
@@ -614,20 +616,7 @@ TEST(ServiceProcess, WorkerTokens) {
   const std::vector<double> frequencies = strokelab::GridAxis{5, 50, kFrequencies}.Values();
   for (double amplitude : strokelab::GridAxis{0.1, 0.6, kAmplitudes}.Values()) {
     for (const strokelab::SweepPoint& p : strokelab::SweepRow(strokelab::PaperModel(), amplitude, frequencies).points) {
-      const json row = {{"frequency_hz", p.frequency_hz},
-                        {"amplitude_v", p.amplitude_v},
-                        {"branch", strokelab::ToString(p.branch)},
-                        {"stable", p.stable},
-                        {"period", p.period > 0 ? json(p.period) : json("aperiodic")},
-                        {"first_harmonic_force_n", p.first_harmonic_force_n},
-                        {"first_harmonic_phase_rad", p.first_harmonic_phase_rad},
-                        {"h_re", p.h.real()},
-                        {"h_im", p.h.imag()},
-                        {"min_displacement_m", p.min_displacement_m},
-                        {"max_displacement_m", p.max_displacement_m},
-                        {"peak_force_n", p.peak_force_n},
-                        {"contacts_per_period", p.contacts_per_period},
-                        {"max_multiplier", p.max_multiplier}};
+      const json row = strokelab::server::SweepPointJson(p);
       want.push_back(json::parse(row.dump()));  // as stored: through JSON text
     }
   }

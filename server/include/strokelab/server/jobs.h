@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "strokelab/server/store.h"
+#include "strokelab/sweep.h"
 
 namespace strokelab::server {
 
@@ -23,6 +24,9 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job);
 
 // Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
 std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
+
+// A sweep point as a "points" result row (the stored and served form).
+nlohmann::json SweepPointJson(const SweepPoint& point);
 
 // 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
 std::string ContentKey(const std::string& text);
