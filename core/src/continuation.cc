@@ -303,6 +303,10 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
           const Vec3 g = problem.ToScaled(graze->parameter, graze->start);
           const double detour = (g - u).Norm() + (c->u - g).Norm();
           if (detour > 2.0 * (c->u - u).Norm() + 1e-9 && h > 1e-3) accepted = false;
+          // Nor may the grazing point lie farther from either end than the ends from each other:
+          // such a step leapt over a fold (and the unstable stretch after it) onto the other leg.
+          const double chord = (c->u - u).Norm();
+          if (((g - u).Norm() > chord || (c->u - g).Norm() > chord) && h > 1e-3) accepted = false;
         }
       }
     }
@@ -468,30 +472,63 @@ std::optional<BranchPoint> LocateGrazing(const ActuatorModel& model, Continuatio
   return point;
 }
 
+namespace {
+
+// The branch's points in order along it, with its grazing points put in between: at a grazing
+// corner one step cuts across from one leg to the other, and the stretches of both legs that the
+// chord skips lie on either side of the grazing point.
+struct CornerPoint {
+  BranchPoint point;
+  bool graze = false;
+};
+std::vector<CornerPoint> WithGrazingCorners(const ContinuedBranch& branch) {
+  std::vector<CornerPoint> points;
+  points.reserve(branch.points.size() + branch.events.size());
+  size_t next_event = 0;
+  for (size_t k = 0; k < branch.points.size(); ++k) {
+    points.push_back({branch.points[k], false});
+    for (; next_event < branch.events.size() && branch.events[next_event].after <= k; ++next_event) {
+      const BranchEvent& e = branch.events[next_event];
+      if (e.after == k && e.kind == BranchEvent::Kind::kGrazing && k + 1 < branch.points.size()) {
+        points.push_back({e.point, true});
+        points.back().point.arclength = branch.points[k].arclength;
+      }
+    }
+  }
+  return points;
+}
+
+}  // namespace
+
 std::vector<BranchPoint> SolutionsAt(const ActuatorModel& model, const ContinuedBranch& branch, double p) {
   std::vector<BranchPoint> solutions;
-  const auto& pts = branch.points;
-  for (size_t k = 0; k + 1 < pts.size(); ++k) {
-    const double a = pts[k].parameter - p, b = pts[k + 1].parameter - p;
+  const std::vector<CornerPoint> corners = WithGrazingCorners(branch);
+  for (size_t k = 0; k + 1 < corners.size(); ++k) {
+    const BranchPoint* pts[2] = {&corners[k].point, &corners[k + 1].point};
+    const double a = pts[0]->parameter - p, b = pts[1]->parameter - p;
     // Half-open crossings, so that a grid value equal to a branch point counts once.
     if (!((a <= 0 && b > 0) || (a >= 0 && b < 0))) continue;
+    // Next to a corner, the orbit found must be on this stretch's side of it: that of its end other
+    // than the grazing point (a grazing orbit just touches; its figures are the free model's).
+    const bool corner = corners[k].graze || corners[k + 1].graze;
+    const bool contacting = (corners[k].graze ? pts[1] : pts[0])->contacting();
     const double w = a == b ? 0.0 : a / (a - b);
-    const State guess{pts[k].start.x_m + w * (pts[k + 1].start.x_m - pts[k].start.x_m),
-                      pts[k].start.v_m_per_s + w * (pts[k + 1].start.v_m_per_s - pts[k].start.v_m_per_s)};
+    const State guess{pts[0]->start.x_m + w * (pts[1]->start.x_m - pts[0]->start.x_m),
+                      pts[0]->start.v_m_per_s + w * (pts[1]->start.v_m_per_s - pts[0]->start.v_m_per_s)};
     std::optional<BranchPoint> s = SolveAt(model, branch.parameter, branch.fixed_value, p, guess);
     // Newton must land on this stretch of the branch, not on another branch at the same p.
-    const double span = std::hypot(pts[k + 1].start.x_m - pts[k].start.x_m,
-                                   (pts[k + 1].start.v_m_per_s - pts[k].start.v_m_per_s) /
+    const double span = std::hypot(pts[1]->start.x_m - pts[0]->start.x_m,
+                                   (pts[1]->start.v_m_per_s - pts[0]->start.v_m_per_s) /
                                        (2 * std::numbers::pi * std::max(1.0, p)));
     const double miss = s ? std::hypot(s->start.x_m - guess.x_m,
                                        (s->start.v_m_per_s - guess.v_m_per_s) / (2 * std::numbers::pi * std::max(1.0, p)))
                           : INFINITY;
-    if (!s || miss > 2.0 * span + 1e-9 * LengthScaleM(model)) {
+    if (!s || miss > 2.0 * span + 1e-9 * LengthScaleM(model) || (corner && s->contacting() != contacting)) {
       // Fall back on the arclength: bisection for the parameter value along the segment.
-      const BranchProblem problem(model, branch.parameter, branch.fixed_value, pts[k].parameter);
+      const BranchProblem problem(model, branch.parameter, branch.fixed_value, pts[0]->parameter);
       const ContinuationOptions options;
-      const Vec3 u0 = problem.ToScaled(pts[k].parameter, pts[k].start);
-      const Vec3 u1 = problem.ToScaled(pts[k + 1].parameter, pts[k + 1].start);
+      const Vec3 u0 = problem.ToScaled(pts[0]->parameter, pts[0]->start);
+      const Vec3 u1 = problem.ToScaled(pts[1]->parameter, pts[1]->start);
       const Vec3 direction = (u1 - u0) * (1.0 / (u1 - u0).Norm());
       const SegmentProbe probe{problem, u0, direction, options};
       const auto located = LocateOnSegment(probe, (u1 - u0).Norm(), a, b, [&](const BranchProblem::Corrected& c) {
@@ -499,10 +536,10 @@ std::vector<BranchPoint> SolutionsAt(const ActuatorModel& model, const Continued
       });
       if (!located) continue;
       s = SolveAt(model, branch.parameter, branch.fixed_value, p, problem.StateOf(located->u));
-      if (!s) continue;
+      if (!s || (corner && s->contacting() != contacting)) continue;
     }
-    s->arclength = pts[k].arclength + w * (pts[k + 1].arclength - pts[k].arclength);
-    s->dparameter_ds = pts[k].dparameter_ds;
+    s->arclength = pts[0]->arclength + w * (pts[1]->arclength - pts[0]->arclength);
+    s->dparameter_ds = pts[0]->dparameter_ds;
     solutions.push_back(*s);
   }
   return solutions;

@@ -63,10 +63,28 @@ State LinearRegion::ParticularAt(double time_s) const {
 }
 
 State LinearRegion::Propagate(State y0, double t0, double tau) const {
+  return PropagateHomogeneous(HomogeneousAt(y0, t0), t0, tau);
+}
+
+State LinearRegion::HomogeneousAt(State y0, double t0) const {
   const State p0 = ParticularAt(t0);
-  const State z = Propagator(tau).Apply({y0.x_m - p0.x_m, y0.v_m_per_s - p0.v_m_per_s});
+  return {y0.x_m - p0.x_m, y0.v_m_per_s - p0.v_m_per_s};
+}
+
+State LinearRegion::PropagateHomogeneous(State z0, double t0, double tau) const {
+  const State z = Propagator(tau).Apply(z0);
   const State p1 = ParticularAt(t0 + tau);
   return {z.x_m + p1.x_m, z.v_m_per_s + p1.v_m_per_s};
+}
+
+LinearRegion::Motion LinearRegion::MotionAt(State z0, double t0, double tau) const {
+  const State z = Propagator(tau).Apply(z0);
+  // ParticularAt and Force, term for term, on one sin/cos.
+  const double theta = omega_ * (t0 + tau) + phase_;
+  const double s = std::sin(theta), c = std::cos(theta);
+  const State p{ps_ * s + pc_ * c + offset_m_, omega_ * (ps_ * c - pc_ * s)};
+  const State y{z.x_m + p.x_m, z.v_m_per_s + p.v_m_per_s};
+  return {y, sine_force_n_ * s + constant_force_n_ - stiffness_ * y.x_m - damping_ * y.v_m_per_s, s, c};
 }
 
 double LinearRegion::Force(State y, double time_s) const {

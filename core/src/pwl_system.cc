@@ -17,24 +17,25 @@ struct SurfaceValue {
   double h, dh, ddh;
 };
 
-SurfaceValue Evaluate(const Surface& s, const LinearRegion& region, double omega, double phase, double t, State y) {
-  const double theta = omega * t + phase;
-  const double sin_theta = std::sin(theta), cos_theta = std::cos(theta);
+// h, dh/dt and d2h/dt2 of a surface from the region's motion at one instant (one sin/cos of the
+// drive phase shared by the state, the force and the surface).
+SurfaceValue Evaluate(const Surface& s, const LinearRegion& region, double omega, const LinearRegion::Motion& m) {
+  const State y = m.y;
   const double inv_mass = 1.0 / region.mass_kg();
   // x'' from the region's ODE, and x''' by differentiating it once more.
-  const double acceleration = region.Force(y, t) * inv_mass;
-  const double jerk = (region.sine_force_n() * omega * cos_theta - region.stiffness() * y.v_m_per_s -
+  const double acceleration = m.force_n * inv_mass;
+  const double jerk = (region.sine_force_n() * omega * m.cos_theta - region.stiffness() * y.v_m_per_s -
                        region.damping() * acceleration) * inv_mass;
-  return {s.alpha * y.x_m + s.beta * y.v_m_per_s + s.gamma + s.delta * sin_theta,
-          s.alpha * y.v_m_per_s + s.beta * acceleration + s.delta * omega * cos_theta,
-          s.alpha * acceleration + s.beta * jerk - s.delta * omega * omega * sin_theta};
+  return {s.alpha * y.x_m + s.beta * y.v_m_per_s + s.gamma + s.delta * m.sin_theta,
+          s.alpha * y.v_m_per_s + s.beta * acceleration + s.delta * omega * m.cos_theta,
+          s.alpha * acceleration + s.beta * jerk - s.delta * omega * omega * m.sin_theta};
 }
 
 // Zero of a smooth function g on [lo, hi] where g changes sign, by Newton's method kept inside a
-// shrinking bracket (bisection when a step leaves it). g(tau) returns {g, dg/dtau}.
+// shrinking bracket (bisection when a step leaves it). g(tau) returns {g, dg/dtau}; lo_positive is
+// the sign of g(lo) (known to every caller, which saves an evaluation).
 template <class G>
-double BracketedNewton(G&& g, double lo, double hi) {
-  const bool lo_positive = g(lo).first > 0.0;
+double BracketedNewton(G&& g, double lo, double hi, bool lo_positive) {
   double tau = 0.5 * (lo + hi);
   for (int iteration = 0; iteration < 100; ++iteration) {
     const auto [value, slope] = g(tau);
@@ -50,24 +51,24 @@ double BracketedNewton(G&& g, double lo, double hi) {
 
 // The instant where h crosses zero in [lo, hi] (h(lo) >= 0 >= h(hi)).
 template <class ValueAt>
-double LocateRoot(ValueAt&& value_at, const Surface& s, double lo, double hi) {
+double LocateRoot(ValueAt&& value_at, const Surface& s, double lo, double hi, bool lo_positive) {
   return BracketedNewton(
       [&](double tau) {
         const SurfaceValue v = value_at(s, tau);
         return std::pair{v.h, v.dh};
       },
-      lo, hi);
+      lo, hi, lo_positive);
 }
 
-// The extremum of h in [lo, hi] (dh/dt changes sign there).
+// The extremum of h in [lo, hi] (dh/dt changes sign there, from the sign lo_positive at lo).
 template <class ValueAt>
-double LocateExtremum(ValueAt&& value_at, const Surface& s, double lo, double hi) {
+double LocateExtremum(ValueAt&& value_at, const Surface& s, double lo, double hi, bool lo_positive) {
   return BracketedNewton(
       [&](double tau) {
         const SurfaceValue v = value_at(s, tau);
         return std::pair{v.dh, v.ddh};
       },
-      lo, hi);
+      lo, hi, lo_positive);
 }
 
 }  // namespace
@@ -156,7 +157,8 @@ int PiecewiseLinearSystem::ActiveSurfaces(PwlMode mode, State y, std::array<Surf
       (*out)[n++] = {K::kClipUp, 0, 0, limit, -amplitude};    // L - V sin
       (*out)[n++] = {K::kClipDown, 0, 0, limit, amplitude};   // L + V sin
     } else {
-      (*out)[n++] = {K::kClipRelease, 0, 0, -mode.clip * limit, mode.clip * amplitude};
+      // clip V sin - L: positive while clipped on either side (V sin > L, or V sin < -L).
+      (*out)[n++] = {K::kClipRelease, 0, 0, -limit, mode.clip * amplitude};
     }
   }
   return n;
@@ -198,21 +200,23 @@ double PiecewiseLinearSystem::SafeSpanS(PwlMode mode, const LinearRegion& r, dou
 void PiecewiseLinearSystem::AppendExtrema(PwlMode mode, double t0, State y0, double span,
                                           std::vector<std::pair<double, State>>* out) const {
   const LinearRegion& region = Region(mode);
-  const double w = drive_.AngularFrequency(), phase = drive_.phase_rad;
-  const Surface velocity{Surface::Kind::kLowerEnter, 0, 1, 0, 0};  // h = v: its zeros are the extrema of x
-  auto value_at = [&](const Surface& s, double tau) {
-    return Evaluate(s, region, w, phase, t0 + tau, region.Propagate(y0, t0, tau));
+  const double inv_mass = 1.0 / region.mass_kg();
+  // Every sample propagates from the same start: its homogeneous part once.
+  const State z0 = region.HomogeneousAt(y0, t0);
+  // The extrema of x are the zeros of v, located with the slope x''.
+  auto velocity_at = [&](double tau) {
+    const LinearRegion::Motion m = region.MotionAt(z0, t0, tau);
+    return std::pair{m.y.v_m_per_s, m.force_n * inv_mass};
   };
   const int substeps = std::max(1, static_cast<int>(std::ceil(span / MaxSubstepS(mode))));
   double tau_a = 0.0;
   double v_a = y0.v_m_per_s;
   for (int i = 1; i <= substeps; ++i) {
     const double tau_b = span * i / substeps;
-    const State y_b = region.Propagate(y0, t0, tau_b);
-    const double v_b = y_b.v_m_per_s;
+    const double v_b = region.PropagateHomogeneous(z0, t0, tau_b).v_m_per_s;
     if ((v_a < 0.0 && v_b > 0.0) || (v_a > 0.0 && v_b < 0.0)) {
-      const double tau = LocateRoot(value_at, velocity, tau_a, tau_b);
-      out->emplace_back(t0 + tau, region.Propagate(y0, t0, tau));
+      const double tau = BracketedNewton(velocity_at, tau_a, tau_b, v_a > 0.0);
+      out->emplace_back(t0 + tau, region.PropagateHomogeneous(z0, t0, tau));
     }
     tau_a = tau_b;
     v_a = v_b;
@@ -248,18 +252,22 @@ std::optional<PiecewiseLinearSystem::LocatedSwitch> PiecewiseLinearSystem::First
   std::array<Surface, 6> surfaces;
   const int count = ActiveSurfaces(mode, y0, &surfaces);
   if (count == 0) return std::nullopt;
-  const double w = drive_.AngularFrequency(), phase = drive_.phase_rad;
-  auto value_at = [&](const Surface& s, double tau) {
-    return Evaluate(s, region, w, phase, t0 + tau, region.Propagate(y0, t0, tau));
-  };
-  const State y1 = region.Propagate(y0, t0, span);
+  const double w = drive_.AngularFrequency();
+  // The motion at both ends once for all surfaces, and inside from the same homogeneous start.
+  const State z0 = region.HomogeneousAt(y0, t0);
+  LinearRegion::Motion start = region.MotionAt(z0, t0, 0.0);
+  start.y = y0;  // the state itself, not its round trip through z0
+  start.force_n = region.Force(y0, t0);
+  const LinearRegion::Motion end = region.MotionAt(z0, t0, span);
+  auto value_at = [&](const Surface& s, double tau) { return Evaluate(s, region, w, region.MotionAt(z0, t0, tau)); };
 
   std::optional<LocatedSwitch> first;
   for (int i = 0; i < count; ++i) {
     const Surface& s = surfaces[i];
-    const SurfaceValue a = Evaluate(s, region, w, phase, t0, y0);
-    const SurfaceValue b = Evaluate(s, region, w, phase, t0 + span, y1);
+    const SurfaceValue a = Evaluate(s, region, w, start);
+    const SurfaceValue b = Evaluate(s, region, w, end);
     double lo = 0.0, hi = span;
+    bool lo_positive = a.h > 0.0;
     if (a.h <= 0.0) {
       // On the surface already (just after a switch, or rounding): it switches now only if it is
       // heading across.
@@ -267,16 +275,17 @@ std::optional<PiecewiseLinearSystem::LocatedSwitch> PiecewiseLinearSystem::First
       if (b.h > 0.0) continue;
       if (!(a.dh > 0.0 && b.dh < 0.0)) continue;
       // Rose off the surface and came back: the crossing lies after the maximum.
-      lo = LocateExtremum(value_at, s, 0.0, span);
+      lo = LocateExtremum(value_at, s, 0.0, span, true);
+      lo_positive = value_at(s, lo).h > 0.0;
     } else if (b.h > 0.0) {
       // Both ends clear: it can still dip through zero in between (grazing) if h has a minimum there.
       if (!(a.dh < 0.0 && b.dh > 0.0)) continue;
-      const double tau_min = LocateExtremum(value_at, s, 0.0, span);
+      const double tau_min = LocateExtremum(value_at, s, 0.0, span, false);
       if (value_at(s, tau_min).h > 0.0) continue;
       hi = tau_min;
     }
     if (first && lo >= first->tau_s) continue;
-    const double tau = LocateRoot(value_at, s, lo, hi);
+    const double tau = LocateRoot(value_at, s, lo, hi, lo_positive);
     if (!first || tau < first->tau_s) first = LocatedSwitch{tau, s};
   }
   return first;

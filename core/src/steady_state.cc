@@ -315,8 +315,8 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
   State y = guess;
   double best = INFINITY;
   int stalled = 0;
+  OrbitFigures figures = map.Trace(y, period);
   for (int iteration = 0; iteration < options.max_newton_iterations; ++iteration) {
-    const OrbitFigures figures = map.Trace(y, period);
     const State residual = Minus(figures.end, y);
     const double error = ScaledNorm(residual, length, speed);
     if (!std::isfinite(error)) return std::nullopt;
@@ -343,9 +343,17 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
     const double det = a * d - b * c;
     if (!(std::abs(det) > 0.0)) return std::nullopt;
     State step{(-d * residual.x_m + b * residual.v_m_per_s) / det, (c * residual.x_m - a * residual.v_m_per_s) / det};
-    // Damped step: halve until the residual falls.
-    double lambda = 1.0;
-    for (int halving = 0; halving < 8; ++halving) {
+    // Damped step: halve until the residual falls. The full step is traced, not only applied: it
+    // is nearly always taken, and its trace is then the next iteration's (one map per iteration).
+    const State full{y.x_m + step.x_m, y.v_m_per_s + step.v_m_per_s};
+    OrbitFigures full_figures = map.Trace(full, period);
+    if (ScaledNorm(Minus(full_figures.end, full), length, speed) < error) {
+      y = full;
+      figures = full_figures;
+      continue;
+    }
+    double lambda = 0.5;
+    for (int halving = 1; halving < 8; ++halving) {
       const State trial{y.x_m + lambda * step.x_m, y.v_m_per_s + lambda * step.v_m_per_s};
       const double trial_error = ScaledNorm(Minus(apply(trial), trial), length, speed);
       if (trial_error < error || halving == 7) {
@@ -354,6 +362,7 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
       }
       lambda *= 0.5;
     }
+    figures = map.Trace(y, period);
   }
   return std::nullopt;
 }

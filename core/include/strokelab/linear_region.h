@@ -50,6 +50,17 @@ class LinearRegion {
   State ParticularAt(double time_s) const;
   // The state at t0 + tau from the state at t0.
   State Propagate(State y0, double t0_s, double tau_s) const;
+  // The same in two steps, for many tau from one (t0, y0): the homogeneous part z0 = y0 - x_p(t0)
+  // once, then the state at t0 + tau from it (bit-identical to Propagate).
+  State HomogeneousAt(State y0, double t0_s) const;
+  State PropagateHomogeneous(State z0, double t0_s, double tau_s) const;
+  // The state at t0 + tau (from z0 as above) and m x'' there, sharing one sin/cos of the drive phase.
+  struct Motion {
+    State y;
+    double force_n;  // m x'' = a sin(theta) + b - k x - c v
+    double sin_theta, cos_theta;  // of the drive phase theta = w t + phi
+  };
+  Motion MotionAt(State z0, double t0_s, double tau_s) const;
   // m x'' [N] at a state and time: a sin(theta) + b - k x - c v.
   double Force(State y, double time_s) const;
 
