@@ -17,7 +17,9 @@
 #include <thread>
 #include <utility>
 
+#include "fit_orbit.h"
 #include "harmonic_fit.h"
+#include "parallel_for.h"
 #include "strokelab/errors.h"
 #include "strokelab/model_json.h"
 #include "strokelab/pwl_system.h"
@@ -25,6 +27,15 @@
 
 namespace strokelab {
 namespace {
+
+using internal::Anchor;
+using internal::BestMatchingOrbit;
+using internal::MismatchSquared;
+using internal::ModelOrbit;
+using internal::OrbitSearch;
+using internal::PowerOf;
+using internal::SamplingCorrection;
+using internal::SolveOrbit;
 
 using Complex = std::complex<double>;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
@@ -57,8 +68,6 @@ constexpr int kMaxCorrectionPasses = 4;            // refinement passes with ref
 constexpr double kCorrectionTolerance = 1e-3;      // their change [standard errors] that ends the passes
 constexpr double kParameterRange = 3.0;            // refinement bounds: staged estimate times or over this (k_p, c_p, g, d)
 constexpr double kContactRange = 30.0;             // ... and this for k_s, c_s
-constexpr int kSettlePeriods = 64;                 // plain periods when Newton fails inside the cost function
-constexpr int kAperiodicPeriods = 16;              // periods over which an aperiodic response is averaged
 // Relative step of the central differences in theta = 1 + ln(p / p0): a relative change of about
 // 1e-4 in each parameter, far above the steady state's accuracy (shooting to 1e-11 of |d|) and small
 // against the curvature of the harmonics (1e-5 gives the same standard errors to 1 %).
@@ -159,114 +168,6 @@ ParameterLayout MakeLayout(const ActuatorModel& start, bool fit_contact_damping)
   return layout;
 }
 
-// ---- The model's harmonics at one record ---------------------------------------------------------
-
-// A periodic orbit to start the next shooting from.
-struct Anchor {
-  State start;
-  int period = 1;  // 0: aperiodic
-};
-
-struct ModelOrbit {
-  Anchor anchor;
-  bool stable = true;
-  double contacts_per_period = 0.0;
-  std::vector<Complex> harmonics;  // response units, relative to the drive phase
-};
-
-Complex ResponseHarmonic(Complex x_h, int h, double omega, ResponseKind kind, double mass_kg) {
-  const double w = h * omega;
-  switch (kind) {
-    case ResponseKind::kForce:
-      return -mass_kg * w * w * x_h;  // f = m_p x'' (paper-notes)
-    case ResponseKind::kAcceleration:
-      return -w * w * x_h;
-    case ResponseKind::kVelocity:
-      return Complex(0.0, w) * x_h;
-    case ResponseKind::kDisplacement:
-      return x_h;
-  }
-  return x_h;
-}
-
-// How hard SolveOrbit looks for the steady state.
-enum class OrbitSearch {
-  // For the cost function, at a bounded price: Newton on the anchor's period from the anchor; if it
-  // fails (or the anchor is aperiodic), kSettlePeriods plain periods from the anchor and the
-  // harmonics from there, a bounded stand-in that keeps the evaluation defined where the model has no
-  // periodic orbit near the anchor.
-  kNearby,
-  // For anchors: Newton, and the attractor (SolveAttractor: long plain iteration, period search)
-  // when Newton fails or finds an unstable orbit.
-  kAttractor,
-};
-
-// The steady state of `model` at the record's drive, from `anchor`.
-std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAnalysis& record, const Anchor& anchor,
-                                     ResponseKind kind, int orders, OrbitSearch search) {
-  const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
-  std::optional<SteadyState> s;
-  if (anchor.period > 0) s = Shoot(map, anchor.start, anchor.period);
-  if (search == OrbitSearch::kAttractor && (!s || !s->stable)) s = SolveAttractor(map, s ? s->start : anchor.start);
-  if (!s) {
-    State y = anchor.start;
-    for (int i = 0; i < kSettlePeriods; ++i) y = map.Apply(y);
-    s.emplace();
-    s->start = y;
-    s->period = anchor.period;
-    s->stable = false;
-    s->figures = map.Trace(y, std::max(anchor.period, 1));
-  }
-  const int periods = s->period > 0 ? s->period : kAperiodicPeriods;
-  const std::vector<Complex> x = OrbitHarmonics(map, s->start, periods, orders);
-  ModelOrbit orbit;
-  orbit.anchor = Anchor{s->start, s->period};
-  orbit.stable = s->stable;
-  orbit.contacts_per_period = s->ContactsPerPeriod();
-  const double omega = kTwoPi * record.drive.frequency_hz;
-  orbit.harmonics.resize(orders);
-  for (int h = 1; h <= orders; ++h) {
-    orbit.harmonics[h - 1] = ResponseHarmonic(x[h - 1], h, omega, kind, model.mass_kg);
-    if (!std::isfinite(orbit.harmonics[h - 1].real()) || !std::isfinite(orbit.harmonics[h - 1].imag()))
-      return std::nullopt;
-  }
-  return orbit;
-}
-
-double MismatchSquared(const std::vector<Complex>& measured, const std::vector<Complex>& model) {
-  double sum = 0.0;
-  for (size_t h = 0; h < measured.size(); ++h) sum += std::norm(measured[h] - model[h]);
-  return sum;
-}
-
-double PowerOf(const std::vector<Complex>& harmonics) {
-  double sum = 0.0;
-  for (const Complex& c : harmonics) sum += std::norm(c);
-  return sum;
-}
-
-// The stable orbit that matches the record best among the attractors reached from the clipped linear
-// start, from rest and from half the linear start (a bistable record may sit on either branch).
-std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind,
-                                            int orders) {
-  const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
-  const State linear = map.ClippedLinearStart();
-  std::optional<ModelOrbit> best;
-  double best_mismatch = std::numeric_limits<double>::infinity();
-  for (const State start : {linear, State{0.0, 0.0}, State{0.5 * linear.x_m, 0.5 * linear.v_m_per_s}}) {
-    std::optional<ModelOrbit> orbit;
-    try {
-      orbit = SolveOrbit(model, record, Anchor{start, 0}, kind, orders, OrbitSearch::kAttractor);
-    } catch (const NumericalError&) {
-      continue;
-    }
-    if (!orbit) continue;
-    const double mismatch = MismatchSquared(record.harmonics, orbit->harmonics);
-    if (mismatch < best_mismatch) best = std::move(orbit), best_mismatch = mismatch;
-  }
-  return best;
-}
-
 // One record of the refinement: its measured harmonics and the orbit the next evaluation starts from.
 struct RecordTarget {
   const RecordAnalysis* record = nullptr;
@@ -275,54 +176,6 @@ struct RecordTarget {
   std::vector<Complex> correction;  // SamplingCorrection at the last outer pass
   bool live_correction = false;     // recompute it at every evaluation (for the covariance's Jacobian)
 };
-
-// What the record's sampling and least-squares fit make of the model's response, less the orbit's
-// continuous-time harmonics. The impacts have harmonics far above N and up to the sample rate; on the
-// record's grid (a period is not a whole number of samples) they alias and leak into C_1..C_N by a
-// few 1e-5 of the spike's harmonics, which is comparable with the noise's standard error and would
-// bias the fit by several standard errors. The model's orbit is sampled on the record's own grid
-// (the exact engine from the orbit's state at drive phase phi) and analysed as the record was. Zero
-// for orbits of period other than 1 (which of their periods the record starts in is unknown) and for
-// models that are not piecewise linear.
-std::vector<Complex> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
-                                        ResponseKind kind, int orders) {
-  std::vector<Complex> correction(orders, 0.0);
-  if (orbit.anchor.period != 1 || !model.IsPiecewiseLinear()) return correction;
-  const double f = a.drive.frequency_hz, period_s = 1.0 / f;
-  double phase_time_s = a.drive.phase_rad / (kTwoPi * f);  // model time at which the drive phase is phi
-  if (phase_time_s < 0) phase_time_s += period_s;
-  const PiecewiseLinearSystem system(model, SineDrive{a.drive.amplitude_v, f, 0.0});
-  double t = 0.0;
-  State y = orbit.anchor.start;
-  PwlMode mode = system.InitialMode(0.0, y);
-  system.Advance(&t, &y, &mode, phase_time_s, [](const SwitchEvent&) {});
-  SimulationOptions sim;
-  sim.duration_s = static_cast<double>(a.window.end) / a.sample_rate_hz;
-  sim.sample_rate_hz = a.sample_rate_hz;
-  sim.initial = y;
-  sim.record_velocity = kind == ResponseKind::kVelocity;
-  const Record r = MakeExactEngine()->Simulate(model, SineDrive{a.drive.amplitude_v, f, a.drive.phase_rad}, sim);
-  std::vector<double> signal;
-  switch (kind) {
-    case ResponseKind::kForce:
-      signal = r.force_n;
-      break;
-    case ResponseKind::kAcceleration:
-      signal = r.force_n;
-      for (double& v : signal) v /= model.mass_kg;
-      break;
-    case ResponseKind::kVelocity:
-      signal = r.velocity_m_per_s;
-      break;
-    case ResponseKind::kDisplacement:
-      signal = r.displacement_m;
-      break;
-  }
-  const internal::HarmonicFit fit = internal::FitHarmonics(signal, a.sample_rate_hz, f, a.window, orders);
-  for (int h = 1; h <= orders; ++h)
-    correction[h - 1] = fit.amplitudes[h - 1] * std::polar(1.0, -h * a.drive.phase_rad) - orbit.harmonics[h - 1];
-  return correction;
-}
 
 // Residuals (Re, Im) of (C_h - C_h^model) / se, h = 1..N, for Ceres' central differences.
 class HarmonicCost {
@@ -340,7 +193,8 @@ class HarmonicCost {
                                                   ? SamplingCorrection(model, *target_->record, *orbit, kind_, orders_)
                                                   : target_->correction;
       for (int h = 0; h < orders_; ++h) {
-        const Complex r = target_->weight * (target_->record->harmonics[h] - orbit->harmonics[h] - correction[h]);
+        const double weight = target_->record->usable[h] ? target_->weight : 0.0;
+        const Complex r = weight * (target_->record->harmonics[h] - orbit->harmonics[h] - correction[h]);
         residual[2 * h] = r.real();
         residual[2 * h + 1] = r.imag();
       }
@@ -682,6 +536,23 @@ std::vector<double> HumCandidates(double fs, const RecordAnalysis& a, const FitO
   return kept;
 }
 
+// Harmonics not masked by a mains hum overtone (RecordAnalysis::usable). Harmonic 1 always counts:
+// the drive's response dwarfs the hum there, and without it there is no record.
+std::vector<bool> UsableHarmonics(double fs, const RecordAnalysis& a, const FitOptions& options) {
+  std::vector<bool> usable(options.harmonic_orders, true);
+  std::vector<double> mains;
+  if (options.mains_frequency_hz > 0)
+    mains = {options.mains_frequency_hz};
+  else if (options.mains_frequency_hz == 0)
+    mains = {50.0, 60.0};
+  const double window_s = static_cast<double>(a.window.size()) / fs;
+  for (double hum : mains)
+    for (int k = 1; k <= kHumOrders; ++k)
+      for (int h = 2; h <= options.harmonic_orders; ++h)
+        if (std::abs(k * hum - h * a.drive.frequency_hz) * window_s < kHumSeparationPerWindow) usable[h - 1] = false;
+  return usable;
+}
+
 // The white-noise level of a periodic signal with spikes: sigma = 1.4826 MAD(y[n + L] - y[n]) / sqrt(2)
 // for a lag L = k fs / f rounded, k <= P/2 whole periods. The periodic part cancels (to y' times the
 // rounding, far below the noise for the smooth part); the impacts spoil only the few samples near
@@ -834,6 +705,7 @@ RecordAnalysis AnalyseRecord(const Recording& record, ResponseKind kind, const F
       throw InputError("harmonic_orders", "harmonic " + std::to_string(options.harmonic_orders) + " of " + Format(f) +
                                               " Hz is not below the Nyquist frequency " + Format(0.5 * fs) + " Hz");
     const std::vector<double> cleaned = FitResponse(record, options, &a);
+    a.usable = UsableHarmonics(fs, a, options);
     a.frf = Complex(0.0, 1.0) * a.harmonics[0] / a.drive.amplitude_v;  // C_1(v) = V e^{j(phi - pi/2)}
     double higher = 0.0;
     for (size_t h = 1; h < a.harmonics.size(); ++h) higher += std::norm(a.harmonics[h]);
@@ -990,7 +862,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     const std::optional<ModelOrbit> orbit = BestMatchingOrbit(start_model, a, kind, orders);
     if (!orbit) throw NumericalError("no steady state of the starting model at record " + a.name);
     all[i].anchor = orbit->anchor;
-    fits[i].nrmse_initial = std::sqrt(MismatchSquared(a.harmonics, orbit->harmonics) / PowerOf(a.harmonics));
+    fits[i].nrmse_initial = std::sqrt(MismatchSquared(a, orbit->harmonics) / PowerOf(a));
   }
   std::vector<RecordTarget> targets;
   for (size_t i : used) targets.push_back(all[i]);
@@ -1156,7 +1028,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       for (int h = 0; h < orders; ++h) model_harmonics[h] += correction[h];
     } catch (const std::exception&) {
     }
-    const double power_i = PowerOf(a.harmonics), mismatch_i = MismatchSquared(a.harmonics, model_harmonics);
+    const double power_i = PowerOf(a), mismatch_i = MismatchSquared(a, model_harmonics);
     f.nrmse = std::sqrt(mismatch_i / power_i);
     f.chi2 = mismatch_i / (a.harmonic_se * a.harmonic_se) / (2.0 * orders);
     f.model_period = orbit->anchor.period;
@@ -1173,35 +1045,54 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
 
 // ---- The pipeline ----------------------------------------------------------------------------------
 
+std::vector<RecordAnalysis> AnalyseCampaign(const Campaign& campaign, const FitOptions& options,
+                                            std::vector<std::string>* warnings) {
+  ThrowIfInvalid(options);
+  if (campaign.records.empty()) throw InputError("records", "the campaign holds no records");
+  std::vector<const Recording*> stepped;
+  for (const Recording& record : campaign.records) {
+    if (!record.broadband) {
+      stepped.push_back(&record);
+    } else if (warnings != nullptr) {
+      warnings->push_back("record " + record.name + " is broadband: not used (stepped-sine records only)");
+    }
+  }
+  if (stepped.empty())
+    throw InputError("records", "the campaign holds no stepped-sine record (broadband records are not fitted)");
+  // Records are independent: analysed side by side, the first error (in campaign order) re-thrown.
+  std::vector<RecordAnalysis> analyses(stepped.size());
+  internal::ParallelFor(stepped.size(), [&](size_t i) { analyses[i] = AnalyseRecord(*stepped[i], campaign.response, options); });
+  for (const RecordAnalysis& a : analyses) {
+    const double drift = a.drive.frequency_hz / a.nominal_frequency_hz - 1.0;
+    if (std::abs(drift) > 1e-3 && warnings != nullptr)
+      warnings->push_back("record " + a.name + ": the drive is at " + Format(a.drive.frequency_hz) +
+                          " Hz, the manifest says " + Format(a.nominal_frequency_hz) + " Hz");
+  }
+  return analyses;
+}
+
 FitResult FitCampaign(const Campaign& campaign, const FitOptions& options) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  std::vector<std::string> warnings;
+  const std::vector<RecordAnalysis> analyses = AnalyseCampaign(campaign, options, &warnings);
+  FitResult result = FitAnalysed(analyses, campaign.response, campaign.absolute_scale, options);
+  result.warnings.insert(result.warnings.begin(), warnings.begin(), warnings.end());
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return result;
+}
+
+FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind response, bool absolute_scale,
+                      const FitOptions& options) {
   ThrowIfInvalid(options);
   const auto clock_start = std::chrono::steady_clock::now();
-  if (campaign.records.empty()) throw InputError("records", "the campaign holds no records");
+  if (analyses.empty()) throw InputError("records", "no stepped-sine record to fit");
   FitResult result;
   result.model_kind = options.model;
-  result.response = campaign.response;
-  result.absolute_scale = campaign.absolute_scale;
+  result.response = response;
+  result.absolute_scale = absolute_scale;
   result.mass_kg = options.mass_kg;
-
-  // Step 1.
-  std::vector<RecordAnalysis> analyses;
-  for (const Recording& record : campaign.records) {
-    if (record.broadband) {
-      result.warnings.push_back("record " + record.name + " is broadband: not used (stepped-sine records only)");
-      continue;
-    }
-    analyses.push_back(AnalyseRecord(record, campaign.response, options));
-    const RecordAnalysis& a = analyses.back();
-    const double drift = a.drive.frequency_hz / a.nominal_frequency_hz - 1.0;
-    if (std::abs(drift) > 1e-3)
-      result.warnings.push_back("record " + a.name + ": the drive is at " + Format(a.drive.frequency_hz) +
-                                " Hz, the manifest says " + Format(a.nominal_frequency_hz) + " Hz");
-  }
-  if (analyses.empty())
-    throw InputError("records", "the campaign holds no stepped-sine record (broadband records are not fitted)");
-
   // Step 2.
-  result.linear = FitClearRecords(analyses, campaign.response, options);
+  result.linear = FitClearRecords(analyses, response, options);
   const FrfFitSummary& linear = result.linear.summary;
   if (!linear.converged) {
     if (!(linear.stiffness_n_per_m > 0) || !(linear.damping_n_s_per_m > 0) || linear.gain_n_per_v == 0)
@@ -1218,7 +1109,7 @@ FitResult FitCampaign(const Campaign& campaign, const FitOptions& options) {
   start.contact_damping_n_s_per_m = 0.0;
 
   // Step 3.
-  result.contact = EstimateContact(analyses, campaign.response, linear, options);
+  result.contact = EstimateContact(analyses, response, linear, options);
   const ContactEstimate& contact = result.contact;
   std::vector<size_t> used;
   if (options.model == FitModelKind::kLinear) {
@@ -1246,11 +1137,11 @@ FitResult FitCampaign(const Campaign& campaign, const FitOptions& options) {
     if (!contact.lower_stop) result.warnings.push_back("impact spikes are negative: the stop is on the upper side");
   }
   // Step 4.
-  RefineParameters(analyses, campaign.response, start, used, options, &result);
+  RefineParameters(analyses, response, start, used, options, &result);
   for (size_t i : result.linear.records) result.records[i].used_linear = true;
   for (size_t i : contact.records) result.records[i].used_contact = result.records[i].spikes > 0;
   const bool stop = result.model.HasLowerStop() || result.model.HasUpperStop();
-  result.identifiability = Identifiability(options.model, campaign.response, campaign.absolute_scale, stop);
+  result.identifiability = Identifiability(options.model, response, absolute_scale, stop);
   if (!result.refinement.converged)
     result.warnings.push_back("the refinement did not converge: " + result.refinement.report);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();

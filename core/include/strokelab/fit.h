@@ -119,6 +119,10 @@ struct RecordAnalysis {
   // C_h, h = 1..N, of the response relative to the drive phase: C_h(record) e^{-j h phi}, so that a
   // model driven by V sin(w t) (phase 0) has the same harmonics.
   std::vector<std::complex<double>> harmonics;
+  // False for harmonics h (index h - 1) within half a frequency bin (1/T) of a mains hum overtone
+  // when hum is removed: hum and drive harmonic cannot be told apart there, so those harmonics are
+  // left out of every residual (with a 50 Hz mains, harmonic 10 of a 5 Hz record).
+  std::vector<bool> usable;
   std::complex<double> frf;  // C_1(response) / C_1(v_in) [response units / V]
   // White-noise level of the response [response units]: 1.4826 MAD of y[n + L] - y[n] over sqrt(2),
   // L a lag of whole periods (the periodic part cancels, the few samples near impacts do not count;
@@ -257,6 +261,16 @@ struct FitResult {
 // result->model, ->parameters, ->refinement, ->records, ->nrmse*.
 void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kind, const ActuatorModel& start,
                       const std::vector<size_t>& used, const FitOptions& options, FitResult* result);
+
+// Step 1 on every stepped-sine record of the campaign (side by side, one thread per core), in campaign
+// order; broadband records are skipped with a warning, drives far from the manifest's frequency
+// warned about (warnings may be null). Throws InputError as FitCampaign.
+std::vector<RecordAnalysis> AnalyseCampaign(const Campaign& campaign, const FitOptions& options,
+                                            std::vector<std::string>* warnings);
+
+// Steps 2-4 on analysed records (of one campaign: `response` and `absolute_scale` are its).
+FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind response, bool absolute_scale,
+                      const FitOptions& options);
 
 // Steps 1-4 on a campaign. Throws InputError for bad options, an empty campaign, a campaign without
 // stepped-sine records, bad records (naming the record), fewer than 3 records clear of the stop.

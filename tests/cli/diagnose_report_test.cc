@@ -1,0 +1,290 @@
+// The diagnosis report (HTML page and CSV tables) on hand-made diagnoses, so that the page is
+// checked without fitting anything: a named effect, "nothing missing", and an empty diagnosis.
+#include "strokelab/diagnose_report.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <cmath>
+#include <complex>
+#include <filesystem>
+#include <regex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "report_test_util.h"
+
+namespace strokelab::report {
+namespace {
+
+using ::strokelab::testing::FreshDir;
+using ::strokelab::testing::Lines;
+using ::strokelab::testing::ReadFile;
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+constexpr const char* kOddName = "rec<&>7";
+constexpr int kHarmonics = 5;
+
+FitParameter Parameter(std::string name, std::string unit, double value, double se) {
+  FitParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.value = value;
+  p.standard_error = se;
+  return p;
+}
+
+// A resonance near 32 Hz whose harmonics fall as 1/h^2; `error` is the model's relative error.
+std::vector<std::complex<double>> Harmonics(double f_hz, double v, double error) {
+  const double r = f_hz / 32.0;
+  const std::complex<double> first = v / std::complex<double>(1 - r * r, 0.1 * r);
+  std::vector<std::complex<double>> c;
+  for (int h = 1; h <= kHarmonics; ++h) c.push_back(first * (1 + error * h) * std::polar(1.0 / (h * h), 0.3 * h));
+  return c;
+}
+
+RecordMatch Match(const std::string& name, double f_hz, double v, bool heldout, double error) {
+  RecordMatch m;
+  m.name = name;
+  m.frequency_hz = f_hz;
+  m.amplitude_v = v;
+  m.heldout = heldout;
+  m.clear = v < 0.5;
+  m.measured = Harmonics(f_hz, v, 0.0);
+  m.model = Harmonics(f_hz, v, error);
+  m.nrmse = std::abs(error) * 1.7;
+  m.chi2 = 1e4 * error * error * v;
+  return m;
+}
+
+FitFigures Figures(double nrmse, double heldout_nrmse, double chi2, double heldout_chi2, double rv) {
+  return {nrmse, heldout_nrmse, chi2, heldout_chi2, rv};
+}
+
+// A fitted, converged single-effect candidate.
+CandidateFit Candidate(Effect effect, std::string label, const FitFigures& figures, double heldout_gain,
+                       double fit_gain, std::vector<FitParameter> effect_parameters) {
+  CandidateFit c;
+  c.effects = {effect};
+  c.label = std::move(label);
+  c.fitted = c.converged = true;
+  c.effect_parameters = std::move(effect_parameters);
+  c.figures = figures;
+  c.heldout_gain = heldout_gain;
+  c.fit_gain = fit_gain;
+  return c;
+}
+
+// 5 frequencies x 3 amplitudes, every 4th held out; the base model misses more at large amplitude
+// (a hardening suspension), the chosen cubic stiffness much less.
+Diagnosis Named() {
+  Diagnosis d;
+  d.base.response = ResponseKind::kForce;
+  d.base.model.stiffness_n_per_m = 1300;  // sqrt(k_p / m_p) / 2 pi = 32.1 Hz
+  d.base.parameters = {Parameter("k_p", "N/m", 1301.5, 8.3), Parameter("c_p", "N s/m", 1.31, 0.02),
+                       Parameter("m_p", "kg", 0.032, 0)};
+  d.base.parameters[2].fixed = true;
+  size_t index = 0;
+  for (double v : {0.1, 0.3, 1.0}) {
+    for (double f : {20.0, 26.0, 32.0, 38.0, 50.0}) {
+      const bool heldout = index % 4 == 3;
+      const std::string name = index == 7 ? kOddName : "rec" + std::to_string(index);
+      d.before.push_back(Match(name, f, v, heldout, 0.05 * v));
+      d.after.push_back(Match(name, f, v, heldout, 0.004 * v));
+      if (heldout) d.heldout.push_back(index);
+      ++index;
+    }
+  }
+  d.fit_before = Figures(0.08125, 0.0931, 1520, 610, 9.5);
+  d.fit_after = Figures(0.01234, 0.0152, 160, 55, 1.02);
+
+  CandidateFit cubic = Candidate(Effect::kCubicStiffness, "cubic_stiffness", d.fit_after, 540.5, 1350,
+                                 {Parameter("k3", "N/m^3", 2.3456e6, 1.2e5)});
+  cubic.parameters = d.base.parameters;
+  cubic.parameters.push_back(cubic.effect_parameters[0]);
+  cubic.passes = 3;
+  cubic.seconds = 12.5;
+  const CandidateFit quadratic = Candidate(Effect::kQuadraticStiffness, "quadratic_stiffness",
+                                           Figures(0.0801, 0.0925, 1490, 600, 9.3), 1.25, 3.5,
+                                           {Parameter("k2", "N/m^2", 150, 400)});
+  CandidateFit skipped = Candidate(Effect::kDryFriction, "dry_friction", Figures(NAN, NAN, NAN, NAN, NAN), NAN, NAN, {});
+  skipped.fitted = skipped.converged = false;
+  skipped.note = "skipped: <1 s of the budget left";
+  d.candidates = {cubic, quadratic, skipped};
+  d.chosen = 0;
+  d.missing_physics = {Effect::kCubicStiffness};
+  d.conclusion = "The suspension hardens: k3 explains the resonance shift & the odd harmonics.";
+  d.seconds = 42;
+
+  Signatures& s = d.signatures;
+  s.evidence.push_back({"resonance_shift", "The resonance rises by 4.1 Hz from 0.1 V to 1 V.", 4.1, 0.5, 8.2,
+                        {Effect::kCubicStiffness}});
+  s.evidence.push_back({"harmonic_balance", "Even harmonics not measurable.", NAN, 0, 0,
+                        {Effect::kQuadraticStiffness, Effect::kCubicStiffness}});
+  s.hotspots.push_back({kOddName, 32.0, 0.3, 3, 0.125, -0.2, 45.5});
+  s.hotspots.push_back({"rec14", 50.0, 1.0, 1, -0.08, 0.1, 30.25});
+  s.contact_window_s = 2e-3;
+  s.residual_rms_near_contacts = 0.05;
+  s.residual_rms_elsewhere = 0.0125;
+  s.levels = {{0.1, 5, 31.2, 0.3, 0.002, 0.003, NAN},
+              {0.3, 5, 32.5, 0.4, 0.004, 0.02, 1.2e-3},
+              {1.0, 0, 35.3, 0.5, NAN, NAN, 0.9e-3}};
+  return d;
+}
+
+// The same campaign with nothing chosen, no contacts and no resonance per level.
+Diagnosis NothingMissing() {
+  Diagnosis d = Named();
+  d.after = d.before;
+  d.fit_after = d.fit_before;
+  d.chosen = -1;
+  d.missing_physics.clear();
+  d.candidates.erase(d.candidates.begin());
+  d.conclusion = "Nothing missing.";
+  d.signatures.residual_rms_near_contacts = d.signatures.residual_rms_elsewhere = NAN;
+  for (Signatures::Level& level : d.signatures.levels) {
+    level.mean_contact_time_s = NAN;
+    level.resonance_hz = NAN;
+  }
+  return d;
+}
+
+size_t Count(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t i = text.find(what); i != std::string::npos; i = text.find(what, i + 1)) ++n;
+  return n;
+}
+
+// Empty when every element is closed in order (void and self-closed elements aside), every '<'
+// opens a tag and every '&' an entity; else what is wrong and where.
+std::string CheckMarkup(const std::string& html) {
+  static const std::set<std::string> kVoid = {"meta", "br", "hr", "img", "input", "link", "col", "wbr"};
+  std::vector<std::string> open;
+  for (size_t i = html.find('<'); i != std::string::npos; i = html.find('<', i + 1)) {
+    const size_t end = html.find('>', i);
+    if (end == std::string::npos) return "unterminated tag at " + std::to_string(i);
+    if (html[i + 1] == '!') continue;  // <!DOCTYPE>
+    const bool closing = html[i + 1] == '/';
+    size_t name_end = i + 1 + closing;
+    while (name_end < end && (std::isalnum(static_cast<unsigned char>(html[name_end])) || html[name_end] == '-'))
+      ++name_end;
+    const std::string name = html.substr(i + 1 + closing, name_end - i - 1 - closing);
+    if (name.empty()) return "stray '<' at " + std::to_string(i) + ": " + html.substr(i, 20);
+    if (closing) {
+      if (open.empty() || open.back() != name) {
+        return "</" + name + "> at " + std::to_string(i) + " closes <" + (open.empty() ? "" : open.back()) + ">";
+      }
+      open.pop_back();
+    } else if (html[end - 1] != '/' && !kVoid.count(name)) {
+      open.push_back(name);
+    }
+  }
+  if (!open.empty()) return "<" + open.back() + "> never closed";
+  static const std::regex kBadAmpersand("&(?!(amp|lt|gt|quot|#[0-9]+);)");
+  std::smatch m;
+  if (std::regex_search(html, m, kBadAmpersand)) return "bare '&' at " + std::to_string(m.position(0));
+  return "";
+}
+
+TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
+  const std::filesystem::path dir = FreshDir("diagnose_named");
+  WriteDiagnosisReport(Named(), dir / "nested");  // creates missing folders
+  for (const std::string& name : DiagnosisReportFiles()) {
+    ASSERT_TRUE(std::filesystem::is_regular_file(dir / "nested" / name)) << name;
+  }
+  const std::string html = ReadFile(dir / "nested/index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  for (const char* expected : {
+           // The conclusion, with the parameter's standard error (and relative: 1.2e5 / 2.3456e6).
+           "Missing physics: <strong>cubic_stiffness</strong>",
+           "k3 = (2.35 \u00b1 0.12)e+06 N/m^3 (5.1 %)",
+           "explains the resonance shift &amp; the odd harmonics",
+           // fit_before -> fit_after, improvement 1 - 0.01234 / 0.08125 and 1 - 0.0152 / 0.0931.
+           "nrmse 0.08125 \u2192 0.01234 (84.8 % better)",
+           "held-out nrmse 0.0931 \u2192 0.0152 (83.7 % better)",
+           "<td class=\"num\">1301.5 \u00b1 8.3</td>",
+           // Candidates: the chosen row highlighted; the skipped one's NaNs as "-", its note escaped.
+           "<tr class=\"chosen\"><td>cubic_stiffness (chosen)</td>",
+           "<td class=\"num\">540.5</td>",
+           "<td>dry_friction</td><td>no</td><td>no</td><td class=\"num\">-</td>",
+           "skipped: &lt;1 s of the budget left",
+           // Evidence (NaN value: "-") and hotspots (12.5 %, -0.2 rad); the record name escaped.
+           "<td class=\"num\">4.10 \u00b1 0.50</td><td class=\"num\">8.2</td>",
+           "<td>quadratic_stiffness + cubic_stiffness</td>",
+           "<td>rec&lt;&amp;&gt;7</td><td class=\"num\">32</td>",
+           "<td class=\"num\">12.5</td><td class=\"num\">-11.5</td>",
+           // The residual near contacts in the contact figure's caption.
+           "0.05 N within +-2 ms of the contacts, 0.0125 N elsewhere (ratio 4)",
+       }) {
+    EXPECT_THAT(html, HasSubstr(expected));
+  }
+  EXPECT_EQ(Count(html, "<tr class=\"chosen\">"), 1u);
+  EXPECT_THAT(html, Not(HasSubstr(kOddName)));
+  for (const char* bad : {">nan", ">inf", "-nan", "nan<"}) EXPECT_THAT(html, Not(HasSubstr(bad))) << bad;
+  // One SVG per plot: 3 worst records x (magnitude, phase), FRF, 2 residual maps, resonance,
+  // contact times, harmonic ratios.
+  EXPECT_EQ(Count(html, "<svg"), 12u);
+  for (const char* id : {"harmonics", "frf", "residual", "resonance", "contact", "ratios"})
+    EXPECT_THAT(html, HasSubstr(std::string("<section id=\"") + id + "\">")) << id;
+  EXPECT_THAT(html, Not(HasSubstr("class=\"skipped\"")));
+  // Self-contained: no script, nothing loaded from elsewhere.
+  for (const char* external : {"<script", "src=", "href=\"http", "url(http"})
+    EXPECT_THAT(html, Not(HasSubstr(external))) << external;
+}
+
+TEST(DiagnoseReportTest, NamedEffectTables) {
+  const std::filesystem::path dir = FreshDir("diagnose_named_tables");
+  WriteDiagnosisReport(Named(), dir);
+  const auto records = Lines(ReadFile(dir / "records.csv"));
+  ASSERT_EQ(records.size(), 16u);
+  EXPECT_EQ(records[0],
+            "name,frequency_hz,amplitude_v,heldout,clear,nrmse_before,chi2_before,model_period_before,"
+            "contacts_per_period_before,nrmse_after,chi2_after,model_period_after,contacts_per_period_after");
+  EXPECT_THAT(records[8], ::testing::StartsWith("rec<&>7,32,0.3,1,1,0.0255,"));
+  const auto candidates = Lines(ReadFile(dir / "candidates.csv"));
+  ASSERT_EQ(candidates.size(), 4u);
+  EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,"
+                                                   "k3=2345600;se=120000;N/m^3,3,12.5,"));
+  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,,0,0,skipped: <1 s of the budget left");
+  const auto levels = Lines(ReadFile(dir / "levels.csv"));
+  ASSERT_EQ(levels.size(), 4u);
+  EXPECT_EQ(levels[1], "0.1,5,31.2,0.3,0.002,0.003,");
+  EXPECT_EQ(levels[3], "1,0,35.3,0.5,,,0.0009");
+}
+
+TEST(DiagnoseReportTest, NothingMissingSaysSoAndSkipsPlotsWithoutData) {
+  const std::filesystem::path dir = FreshDir("diagnose_nothing");
+  WriteDiagnosisReport(NothingMissing(), dir);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  EXPECT_THAT(html, HasSubstr("<strong>Nothing missing</strong>"));
+  EXPECT_THAT(html, Not(HasSubstr("Missing physics")));
+  EXPECT_THAT(html, HasSubstr("nrmse 0.08125 \u2192 0.08125 (0.0 % better)"));
+  EXPECT_EQ(Count(html, "<tr class=\"chosen\">"), 0u);
+  EXPECT_THAT(html, HasSubstr("No contact times: no amplitude level has impact spikes. No contacts: no time-domain "
+                              "residual near contacts."));
+  EXPECT_THAT(html, HasSubstr("No amplitude level has 3 or more records clear of the stop"));
+  EXPECT_THAT(html, HasSubstr("Nothing was added to the model, so there is no second map."));
+  // 3 worst records x 2, FRF, one residual map, harmonic ratios.
+  EXPECT_EQ(Count(html, "<svg"), 9u);
+  EXPECT_EQ(Count(html, "class=\"skipped\""), 2u);
+}
+
+TEST(DiagnoseReportTest, EmptyDiagnosisSkipsEveryFigure) {
+  const std::filesystem::path dir = FreshDir("diagnose_empty");
+  WriteDiagnosisReport(Diagnosis{}, dir);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  EXPECT_THAT(html, HasSubstr("Nothing missing"));
+  EXPECT_EQ(Count(html, "<svg"), 0u);
+  EXPECT_THAT(html, HasSubstr("No candidate was tried."));
+  EXPECT_EQ(Lines(ReadFile(dir / "records.csv")).size(), 1u);
+  EXPECT_EQ(Lines(ReadFile(dir / "levels.csv")).size(), 1u);
+}
+
+}  // namespace
+}  // namespace strokelab::report
