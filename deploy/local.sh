@@ -4,11 +4,14 @@
 #   deploy/local.sh demo   build and write the demo sweep and the paper's figures as files
 #   deploy/local.sh test   build and run every test (what .ci/run calls)
 #   deploy/local.sh build  build only
+#   deploy/local.sh sanitize        the ASan+UBSan and TSan builds and their tests (not yet in CI: see below)
+#   deploy/local.sh fuzz [SECONDS]  build the libFuzzer harnesses and run each for SECONDS (default 600)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 PACKAGES=(build-essential cmake ccache pkg-config libeigen3-dev libsundials-dev libceres-dev nlohmann-json3-dev
-          libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy chromium)
+          libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy chromium
+          clang libclang-rt-14-dev)  # clang: the sanitizer and fuzzing builds (libFuzzer is in clang-rt)
 
 install_missing() {
   local missing=()
@@ -31,6 +34,66 @@ build() {
   cmake --build "$BUILD_DIR" -j "$(nproc)"
 }
 
+# Sanitizer and fuzzing builds (tests/README.md, "Sanitizers and fuzzing"): clang, each in a build
+# directory of its own. -O2 keeps the tests' run time near Release; line tables make the reports'
+# stacks readable; NDEBUG is left out so that assertions (ours, Eigen's) are checked too.
+configure_clang() {  # DIR CMAKE_ARGS...
+  local dir=$1
+  shift
+  export CCACHE_DIR=${CCACHE_DIR:-$HOME/.cache/strokelab-ccache}
+  cmake -S . -B "$dir" -G "Unix Makefiles" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only" -DSTROKELAB_BUILD_BENCHMARKS=OFF "$@" >/dev/null
+}
+
+# A sanitizer report fails the test that caused it: ASan and TSan stop at the first report, UBSan
+# aborts (-fno-sanitize-recover), LeakSanitizer fails the process at exit.
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1:strict_string_checks=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1}
+export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
+
+# ASan + UBSan: every test but these. FitCampaign.Explore fits every model to a campaign (32 s in
+# Release, over 60 s here); web_page drives Chromium, whose own code the sanitizers do not see and
+# whose page the server_process and python_client tests already serve.
+# The diagnosis tests (Library/DiagnoseTest.*) run 10-40 s each in Release.
+ASAN_EXCLUDE='^(FitCampaign\.Explore|web_page|Library/DiagnoseTest\..*)$'
+asan_stage() {
+  configure_clang build/asan -DSTROKELAB_SANITIZE=address,undefined
+  cmake --build build/asan -j "$(nproc)"
+  ctest --test-dir build/asan --output-on-failure -j "$(nproc)" -E "$ASAN_EXCLUDE"
+}
+
+# TSan: the tests of the threaded parts, the job store's task queue, the service with its workers
+# and HTTP threads, remote workers, faults (tests/server, tests/fault). Only their targets are built.
+TSAN_TEST_DIRS=(tests/server tests/fault)
+tsan_stage() {
+  configure_clang build/tsan -DSTROKELAB_SANITIZE=thread
+  local dir
+  for dir in "${TSAN_TEST_DIRS[@]}"; do
+    [ -d "build/tsan/$dir" ] || continue
+    make -C "build/tsan/$dir" --no-print-directory -j "$(nproc)" >/dev/null
+    ctest --test-dir "build/tsan/$dir" --output-on-failure -j "$(nproc)"
+  done
+}
+
+# libFuzzer harnesses (tests/fuzz): built with ASan + UBSan, each corpus replayed (ctest), then each
+# harness fuzzed for FUZZ_SECONDS.
+fuzz_stage() {  # FUZZ_SECONDS
+  configure_clang build/fuzz -DSTROKELAB_FUZZ=ON
+  make -C build/fuzz/tests/fuzz --no-print-directory -j "$(nproc)" >/dev/null
+  ctest --test-dir build/fuzz/tests/fuzz --output-on-failure
+  tests/fuzz/run_fuzzers.sh "$1"
+}
+
+# Runs NAME's command and keeps its wall time for the summary printed at the end.
+STAGE_TIMES=()
+stage() {  # NAME COMMAND...
+  local name=$1 start=$SECONDS
+  shift
+  echo "== $name"
+  "$@"
+  STAGE_TIMES+=("$name $((SECONDS - start)) s")
+}
+
 case "${1:-}" in
   run)
     # The service on its embedded SQLite file with one worker per core; once it is up it submits
@@ -48,15 +111,29 @@ case "${1:-}" in
     ;;
   test)
     install_missing
-    build
-    ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
+    stage "release build" build
+    stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
+    printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
+    ;;
+  sanitize)
+    # Not part of `test` (and so of CI) yet: these stages have not been run to the end on this
+    # 2-core machine, so neither their time nor their cleanliness is known (issue 6 stays open).
+    install_missing
+    stage "asan+ubsan build and tests" asan_stage
+    stage "tsan build and tests" tsan_stage
+    stage "fuzz build, corpus replay, 20 s per harness" fuzz_stage 20
+    printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
+    ;;
+  fuzz)
+    install_missing
+    fuzz_stage "${2:-600}"
     ;;
   build)
     install_missing
     build
     ;;
   *)
-    echo "usage: deploy/local.sh run|demo|test|build" >&2
+    echo "usage: deploy/local.sh run|demo|test|build|sanitize|fuzz [SECONDS]" >&2
     exit 2
     ;;
 esac

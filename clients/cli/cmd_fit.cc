@@ -110,19 +110,7 @@ void PrintReport(const FitResult& r, std::ostream& out) {
 
 }  // namespace
 
-int RunFit(const std::vector<std::string>& argv) {
-  const Args args(
-      argv, {"--data", "--model", "--harmonics", "--mass-kg", "--mains-hz", "--max-distortion", "--max-iterations"},
-      {"--json", "--fit-contact-damping", "--no-refine", "--help"});
-  if (args.Has("--help")) {
-    std::cout << kHelp;
-    return 0;
-  }
-  if (!args.Positional().empty())
-    throw InputError(args.Positional().front(), "unexpected argument (see strokelab fit --help)");
-  const auto data = args.Get("--data");
-  if (!data) throw InputError("--data", "is required (the campaign directory)");
-
+FitOptions FitOptionsFromArgs(const Args& args) {
   FitOptions options;
   try {
     options.model = ParseFitModel(args.GetOr("--model", "paper"));
@@ -147,6 +135,24 @@ int RunFit(const std::vector<std::string>& argv) {
     throw InputError(flag, error.substr(error.find(": ") + 2));
   }
 
+  return options;
+}
+
+int RunFit(const std::vector<std::string>& argv) {
+  std::vector<std::string> values = kFitValueFlags, switches = kFitSwitches;
+  values.push_back("--data");
+  switches.insert(switches.end(), {"--json", "--help"});
+  const Args args(argv, {values.begin(), values.end()}, {switches.begin(), switches.end()});
+  if (args.Has("--help")) {
+    std::cout << kHelp;
+    return 0;
+  }
+  if (!args.Positional().empty())
+    throw InputError(args.Positional().front(), "unexpected argument (see strokelab fit --help)");
+  const auto data = args.Get("--data");
+  if (!data) throw InputError("--data", "is required (the campaign directory)");
+
+  const FitOptions options = FitOptionsFromArgs(args);
   const Campaign campaign = ReadCampaign(*data);
   const FitResult result = FitCampaign(campaign, options);
   if (args.Has("--json")) {

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -107,12 +108,17 @@ json WaitForJob(const Connection& c, int64_t id) {
 }  // namespace
 
 int RunServe(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--port", "--db", "--workers", "--token-file", "--host", "--lease-s", "--max-body-bytes"},
+  const Args args(argv, {"--port", "--db", "--workers", "--token-file", "--host", "--lease-s", "--max-body-bytes",
+                   "--data-root", "--max-campaign-bytes"},
                   {"--demo", "--quiet", "--help"});
   if (args.Has("--help")) {
     std::cout << "usage: strokelab serve [--port 8080] [--db var/strokelab.db] [--workers N] [--token-file F]\n"
                  "                       [--host 127.0.0.1] [--lease-s 120] [--demo] [--quiet]\n"
-                 "  --workers 0 leaves all work to remote workers (strokelab worker --server URL).\n"
+                 "                       [--data-root DIR] [--max-campaign-bytes 268435456]\n"
+                 "  --workers 0 leaves all work to remote workers (strokelab worker --server URL);\n"
+                 "    fit and diagnose jobs need in-process workers.\n"
+                 "  --data-root DIR lets fit and diagnose jobs name campaigns as {\"path\": P} relative to DIR;\n"
+                 "    uploads (POST /v1/campaigns) are kept next to the database, in DB.campaigns/.\n"
                  "  --demo submits a sweep of the paper's model once the service is up and prints where to look.\n";
     return 0;
   }
@@ -127,6 +133,10 @@ int RunServe(const std::vector<std::string>& argv) {
   options.lease_ms = static_cast<int64_t>(args.Number("--lease-s", 120.0) * 1000);
   if (options.lease_ms < 1000) throw InputError("--lease-s", "must be at least 1 s");
   options.max_body_bytes = static_cast<size_t>(args.Number("--max-body-bytes", 1 << 20));
+  options.max_campaign_bytes = static_cast<size_t>(args.Number("--max-campaign-bytes", 256.0 * (1 << 20)));
+  options.data_root = args.GetOr("--data-root", "");
+  if (!options.data_root.empty() && !std::filesystem::is_directory(options.data_root))
+    throw InputError("--data-root", "'" + options.data_root + "' is not a directory");
   options.quiet = args.Has("--quiet");
   if (const auto parent = std::filesystem::path(options.db_path).parent_path(); !parent.empty())
     std::filesystem::create_directories(parent);

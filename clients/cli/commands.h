@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "args.h"
+#include "strokelab/fit.h"
 #include "strokelab/model.h"
 
 namespace strokelab::cli {
@@ -21,6 +22,16 @@ int RunResults(const std::vector<std::string>& argv);
 int RunRegress(const std::vector<std::string>& argv);
 int RunSynth(const std::vector<std::string>& argv);
 int RunFit(const std::vector<std::string>& argv);
+int RunDiagnose(const std::vector<std::string>& argv);
+
+// The fit's options from --model, --harmonics, --mass-kg, --mains-hz, --max-distortion,
+// --max-iterations, --fit-contact-damping, --no-refine (shared by fit and diagnose); bad values
+// are thrown as InputError naming the flag.
+inline const std::vector<std::string> kFitValueFlags = {"--model", "--harmonics", "--mass-kg", "--mains-hz",
+                                                        "--max-distortion", "--max-iterations"};
+inline const std::vector<std::string> kFitSwitches = {"--fit-contact-damping", "--no-refine"};
+FitOptions FitOptionsFromArgs(const Args& args);
+int RunBackup(const std::vector<std::string>& argv);
 
 // --model (a preset name or a JSON model file) followed by every --set key=value, validated.
 ActuatorModel LoadModel(const Args& args);

@@ -19,6 +19,7 @@ commands:
   regress    run job files and compare their results with stored baselines (CI regression jobs)
   synth      a synthetic measurement campaign (recordings layout) from a model, its truth apart
   fit        fit a model (paper, linear) to a campaign directory: parameters with standard errors
+  diagnose   where a fitted model misses a campaign, the physics it left out, fitted, with the improvement
 
 service:
   serve      the REST service: SQLite job store, worker pool, web page at /
@@ -26,6 +27,7 @@ service:
   submit     submit a job file to a server (--wait: progress bar until it finishes)
   status     a job's status (--wait: until it finishes)
   results    a job's steady states as JSON or --csv
+  backup     a consistent copy of the service's job store, safe while it runs (--db F --to G)
   paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 Run 'strokelab COMMAND --help' for a command's options.
@@ -52,6 +54,8 @@ int main(int argc, char** argv) {
     if (command == "regress") return strokelab::cli::RunRegress(rest);
     if (command == "synth") return strokelab::cli::RunSynth(rest);
     if (command == "fit") return strokelab::cli::RunFit(rest);
+    if (command == "diagnose") return strokelab::cli::RunDiagnose(rest);
+    if (command == "backup") return strokelab::cli::RunBackup(rest);
     std::cerr << "strokelab: error: unknown command '" << command << "' (see strokelab --help)\n";
     return 2;
   } catch (const strokelab::InputError& e) {

@@ -139,6 +139,64 @@ void CheckSimulateJob(const json& job) {
                                     " (use cvode or ode3)");
 }
 
+// A FitOptions or DiagnoseOptions field ("harmonic_orders", "fit.max_clear_distortion",
+// "heldout_every") as the pointer of the job option that sets it.
+std::string PointerForOptionField(std::string field) {
+  if (field.rfind("fit.", 0) == 0) field = field.substr(4);
+  static const std::pair<const char*, const char*> kRenamed[] = {
+      {"harmonic_orders", "harmonics"}, {"max_clear_distortion", "max_distortion"}, {"mains_frequency_hz", "mains_hz"}};
+  for (const auto& [core_name, job_name] : kRenamed)
+    if (field == core_name) return std::string("/options/") + job_name;
+  return "/options/" + field;
+}
+
+// Throws InputError at the option's pointer when IsValid says no ("FIELD: message").
+template <typename Options>
+void CheckOptions(const Options& options) {
+  std::string error;
+  if (options.IsValid(&error)) return;
+  const size_t colon = error.find(": ");
+  if (colon == std::string::npos) throw InputError("/options", error);
+  throw InputError(PointerForOptionField(error.substr(0, colon)), error.substr(colon + 2));
+}
+
+// The FitOptions of a fit or diagnose job that passed the schema.
+FitOptions FitFromSchemaValidJob(const json& job) {
+  FitOptions fit;
+  fit.model = ParseFitModel(job.value("model", std::string("paper")));
+  const json options = job.value("options", json::object());
+  fit.harmonic_orders = options.value("harmonics", fit.harmonic_orders);
+  fit.mass_kg = options.value("mass_kg", fit.mass_kg);
+  fit.fit_contact_damping = options.value("fit_contact_damping", fit.fit_contact_damping);
+  fit.mains_frequency_hz = options.value("mains_hz", fit.mains_frequency_hz);
+  fit.max_clear_distortion = options.value("max_distortion", fit.max_clear_distortion);
+  fit.max_iterations = options.value("max_iterations", fit.max_iterations);
+  fit.refine = options.value("refine", fit.refine);
+  fit.max_refinement_seconds = options.value("max_refinement_seconds", fit.max_refinement_seconds);
+  return fit;
+}
+
+DiagnoseOptions DiagnoseFromSchemaValidJob(const json& job) {
+  DiagnoseOptions diagnose;
+  diagnose.fit = FitFromSchemaValidJob(job);
+  const json options = job.value("options", json::object());
+  diagnose.heldout_every = options.value("heldout_every", diagnose.heldout_every);
+  diagnose.min_heldout_gain = options.value("min_heldout_gain", diagnose.min_heldout_gain);
+  diagnose.pairs = options.value("pairs", diagnose.pairs);
+  diagnose.max_passes = options.value("max_passes", diagnose.max_passes);
+  diagnose.max_seconds = options.value("max_seconds", diagnose.max_seconds);
+  return diagnose;
+}
+
+// The checks of a fit or diagnose job after the schema.
+void CheckCampaignJob(const json& job) {
+  const json& campaign = job.at("campaign");
+  if (campaign.contains("path") == campaign.contains("id"))
+    throw InputError("/campaign", "must give exactly one of path (under the server's data root) and id (an upload)");
+  if (job.at("kind") == "fit") CheckOptions(FitFromSchemaValidJob(job));
+  else CheckOptions(DiagnoseFromSchemaValidJob(job));
+}
+
 }  // namespace
 
 void CheckGridSize(long long frequency_points, long long amplitude_points) {
@@ -157,6 +215,8 @@ void ValidateJob(const json& job) {
     (void)SweepFromSchemaValidJob(job);
   } else if (kind == "simulate") {
     CheckSimulateJob(job);
+  } else if (kind == "fit" || kind == "diagnose") {
+    CheckCampaignJob(job);
   } else {
     // The schema's kind enum and this dispatch must list the same kinds.
     throw std::logic_error("job kind '" + kind + "' passed the schema but has no checks in job_spec.cc");
@@ -167,6 +227,18 @@ SweepSpec SweepSpecFromJob(const json& job) {
   CheckSchema(job);
   if (job.at("kind") != "sweep") throw InputError("/kind", "must be sweep");
   return SweepFromSchemaValidJob(job);
+}
+
+FitOptions FitOptionsFromJob(const json& job) {
+  ValidateJob(job);
+  if (job.at("kind") != "fit" && job.at("kind") != "diagnose") throw InputError("/kind", "must be fit or diagnose");
+  return FitFromSchemaValidJob(job);
+}
+
+DiagnoseOptions DiagnoseOptionsFromJob(const json& job) {
+  ValidateJob(job);
+  if (job.at("kind") != "diagnose") throw InputError("/kind", "must be diagnose");
+  return DiagnoseFromSchemaValidJob(job);
 }
 
 }  // namespace strokelab::server

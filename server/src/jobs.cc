@@ -3,10 +3,15 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "campaign_upload.h"
+#include "strokelab/diagnose.h"
+#include "strokelab/diagnose_report.h"
 #include "strokelab/engine.h"
 #include "strokelab/errors.h"
+#include "strokelab/fit.h"
 #include "strokelab/model_json.h"
 #include "strokelab/record_summary.h"
+#include "strokelab/recordings.h"
 #include "strokelab/server/job_spec.h"
 #include "strokelab/sweep.h"
 
@@ -45,7 +50,55 @@ TaskSpec MakeTask(nlohmann::json spec) {
   return {ContentKey(spec.dump()), std::move(spec)};
 }
 
+namespace fs = std::filesystem;
+
+// The report's files: one HTML page and CSV tables (diagnose_report.h).
+std::string ContentTypeOf(const std::string& name) {
+  if (name.ends_with(".html")) return "text/html; charset=utf-8";
+  if (name.ends_with(".csv")) return "text/csv; charset=utf-8";
+  if (name.ends_with(".svg")) return "image/svg+xml";
+  return "text/plain; charset=utf-8";
+}
+
+// The HTML report of a diagnosis (WriteDiagnosisReport into a scratch directory) as result rows. The
+// report's files are UTF-8 text (an HTML page, CSV tables), stored as JSON strings.
+std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis) {
+  const fs::path dir = fs::temp_directory_path() / ("strokelab-report-" + NewCampaignId());
+  std::vector<ResultRow> rows;
+  try {
+    report::WriteDiagnosisReport(diagnosis, dir);
+    for (const std::string& name : report::DiagnosisReportFiles())
+      rows.push_back({"report_files",
+                      {{"name", name}, {"content_type", ContentTypeOf(name)}, {"text", ReadFileBytes(dir / name)}}});
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove_all(dir, ignored);
+    throw;
+  }
+  fs::remove_all(dir);
+  return rows;
+}
+
+// A fit or diagnose task: the campaign is read again (and must still have the digest it was planned
+// with), then fitted or diagnosed.
+std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
+  const std::string type = task.at("type");
+  const fs::path dir = task.at("campaign_dir").get<std::string>();
+  if (CampaignDigest(dir) != task.at("campaign_digest"))
+    throw std::runtime_error("the campaign at " + dir.string() +
+                             " changed after the job was submitted; submit the job again");
+  const Campaign campaign = ReadCampaign(dir);
+  const nlohmann::json& job = task.at("job");
+  if (type == "fit") return {{"fit", FitResultToJson(FitCampaign(campaign, FitOptionsFromJob(job)))}};
+  const Diagnosis diagnosis = DiagnoseCampaign(campaign, DiagnoseOptionsFromJob(job));
+  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
+  for (ResultRow& row : DiagnosisReportRows(diagnosis)) rows.push_back(std::move(row));
+  return rows;
+}
+
 }  // namespace
+
+bool IsCampaignKind(const std::string& kind) { return kind == "fit" || kind == "diagnose"; }
 
 std::string ContentKey(const std::string& text) {
   uint64_t hash = 1469598103934665603ull;
@@ -58,7 +111,7 @@ std::string ContentKey(const std::string& text) {
   return hex;
 }
 
-std::vector<TaskSpec> PlanTasks(const nlohmann::json& job) {
+std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& campaigns) {
   ValidateJob(job);
   const std::string kind = job.at("kind");
   std::vector<TaskSpec> tasks;
@@ -84,6 +137,21 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job) {
     spec["type"] = "simulate";
     spec["model"] = ModelToJson(ModelFromJson(job.at("model"), "/model"));
     tasks.push_back(MakeTask(spec));
+  } else if (IsCampaignKind(kind)) {
+    const fs::path dir = ResolveCampaign(job.at("campaign"), campaigns);
+    const bool under_root = job.at("campaign").contains("path");
+    const std::string digest = CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path());
+    if (under_root) {  // uploads were read when they were stored
+      try {
+        (void)ReadCampaign(dir);
+      } catch (const InputError& e) {
+        throw CampaignError(e.field(), e.bare_message());
+      }
+    }
+    nlohmann::json spec_job = job;
+    spec_job.erase("name");
+    tasks.push_back(
+        MakeTask({{"type", kind}, {"job", spec_job}, {"campaign_dir", dir.string()}, {"campaign_digest", digest}}));
   } else {
     throw InputError("/kind", "job kind '" + kind + "' is not served yet");
   }
@@ -92,6 +160,7 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job) {
 
 std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel) {
   const std::string type = task.at("type");
+  if (IsCampaignKind(type)) return RunCampaignTask(task);  // not cancellable: see service.cc
   const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
   std::vector<ResultRow> rows;
   if (type == "sweep_row") {

@@ -1,16 +1,24 @@
 #include "strokelab/server/service.h"
 
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <deque>
+#include <exception>
+#include <filesystem>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
+#include <type_traits>
 
+#include "campaign_upload.h"
 #include "strokelab/errors.h"
 #include "strokelab/parse.h"
 #include "strokelab/server/auth.h"
@@ -18,8 +26,10 @@
 #include "strokelab/server/jobs.h"
 #include "strokelab/server/store.h"
 #include "strokelab/server/web_page.h"
+#include "storage_health.h"
 #include "strokelab/sweep.h"
 #include "strokelab/sweep_report.h"
+#include "event_log.h"
 
 namespace strokelab::server {
 namespace {
@@ -41,7 +51,8 @@ void SendError(httplib::Response& res, const HttpError& e) {
   json body = {{"error", {{"code", e.code}, {"message", e.message}}}};
   if (!e.field.empty()) body["error"]["field"] = e.field;
   res.status = e.status;
-  res.set_content(body.dump(), "application/json");
+  // Messages may quote what the client sent, which need not be UTF-8.
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 
 void SendJson(httplib::Response& res, const json& body, int status = 200) {
@@ -146,12 +157,77 @@ int64_t ParseId(const std::string& text) {
   }
 }
 
+// A finite number: an infinite filter or limit is a client's mistake, never a useful query.
 double QueryNumber(const httplib::Request& req, const std::string& name) {
+  double value = 0;
   try {
-    return ParseNumber(req.get_param_value(name), name);
+    value = ParseNumber(req.get_param_value(name), name);
   } catch (const InputError& e) {
     throw HttpError{400, "bad_query", e.bare_message(), name};
   }
+  if (!std::isfinite(value)) throw HttpError{400, "bad_query", "must be a finite number", name};
+  return value;
+}
+
+// A cursor or job id bound: digits only, parsed as an integer (a double would round cursors above
+// 2^53 and casting one beyond int64 is undefined).
+int64_t QueryInteger(const httplib::Request& req, const std::string& name) {
+  const std::string text = req.get_param_value(name);
+  int64_t value = -1;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || value < 0)
+    throw HttpError{400, "bad_query", "expected a whole number >= 0 (as returned by the service)", name};
+  return value;
+}
+
+// ?format= of the picture endpoints: absent or "json" (JSON), "svg" (a picture).
+bool WantsSvg(const httplib::Request& req) {
+  if (!req.has_param("format")) return false;
+  const std::string format = req.get_param_value("format");
+  if (format != "json" && format != "svg") throw HttpError{400, "bad_query", "must be json or svg", "format"};
+  return format == "svg";
+}
+
+// A JSON request body: sent as application/json (parameters such as charset allowed), and parsed.
+json JsonBody(const httplib::Request& req) {
+  const std::string type = req.get_header_value("Content-Type");
+  if (type.substr(0, type.find(';')) != "application/json")
+    throw HttpError{415, "unsupported_media_type",
+                    "send the body as Content-Type: application/json (got '" + type + "')", ""};
+  try {
+    return json::parse(req.body);
+  } catch (const json::exception& e) {
+    throw HttpError{400, "bad_json", std::string("request body is not valid JSON: ") + e.what(), ""};
+  }
+}
+
+// A member of a worker's request body with the JSON type of T; 400 naming it (a JSON pointer)
+// when it is missing or of another type.
+template <typename T>
+T BodyField(const json& object, const std::string& key, const std::string& pointer) {
+  if (!object.is_object()) throw HttpError{400, "bad_request", "expected a JSON object", pointer.substr(0, pointer.rfind('/'))};
+  const auto it = object.find(key);
+  if (it == object.end()) throw HttpError{400, "bad_request", "is required", pointer};
+  static_assert(std::is_same_v<T, std::string> || std::is_same_v<T, int64_t> || std::is_same_v<T, json>);
+  if constexpr (std::is_same_v<T, std::string>) {
+    if (!it->is_string()) throw HttpError{400, "bad_request", "expected a string", pointer};
+  } else if constexpr (std::is_same_v<T, int64_t>) {
+    if (!it->is_number_integer()) throw HttpError{400, "bad_request", "expected an integer", pointer};
+  } else if (!it->is_object()) {
+    throw HttpError{400, "bad_request", "expected an object", pointer};
+  }
+  return it->template get<T>();
+}
+
+// The lease a worker's complete or fail request names.
+TaskLease LeaseOf(const httplib::Request& req, const json& body) {
+  TaskLease lease;
+  const std::string id = req.matches[1];
+  const auto [end, ec] = std::from_chars(id.data(), id.data() + id.size(), lease.task_id);
+  if (ec != std::errc() || end != id.data() + id.size()) throw HttpError{404, "unknown_task", "no task " + id, ""};
+  lease.job_id = BodyField<int64_t>(body, "job_id", "/job_id");
+  lease.lease_token = BodyField<std::string>(body, "lease_token", "/lease_token");
+  return lease;
 }
 
 int QueryLimit(const httplib::Request& req, int fallback, int maximum) {
@@ -194,6 +270,7 @@ struct Service::Impl {
   Metrics metrics;
   std::vector<std::thread> workers;
   std::thread http_thread;
+  std::atomic<bool> http_ended{false};  // listen_after_bind has returned
   std::atomic<bool> stopping{false};
   std::mutex wake_mutex;
   std::condition_variable wake;
@@ -201,6 +278,24 @@ struct Service::Impl {
   std::mutex cancel_mutex;
   std::multimap<int64_t, std::shared_ptr<std::atomic<bool>>> running;
   int port = 0;
+  internal::StorageHealth storage;  // whether writes work, for /v1/health
+  int local_workers = 0;  // in-process workers, set by Start before the HTTP thread
+  CampaignDirs campaigns;
+  // Fit and diagnose tasks that a remote lease request drew: they need the server's disk, so they
+  // are handed to the in-process workers under that lease (LeaseForRemote).
+  std::mutex handoff_mutex;
+  std::deque<TaskLease> handoff;
+  // Fit and diagnose computations on threads of their own (RunHeldTask); joined when the service is
+  // destroyed, since core's fit and diagnosis cannot be interrupted.
+  struct Computation {
+    std::mutex mutex;
+    std::condition_variable done_cv;
+    bool done = false;
+    std::vector<ResultRow> rows;
+    std::exception_ptr error;
+  };
+  std::mutex computations_mutex;
+  std::vector<std::pair<std::thread, std::shared_ptr<Computation>>> computations;
 
   void Authorize(const httplib::Request& req, Role required) {
     if (!tokens.enabled()) return;
@@ -223,9 +318,20 @@ struct Service::Impl {
       const auto start = std::chrono::steady_clock::now();
       try {
         Authorize(req, required);
+        if (req.body.size() > options.max_body_bytes && req.path != "/v1/campaigns")  // chunked: RefuseOversizeBody
+          throw HttpError{413, "body_too_large", "request body exceeds the limit", ""};
         h(req, res);
+        // A write route that answered with content wrote to the store.
+        if (required != Role::kRead && res.status < 300 && res.status != 204) storage.WriteSucceeded();
+      } catch (const StoreError& e) {
+        storage.WriteFailed(e.what(), NowMs());
+        SendError(res, {503, "storage_error", e.what(), ""});
       } catch (const HttpError& e) {
         SendError(res, e);
+      } catch (const ArchiveError& e) {
+        SendError(res, {400, "bad_archive", e.bare_message(), e.field()});
+      } catch (const CampaignError& e) {
+        SendError(res, {400, "invalid_campaign", e.bare_message(), e.field()});
       } catch (const JobLimitError& e) {
         SendError(res, {400, "job_too_large", e.bare_message(), e.field()});
       } catch (const InputError& e) {
@@ -235,13 +341,7 @@ struct Service::Impl {
       } catch (const std::exception& e) {
         SendError(res, {500, "internal", e.what(), ""});
       }
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      metrics.ObserveRequest(seconds);
-      if (!options.quiet) {
-        const json line = {{"ts_ms", NowMs()}, {"method", req.method}, {"path", req.path},
-                           {"status", res.status}, {"ms", seconds * 1e3}};
-        std::fprintf(stderr, "%s\n", line.dump().c_str());
-      }
+      metrics.ObserveRequest(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     };
   }
 
@@ -296,41 +396,213 @@ struct Service::Impl {
     return r;
   }
 
+  // A finished fit or diagnose job's stored rows of `table` (409 while it is not finished).
+  std::vector<json> CampaignJobRows(const JobRecord& job, const std::string& table) {
+    if (!IsCampaignKind(job.kind))
+      throw HttpError{400, "no_result_document",
+                      "only fit and diagnose jobs have a result document (a sweep's results are at /points, "
+                      "/saturation-map and /frf)", ""};
+    if (job.status != JobStatus::kSucceeded)
+      throw HttpError{409, "not_finished", "job " + std::to_string(job.id) + " is " + ToString(job.status) +
+                                               (job.error.empty() ? "" : ": " + job.error), ""};
+    return store->Results(job.id, table, {}, 0, 100000).rows;
+  }
+
+  // Campaign uploads may be larger than other bodies: the limit of the others is checked from
+  // Content-Length before their body is read (a chunked body is checked once read, at submission).
+  httplib::Server::HandlerResponse RefuseOversizeBody(const httplib::Request& req, httplib::Response& res) {
+    if (req.path == "/v1/campaigns" || !req.has_header("Content-Length")) return httplib::Server::HandlerResponse::Unhandled;
+    const std::string length = req.get_header_value("Content-Length");
+    if (length.size() < 19 && length.find_first_not_of("0123456789") == std::string::npos &&
+        std::stoull("0" + length) <= options.max_body_bytes)
+      return httplib::Server::HandlerResponse::Unhandled;
+    SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
+    res.set_header("Connection", "close");  // the unread body must not be taken for the next request
+    return httplib::Server::HandlerResponse::Handled;
+  }
+
+  std::optional<TaskLease> LeaseForRemote(const std::string& worker);
+  std::optional<TaskLease> TakeHandoff();
+  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease, const std::atomic<bool>& cancel);
   void SetUpRoutes();
   void WorkLoop(int index);
+
+  // Stores a task's rows. A storage error (disk full, I/O) is not the task's fault: the rows are
+  // kept and the write retried every second until it succeeds, the lease is lost (false), or the
+  // service stops (false; the lease is released at the next start), instead of failing the job.
+  bool StoreCompletion(const TaskLease& lease, const std::vector<ResultRow>& rows, const std::string& worker) {
+    for (;;) {
+      try {
+        const bool stored = store->CompleteTask(lease, rows, NowMs());
+        storage.WriteSucceeded();
+        return stored;
+      } catch (const StoreError& e) {
+        storage.WriteFailed(e.what(), NowMs());
+        std::fprintf(stderr, "%s\n", json({{"worker", worker}, {"error", e.what()}, {"retry_s", 1}}).dump().c_str());
+      }
+      std::unique_lock<std::mutex> lock(wake_mutex);
+      if (wake.wait_for(lock, std::chrono::seconds(1), [this] { return stopping.load(); })) return false;
+    }
+  }
 };
 
+// Leases a task for a remote worker. Fit and diagnose tasks read campaigns from the server's disk,
+// which a remote worker need not see: one drawn here stays leased and goes to the in-process workers
+// (or fails the job at once when there are none), and the next task is drawn for the remote worker.
+std::optional<TaskLease> Service::Impl::LeaseForRemote(const std::string& worker) {
+  for (;;) {
+    std::optional<TaskLease> lease = store->LeaseTask(worker, NowMs(), options.lease_ms);
+    if (!lease || !IsCampaignKind(lease->kind)) return lease;
+    if (local_workers == 0) {
+      store->FailTask(*lease, lease->kind + " jobs need the server's in-process workers (serve --workers >= 1)", NowMs());
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> lock(handoff_mutex);
+      handoff.push_back(*lease);
+    }
+    wake.notify_all();
+  }
+}
+
+// A task handed over by LeaseForRemote whose lease is still held (renewed now), if any.
+std::optional<TaskLease> Service::Impl::TakeHandoff() {
+  for (;;) {
+    TaskLease lease;
+    {
+      std::lock_guard<std::mutex> lock(handoff_mutex);
+      if (handoff.empty()) return std::nullopt;
+      lease = handoff.front();
+      handoff.pop_front();
+    }
+    if (store->RenewLease(lease, NowMs(), options.lease_ms)) return lease;
+  }
+}
+
+// Runs a fit or diagnose task on a thread of its own, renewing the lease every lease_ms / 4 (these
+// tasks take seconds to minutes). Gives up, returning nullopt, when the service stops (the lease is
+// released at the next start and the task runs again), the job is cancelled or the lease is lost;
+// the computation then runs on to its end (core cannot interrupt it) and its result is dropped.
+std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease& lease,
+                                                                 const std::atomic<bool>& cancel) {
+  auto computation = std::make_shared<Computation>();
+  {
+    std::lock_guard<std::mutex> lock(computations_mutex);
+    std::erase_if(computations, [](auto& c) {
+      std::lock_guard<std::mutex> done_lock(c.second->mutex);
+      if (!c.second->done) return false;
+      c.first.join();
+      return true;
+    });
+    computations.emplace_back(std::thread([computation, spec = lease.spec] {
+                                std::vector<ResultRow> rows;
+                                std::exception_ptr error;
+                                try {
+                                  rows = RunTask(spec);
+                                } catch (...) {
+                                  error = std::current_exception();
+                                }
+                                std::lock_guard<std::mutex> done_lock(computation->mutex);
+                                computation->rows = std::move(rows);
+                                computation->error = error;
+                                computation->done = true;
+                                computation->done_cv.notify_all();
+                              }),
+                              computation);
+  }
+  int64_t renewed_ms = NowMs();
+  std::unique_lock<std::mutex> lock(computation->mutex);
+  while (!computation->done) {
+    computation->done_cv.wait_for(lock, std::chrono::milliseconds(100));
+    if (computation->done) break;
+    if (stopping || cancel) return std::nullopt;
+    if (NowMs() - renewed_ms >= options.lease_ms / 4) {
+      lock.unlock();
+      const bool held = store->RenewLease(lease, NowMs(), options.lease_ms);
+      lock.lock();
+      if (!held) return std::nullopt;
+      renewed_ms = NowMs();
+    }
+  }
+  if (computation->error) std::rethrow_exception(computation->error);
+  return std::move(computation->rows);
+}
+
+// When this thread's current request was routed (steady clock); unset for requests refused before.
+static thread_local std::optional<std::chrono::steady_clock::time_point> t_request_start;
+
 void Service::Impl::SetUpRoutes() {
-  http.set_payload_max_length(options.max_body_bytes);
+  http.set_payload_max_length(std::max(options.max_body_bytes, options.max_campaign_bytes));
+  // Before routing: the access log's start time, and the body limit of all but campaign uploads.
+  // The access log (event_log.h): every request, routed or not, one JSON line.
+  http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    if (!options.quiet) t_request_start = std::chrono::steady_clock::now();
+    return RefuseOversizeBody(req, res);
+  });
+  if (!options.quiet) {
+    http.set_logger([](const httplib::Request& req, const httplib::Response& res) {
+      std::optional<double> ms;
+      if (t_request_start)
+        ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - *t_request_start).count();
+      t_request_start.reset();
+      internal::WriteLogLine(
+          internal::RequestLogLine(NowMs(), req.method, req.path, res.status, ms, req.remote_addr, req.remote_port));
+    });
+  }
   // Without TCP_NODELAY a keep-alive response written in two parts (headers, body) waits for the
   // client's delayed ACK: ~40 ms per request after the first on a connection (~90 instead of
   // ~15,000 GET /v1/jobs/{id} per second on loopback; tests/bench/service_load).
   http.set_tcp_nodelay(true);
+  // httplib's default socket options set SO_REUSEPORT, with which a second listener of the same
+  // user binds the same port without error and the kernel splits the connections between the two:
+  // a second `serve --port 8080` started silently, and a port-0 service could be handed a port
+  // another process listens on (found by tests/fuzz/fuzz_http: requests lost, never answered).
+  // SO_REUSEADDR alone still allows a restart while old connections are in TIME_WAIT.
+  http.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
     if (!res.body.empty()) return;
     if (res.status == 413) SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
     else if (res.status == 404) SendError(res, {404, "not_found", "no such endpoint", ""});
-    else if (res.status == 400) SendError(res, {400, "bad_request", "malformed HTTP request (e.g. a POST without Content-Length)", ""});
+    else if (res.status == 400) {
+      SendError(res, {400, "bad_request", "malformed HTTP request (e.g. a POST without Content-Length)", ""});
+      // The request could not be parsed, so where its body ends is unknown: read on, its bytes would
+      // be taken for the next request on the connection.
+      res.set_header("Connection", "close");
+    }
     else if (res.status >= 400) SendError(res, {res.status, "http_error", "HTTP error " + std::to_string(res.status), ""});
   });
 
   http.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(WebPage(), "text/html"); });
   // Health is open (load balancers and probes carry no token) and says nothing about jobs.
   http.Get("/v1/health", [this](const httplib::Request&, httplib::Response& res) {
-    SendJson(res, {{"status", "ok"}, {"schema_version", store->SchemaVersion()}, {"code_version", kCodeVersion}});
+    // 503 while writes fail (disk full, I/O error): the service answers reads but cannot take work.
+    const json problem = storage.Problem();
+    json body = {{"status", problem.is_null() ? "ok" : "degraded"}, {"code_version", kCodeVersion}};
+    if (!problem.is_null()) body["storage_error"] = problem;
+    try {
+      body["schema_version"] = store->SchemaVersion();
+    } catch (const StoreError& e) {
+      body["status"] = "degraded";
+      body["storage_error"] = {{"message", e.what()}};
+    }
+    SendJson(res, body, body["status"] == "ok" ? 200 : 503);
   });
   http.Get("/metrics", Route(Role::kRead, [this](const httplib::Request&, httplib::Response& res) {
              res.set_content(metrics.Text(store->GetCounts(NowMs())), "text/plain; version=0.0.4");
            }));
 
   http.Post("/v1/jobs", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
-              json job;
-              try {
-                job = json::parse(req.body);
-              } catch (const json::parse_error& e) {
-                throw HttpError{400, "bad_json", std::string("request body is not valid JSON: ") + e.what(), ""};
-              }
-              const std::vector<TaskSpec> tasks = PlanTasks(job);  // validates; InputError -> 400
+              const json job = JsonBody(req);
+              // Validates; InputError -> 400 (a campaign's file and line: CampaignError).
+              const std::vector<TaskSpec> tasks = PlanTasks(job, campaigns);
+              if (IsCampaignKind(job.at("kind")) && local_workers == 0)
+                throw HttpError{400, "unsupported_kind",
+                                job.at("kind").get<std::string>() +
+                                    " jobs need the server's in-process workers (this server runs with --workers 0)",
+                                "/kind"};
               const int64_t id = store->SubmitJob(job.at("kind"), job, tasks, NowMs());
               wake.notify_all();
               // Accepted as queued, unless every task was served from the store at once (a worker
@@ -342,7 +614,7 @@ void Service::Impl::SetUpRoutes() {
             }));
   http.Get("/v1/jobs", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const int limit = QueryLimit(req, 50, 500);
-             const int64_t before = req.has_param("before") ? static_cast<int64_t>(QueryNumber(req, "before")) : 0;
+             const int64_t before = req.has_param("before") ? QueryInteger(req, "before") : 0;
              json jobs = json::array();
              int64_t last = 0;
              for (const JobRecord& j : store->ListJobs(limit, before)) {
@@ -380,7 +652,7 @@ void Service::Impl::SetUpRoutes() {
                filter.branch = b;
              }
              const int limit = QueryLimit(req, 1000, 10000);
-             const int64_t cursor = req.has_param("cursor") ? static_cast<int64_t>(QueryNumber(req, "cursor")) : 0;
+             const int64_t cursor = req.has_param("cursor") ? QueryInteger(req, "cursor") : 0;
              const Store::Page page = store->Results(job.id, "points", filter, cursor, limit);
              if (req.get_header_value("Accept").find("text/csv") != std::string::npos) {
                res.set_header("X-Next-Cursor", std::to_string(page.next_cursor));
@@ -394,7 +666,7 @@ void Service::Impl::SetUpRoutes() {
            Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              if (job.kind != "sweep") throw HttpError{400, "not_a_sweep", "only sweep jobs have a saturation map", ""};
-             if (req.get_param_value("format") == "svg") {
+             if (WantsSvg(req)) {
                res.set_content(report::SaturationMapSvg(SweepResultOf(job), Branch::kUp), "image/svg+xml");
                return;
              }
@@ -408,8 +680,9 @@ void Service::Impl::SetUpRoutes() {
   http.Get(R"(/v1/jobs/(\d+)/frf)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              if (job.kind != "sweep") throw HttpError{400, "not_a_sweep", "only sweep jobs have FRFs", ""};
-             if (req.get_param_value("format") == "svg") {
+             if (WantsSvg(req)) {
                const std::string branch = req.has_param("branch") ? req.get_param_value("branch") : "up";
+               if (branch != "up" && branch != "down") throw HttpError{400, "bad_query", "must be up or down", "branch"};
                res.set_content(report::FrfMagnitudeSvg(SweepResultOf(job), branch == "down" ? Branch::kDown : Branch::kUp),
                                "image/svg+xml");
                return;
@@ -426,13 +699,61 @@ void Service::Impl::SetUpRoutes() {
              SendJson(res, {{"amplitude_v", *filter.amplitude_v}, {"branches", branches}});
            }));
 
+  // Campaigns for fit and diagnose jobs (campaign_upload.h).
+  http.Post("/v1/campaigns", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+              const std::string type = req.get_header_value("Content-Type");
+              if (type.rfind("application/x-tar", 0) != 0)
+                throw HttpError{415, "unsupported_media_type",
+                                "send the campaign as a tar archive (ustar or pax) with Content-Type "
+                                "application/x-tar, not '" + type + "'", ""};
+              TarLimits limits;
+              limits.max_file_bytes = limits.max_total_bytes = options.max_campaign_bytes;
+              const UploadedCampaign upload = StoreUploadedCampaign(req.body, campaigns.uploads, limits);
+              SendJson(res, {{"campaign_id", upload.id}, {"campaign", CampaignSummary(upload.campaign)}}, 201);
+            }));
+  http.Get(R"(/v1/jobs/(\d+)/result)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+             const JobRecord job = RequireJob(req.matches[1]);
+             const std::vector<json> rows = CampaignJobRows(job, job.kind == "fit" ? "fit" : "diagnosis");
+             if (rows.empty()) throw std::runtime_error("job " + std::to_string(job.id) + " has no stored result");
+             SendJson(res, rows.front());
+           }));
+  // The report's main page is its index.html (else its first .html file); FILE is another file of it.
+  http.Get(R"(/v1/jobs/(\d+)/report(/.*)?)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+             const JobRecord job = RequireJob(req.matches[1]);
+             if (job.kind != "diagnose")
+               throw HttpError{400, "no_report", "only diagnose jobs have an HTML report", ""};
+             const std::vector<json> files = CampaignJobRows(job, "report_files");
+             const std::string wanted = req.matches[2].length() > 1 ? req.matches[2].str().substr(1) : "";
+             const json* found = nullptr;
+             for (const json& f : files) {
+               const std::string name = f.at("name");
+               if (wanted.empty() ? name == "index.html" : name == wanted) {
+                 found = &f;
+                 break;
+               }
+               if (wanted.empty() && found == nullptr && name.ends_with(".html")) found = &f;
+             }
+             if (found == nullptr)
+               throw HttpError{404, "no_report_file",
+                               files.empty() ? "this server stored no report for the job (built without the report writer)"
+                                             : "the report has no file '" + wanted + "'", ""};
+             std::string body = found->at("text");
+             // At .../report (no slash) the page's relative links (records.csv) would miss the report.
+             if (req.matches[2].length() == 0)
+               if (const size_t head = body.find("<head>"); head != std::string::npos)
+                 body.insert(head + 6, "<base href=\"/v1/jobs/" + std::to_string(job.id) + "/report/\">");
+             res.set_content(body, found->at("content_type").get<std::string>());
+           }));
+
   // Remote workers.
   http.Post("/v1/tasks/lease", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
-              const json body = req.body.empty() ? json::object() : json::parse(req.body);
+              const json body = req.body.empty() ? json::object() : JsonBody(req);
+              if (!body.is_object()) throw HttpError{400, "bad_request", "expected a JSON object", ""};
+              if (body.contains("worker") && !body["worker"].is_string())
+                throw HttpError{400, "bad_request", "expected a string", "/worker"};
               // Remote names are prefixed so that none can pass for this server's own "local-" workers,
               // whose leases are released at start.
-              const std::optional<TaskLease> lease = store->LeaseTask(
-                  "remote:" + body.value("worker", std::string("unnamed")), NowMs(), options.lease_ms);
+              const std::optional<TaskLease> lease = LeaseForRemote("remote:" + body.value("worker", std::string("unnamed")));
               if (!lease) {
                 res.status = 204;
                 return;
@@ -443,25 +764,29 @@ void Service::Impl::SetUpRoutes() {
             }));
   http.Post(R"(/v1/tasks/(\d+)/complete)",
             Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
-              const json body = json::parse(req.body);
-              TaskLease lease;
-              lease.task_id = std::stoll(req.matches[1]);
-              lease.job_id = body.at("job_id");
-              lease.lease_token = body.at("lease_token");
+              const json body = JsonBody(req);
+              const TaskLease lease = LeaseOf(req, body);
+              const auto rows_at = body.find("rows");
+              if (rows_at == body.end() || !rows_at->is_array())
+                throw HttpError{400, "bad_request", "expected an array of rows", "/rows"};
+              const json& given = *rows_at;
               std::vector<ResultRow> rows;
-              for (const json& r : body.at("rows")) rows.push_back({r.at("table"), r.at("values")});
+              for (size_t i = 0; i < given.size(); ++i) {
+                const std::string at = "/rows/" + std::to_string(i);
+                rows.push_back({BodyField<std::string>(given[i], "table", at + "/table"),
+                                BodyField<json>(given[i], "values", at + "/values")});
+              }
               if (!store->CompleteTask(lease, rows, NowMs()))
                 throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
               metrics.TaskDone(rows.size());
               SendJson(res, {{"accepted", true}});
             }));
   http.Post(R"(/v1/tasks/(\d+)/fail)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
-              const json body = json::parse(req.body);
-              TaskLease lease;
-              lease.task_id = std::stoll(req.matches[1]);
-              lease.job_id = body.at("job_id");
-              lease.lease_token = body.at("lease_token");
-              store->FailTask(lease, body.value("error", std::string("worker failure")), NowMs());
+              const json body = JsonBody(req);
+              const TaskLease lease = LeaseOf(req, body);
+              const std::string error =
+                  body.contains("error") ? BodyField<std::string>(body, "error", "/error") : "worker failure";
+              store->FailTask(lease, error, NowMs());
               SendJson(res, {{"accepted", true}});
             }));
 }
@@ -471,8 +796,10 @@ void Service::Impl::WorkLoop(int index) {
   while (!stopping) {
     std::optional<TaskLease> lease;
     try {
-      lease = store->LeaseTask(name, NowMs(), options.lease_ms);
+      lease = TakeHandoff();
+      if (!lease) lease = store->LeaseTask(name, NowMs(), options.lease_ms);
     } catch (const std::exception& e) {
+      if (dynamic_cast<const StoreError*>(&e)) storage.WriteFailed(e.what(), NowMs());
       std::fprintf(stderr, "%s\n", json({{"worker", name}, {"error", e.what()}}).dump().c_str());
     }
     if (!lease) {
@@ -486,8 +813,9 @@ void Service::Impl::WorkLoop(int index) {
       running.emplace(lease->job_id, cancel);
     }
     try {
-      const std::vector<ResultRow> rows = RunTask(lease->spec, cancel.get());
-      if (store->CompleteTask(*lease, rows, NowMs())) metrics.TaskDone(rows.size());
+      const std::optional<std::vector<ResultRow>> rows =
+          IsCampaignKind(lease->kind) ? RunHeldTask(*lease, *cancel) : RunTask(lease->spec, cancel.get());
+      if (rows && StoreCompletion(*lease, *rows, name)) metrics.TaskDone(rows->size());
     } catch (const Cancelled&) {
       // The job was cancelled: its lease is void and nothing is written.
     } catch (const std::exception& e) {
@@ -510,11 +838,23 @@ void Service::Impl::WorkLoop(int index) {
 Service::Service(const ServiceOptions& options) : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
   impl_->store = Store::Open(options.db_path);
+  impl_->campaigns.uploads = options.db_path + ".campaigns";
+  if (!options.data_root.empty()) {
+    if (!std::filesystem::is_directory(options.data_root))
+      throw InputError("data_root", "'" + options.data_root + "' is not a directory");
+    impl_->campaigns.data_root = options.data_root;
+  }
+  if (!options.quiet)
+    impl_->store->SetJobEventSink([](const JobEvent& e) { internal::WriteLogLine(internal::JobEventLogLine(e)); });
   if (!options.token_file.empty()) impl_->tokens = TokenTable::Load(options.token_file);
   impl_->SetUpRoutes();
 }
 
-Service::~Service() { Stop(); }
+Service::~Service() {
+  Stop();
+  // Fit and diagnose computations given up by Stop run to their end (core cannot interrupt them).
+  for (auto& [thread, computation] : impl_->computations) thread.join();
+}
 
 int Service::Start() {
   Impl& s = *impl_;
@@ -530,9 +870,17 @@ int Service::Start() {
                                " (in use? try another --port)");
     s.port = s.options.port;
   }
-  s.http_thread = std::thread([&s] { s.http.listen_after_bind(); });
   const int workers = s.options.workers < 0 ? static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))
                                             : s.options.workers;
+  s.local_workers = workers;
+  s.http_thread = std::thread([&s] {
+    s.http.listen_after_bind();
+    s.http_ended = true;
+  });
+  // httplib's stop() does nothing until the listen loop has begun, so a Stop() right after Start()
+  // (a SIGTERM that came while the store waited for a lock) would leave Stop() joining a thread that
+  // accepts forever: return only once it listens (or has already given up).
+  while (!s.http.is_running() && !s.http_ended) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   for (int i = 0; i < workers; ++i) s.workers.emplace_back([&s, i] { s.WorkLoop(i); });
   return s.port;
 }
@@ -546,7 +894,8 @@ void Service::Stop() {
   if (s.stopping.exchange(true)) return;
   s.http.stop();
   s.wake.notify_all();
-  for (std::thread& t : s.workers) t.join();  // each finishes (and stores) the task it holds
+  // Each finishes (and stores) the task it holds; a fit or diagnose task is given up (RunHeldTask).
+  for (std::thread& t : s.workers) t.join();
   if (s.http_thread.joinable()) s.http_thread.join();
 }
 

@@ -86,7 +86,7 @@ void Leaves(const json& value, const std::string& pointer, std::vector<std::stri
 // What the schema says when the leaf at `pointer` holds a value of the wrong type.
 std::string TypeMessage(const std::string& pointer) {
   const std::string field = pointer.substr(pointer.rfind('/') + 1);
-  if (field == "kind") return "must be one of: sweep, simulate";
+  if (field == "kind") return "must be one of: sweep, simulate, fit, diagnose";
   if (field == "name") return "must be a string";
   if (field == "thresholds") return "must be a boolean";
   if (field == "points") return "must be an integer";
@@ -202,7 +202,8 @@ std::vector<MalformedCase> MalformedCases() {
   add("method on a sweep job", With(BaseSweep(), "/method", "exact"), "/method", "unknown field (allowed: ");
 
   // 5. Bad enum values.
-  add("kind fit (not yet served)", With(BaseSweep(), "/kind", "fit"), "/kind", "must be one of: sweep, simulate");
+  add("kind fitting (unknown)", With(BaseSweep(), "/kind", "fitting"), "/kind",
+      "must be one of: sweep, simulate, fit, diagnose");
   add("kind Sweep (case)", With(BaseSweep(), "/kind", "Sweep"), "/kind", "must be one of: sweep, simulate");
   add("spacing log", With(BaseSweep(), "/grid/frequency_hz/spacing", "log"), "/grid/frequency_hz/spacing",
       "must be one of: linear, geometric, eq1");

@@ -17,6 +17,10 @@
 //             (pointer: /method);
 //   both      the model makes physical sense (core Validate; pointer /model/KEY with KEY as the job
 //             wrote it, short key or JSON name), and no parameter is given twice (as m_p and mass_kg).
+//   fit,      campaign: exactly one of path and id (pointer /campaign); options: FitOptions::IsValid
+//   diagnose  and DiagnoseOptions::IsValid (pointer /options/NAME with the job's option name). Whether
+//             the campaign exists and is valid is checked when the job is planned (jobs.h), where the
+//             server's directories are known.
 //
 // Frequency spacing "eq1" is paper Eq. 1, w(n) = 10 pi 1.02^(n-1) rad/s: the grid is
 // f_n = from x 1.02^(n-1) Hz for n = 1..points, i.e. GridAxis{from, from x 1.02^(points-1), points,
@@ -27,7 +31,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "strokelab/diagnose.h"
 #include "strokelab/errors.h"
+#include "strokelab/fit.h"
 #include "strokelab/sweep.h"
 
 namespace strokelab::server {
@@ -51,6 +57,11 @@ void ValidateJob(const nlohmann::json& job);
 // A sweep job as a core SweepSpec (validated first, as ValidateJob; a job of another kind is an
 // InputError at /kind). threads is left at 1: the service runs a sweep as separate tasks.
 SweepSpec SweepSpecFromJob(const nlohmann::json& job);
+
+// The options of a fit or diagnose job as core types (validated first, as ValidateJob; a job of
+// another kind is an InputError at /kind). Defaults as `strokelab fit` and `strokelab diagnose`.
+FitOptions FitOptionsFromJob(const nlohmann::json& job);
+DiagnoseOptions DiagnoseOptionsFromJob(const nlohmann::json& job);
 
 // Throws JobLimitError at /grid when frequency_points x amplitude_points > kMaxGridPoints.
 void CheckGridSize(long long frequency_points, long long amplitude_points);

@@ -8,6 +8,9 @@
 //   GET    /v1/jobs/{id}/points            steady states (filters, paging; JSON or CSV)
 //   GET    /v1/jobs/{id}/saturation-map    threshold curve and jump intervals (JSON; ?format=svg: picture)
 //   GET    /v1/jobs/{id}/frf?amplitude_v=  FRF branches at one amplitude (?format=svg: |H| family)
+//   GET    /v1/jobs/{id}/result            a fit or diagnose job's result document (JSON)
+//   GET    /v1/jobs/{id}/report[/FILE]     a diagnose job's HTML report (and the files it links)
+//   POST   /v1/campaigns                   upload a campaign (ustar tar body) for fit and diagnose jobs
 //   POST   /v1/tasks/lease, /v1/tasks/{id}/complete, /v1/tasks/{id}/fail   remote workers
 //   GET    /v1/health, /metrics, /         health, Prometheus text, the web page
 #pragma once
@@ -23,7 +26,11 @@ struct ServiceOptions {
   std::string db_path = "var/strokelab.db";
   int workers = -1;                 // in-process workers; -1: one per core; 0: remote workers only
   std::string token_file;           // empty: no authentication (loopback use)
-  size_t max_body_bytes = 1 << 20;  // larger request bodies get 413
+  size_t max_body_bytes = 1 << 20;  // larger request bodies get 413 (except campaign uploads)
+  size_t max_campaign_bytes = size_t{256} << 20;  // larger campaign uploads (POST /v1/campaigns) get 413
+  // Fit and diagnose jobs may name {"campaign": {"path": P}} with P relative to this directory;
+  // empty: they may only name uploads. Uploads are kept in DB_PATH.campaigns/ID/.
+  std::string data_root;
   int64_t lease_ms = 120000;        // a task lease lasts this long [ms]
   bool quiet = false;               // no access log on stderr
 };

@@ -10,9 +10,11 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -29,6 +31,19 @@ struct JobRecord {
   int tasks_total = 0, tasks_done = 0;
   int64_t created_ms = 0, started_ms = 0, finished_ms = 0;  // unix epoch [ms]; 0: not yet
   std::string error;               // when failed
+};
+
+// One change of a job's state, as stored in job_events (schema/migrations/002_job_events.sql) and
+// passed to the event sink.
+struct JobEvent {
+  int64_t id = 0;                  // order of the changes (all jobs)
+  int64_t job_id = 0;
+  std::string kind;                // the job's kind
+  JobStatus status = JobStatus::kQueued;  // the state entered
+  int64_t at_ms = 0;               // unix epoch [ms]
+  int tasks_done = 0, tasks_total = 0;
+  int64_t points = 0;              // rows of the "points" table stored at the change
+  std::string reason;              // "submitted", "first task leased by local-0", the error, ...
 };
 
 struct TaskSpec {
@@ -54,17 +69,31 @@ struct ResultRow {
   nlohmann::json values;
 };
 
+// An error of the database itself (disk full, I/O error, damaged file, locked too long), as opposed
+// to bad input: the service answers it with 503 and reports it in /v1/health.
+class StoreError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Every method is thread-safe (one SQLite connection behind a mutex); errors of the database
-// (disk full, I/O, locked by another process for more than 5 s) throw std::runtime_error naming the
+// (disk full, I/O, locked by another process for more than 5 s) throw StoreError naming the
 // file and SQLite's message, with the transaction rolled back.
 class Store {
  public:
-  // Opens (creating if needed) the database, sets WAL mode, applies pending migrations.
-  // Throws std::runtime_error naming the file on failure (corrupt, locked, not writable).
+  // Opens (creating if needed) the database, sets WAL mode, checks every page (PRAGMA quick_check),
+  // applies pending migrations. Throws std::runtime_error naming the file on failure (damaged,
+  // locked, not writable).
   static std::unique_ptr<Store> Open(const std::string& path);
   virtual ~Store() = default;
 
   virtual int SchemaVersion() = 0;
+
+  // Called with every job state change after its transaction has committed, in commit order, with
+  // the store's lock held: the sink must not call back into the store. Empty: no calls.
+  virtual void SetJobEventSink(std::function<void(const JobEvent&)> sink) = 0;
+  // A job's state changes, oldest first (empty for an unknown job).
+  virtual std::vector<JobEvent> JobEvents(int64_t job_id) = 0;
 
   // Inserts the job and its tasks in one transaction; tasks whose key has a cached result are done
   // at once with that result (the job is succeeded at once when all are, or when there are no

@@ -1,0 +1,55 @@
+// libFuzzer harness: a campaign directory read by ReadCampaign (clients/recordings).
+//
+// The input is split at the byte 0x1E (ASCII record separator): the first part is written as
+// manifest.json, the following parts as rec_001.csv, rec_002.csv, ... in a directory that is emptied
+// before each input. The seed corpus (corpus/recordings) holds valid cuts of campaign-a in this
+// form, so mutations start from manifests that name those files.
+//
+// The contract checked (recordings.h): a bad campaign throws strokelab::InputError and nothing else;
+// any other exception escapes and libFuzzer reports it as a crash.
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string_view>
+
+#include "fuzz_temp_dir.h"
+#include "strokelab/errors.h"
+#include "strokelab/recordings.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kSeparator = '\x1e';
+
+void WriteFile(const fs::path& path, std::string_view bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  static const fs::path dir = strokelab::fuzz::ProcessTempDir() / "campaign";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+
+  std::string_view rest(reinterpret_cast<const char*>(data), size);
+  for (int part = 0;; ++part) {
+    const size_t end = rest.find(kSeparator);
+    char name[32];
+    std::snprintf(name, sizeof name, "rec_%03d.csv", part);
+    WriteFile(dir / (part == 0 ? fs::path(strokelab::kManifestName) : fs::path(name)), rest.substr(0, end));
+    if (end == std::string_view::npos) break;
+    rest.remove_prefix(end + 1);
+  }
+
+  try {
+    (void)strokelab::ReadCampaign(dir);
+  } catch (const strokelab::InputError&) {
+    // The expected outcome for most inputs.
+  }
+  return 0;
+}

@@ -1,0 +1,469 @@
+// Fit and diagnose jobs over REST: a synthetic campaign (synth.h) is uploaded as a tar built here,
+// or named under the data root; the service's fit must be the direct FitCampaign on the same files;
+// every way out of the upload area or the data root, and every malformed archive, is refused with a
+// 400 naming the field or the archive member; a bad CSV is refused naming its file and line; a fit
+// survives a restart of the service (its task is leased again) and can be cancelled.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include "strokelab/diagnose.h"
+#include "strokelab/fit.h"
+#include "strokelab/recordings.h"
+#include "strokelab/server/service.h"
+#include "strokelab/synth.h"
+#include "ustar.h"
+
+namespace strokelab::server {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using nlohmann::json;
+
+const char* kSubmitToken = "submit-token-0123456789";
+const char* kReadToken = "read-token-0123456789ab";
+
+// Parameters of the service's fit and of the direct fit agree to this relative difference: the same
+// files, options and code (dimensionless; the fit runs Ceres on one thread per record set).
+constexpr double kSameFitTolerance = 1e-9;
+
+// ---- A ustar writer for the tests (independent of the reader under test) ------------------------
+
+struct TarEntry {
+  std::string name;
+  std::string data;
+  char type = '0';
+};
+
+void PutOctal(std::string& block, size_t offset, size_t width, uint64_t value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%0*llo", static_cast<int>(width - 1), static_cast<unsigned long long>(value));
+  block.replace(offset, width - 1, text, width - 1);  // the last byte stays NUL
+}
+
+std::string Header(const TarEntry& e) {
+  std::string block(512, '\0');
+  block.replace(0, std::min<size_t>(100, e.name.size()), e.name.substr(0, 100));
+  PutOctal(block, 100, 8, 0644);
+  PutOctal(block, 108, 8, 0);
+  PutOctal(block, 116, 8, 0);
+  PutOctal(block, 124, 12, e.data.size());
+  PutOctal(block, 136, 12, 0);
+  block[156] = e.type;
+  block.replace(257, 6, std::string("ustar\0", 6));
+  block.replace(263, 2, "00");
+  block.replace(148, 8, "        ");
+  unsigned sum = 0;
+  for (unsigned char c : block) sum += c;
+  char checksum[8];
+  std::snprintf(checksum, sizeof checksum, "%06o", sum);
+  block.replace(148, 7, checksum, 7);  // six digits, NUL, and the space left from above
+  return block;
+}
+
+std::string Tar(const std::vector<TarEntry>& entries) {
+  std::string out;
+  for (const TarEntry& e : entries) {
+    out += Header(e);
+    out += e.data;
+    out.append((512 - e.data.size() % 512) % 512, '\0');
+  }
+  out.append(1024, '\0');
+  return out;
+}
+
+std::string ReadBytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream out;
+  out << in.rdbuf();
+  return out.str();
+}
+
+// The files of a campaign directory as tar entries under `prefix` ("" or "campaign-a/").
+std::vector<TarEntry> EntriesOf(const fs::path& dir, const std::string& prefix) {
+  std::vector<TarEntry> entries;
+  if (!prefix.empty()) entries.push_back({prefix, "", '5'});
+  std::vector<fs::path> files;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (const fs::path& f : files) entries.push_back({prefix + f.filename().string(), ReadBytes(f)});
+  return entries;
+}
+
+// ---- The fixture: one campaign for all tests, a service per test -------------------------------
+
+class CampaignJobsTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    root_ = fs::path(::testing::TempDir()) / ("campaign_jobs_test_" + std::to_string(::getpid()));
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "data");
+    // Two amplitudes below the stop and two above it at 51.2 kHz, short records: a fit of ~1 s.
+    SynthOptions options;
+    options.frequencies_hz = {6, 8, 11, 13};
+    options.amplitudes_v = {0.1, 0.3, 0.45};
+    options.duration_s = 0.5;
+    options.settle_s = 3.0;
+    options.noise_rms_v = 2e-3 * DefaultSensitivity(ResponseKind::kForce);
+    options.voltage_noise_rms_v = 1e-4;
+    options.seed = 7;
+    WriteSynthesis(Synthesize(PaperModel(), options), campaign_dir(), root_ / "truth.json");
+    direct_fit_ = new json(FitResultToJson(FitCampaign(ReadCampaign(campaign_dir()))));
+  }
+  static void TearDownTestSuite() {
+    delete direct_fit_;
+    fs::remove_all(root_);
+  }
+  static fs::path campaign_dir() { return root_ / "data" / "campaign-a"; }
+
+  void SetUp() override {
+    dir_ = root_ / ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    std::ofstream(dir_ / "tokens") << "submit " << kSubmitToken << "\nread " << kReadToken << "\n";
+    options_.port = 0;
+    options_.db_path = (dir_ / "jobs.db").string();
+    options_.workers = 1;
+    options_.token_file = (dir_ / "tokens").string();
+    options_.max_body_bytes = 64 * 1024;
+    options_.max_campaign_bytes = 64 << 20;
+    options_.data_root = (root_ / "data").string();
+    options_.lease_ms = 1500;  // fits outlast it: the worker must renew
+    options_.quiet = true;
+    Restart();
+  }
+  void TearDown() override {
+    service_.reset();
+    fs::remove_all(dir_);
+  }
+  void Restart() {
+    service_.reset();
+    service_ = std::make_unique<Service>(options_);
+    port_ = service_->Start();
+  }
+
+  httplib::Client Client() {
+    httplib::Client c("127.0.0.1", port_);
+    c.set_read_timeout(120);
+    return c;
+  }
+  static httplib::Headers Auth(const char* token) { return {{"Authorization", std::string("Bearer ") + token}}; }
+
+  httplib::Result Upload(const std::string& tar, const char* type = "application/x-tar") {
+    return Client().Post("/v1/campaigns", Auth(kSubmitToken), tar, type);
+  }
+  std::string UploadOk(const std::string& tar) {
+    auto r = Upload(tar);
+    EXPECT_TRUE(r && r->status == 201) << (r ? r->body : "no reply");
+    return r ? json::parse(r->body).value("campaign_id", "") : "";
+  }
+  httplib::Result Post(const json& job) {
+    return Client().Post("/v1/jobs", Auth(kSubmitToken), job.dump(), "application/json");
+  }
+  int64_t Submit(const json& job) {
+    auto r = Post(job);
+    EXPECT_TRUE(r && r->status == 201) << (r ? r->body : "no reply");
+    return r && r->status == 201 ? json::parse(r->body)["id"].get<int64_t>() : 0;
+  }
+  json Get(const std::string& path, int status = 200) {
+    auto r = Client().Get(path, Auth(kReadToken));
+    EXPECT_TRUE(r && r->status == status) << path << ": " << (r ? r->body : "no reply");
+    return r ? json::parse(r->body, nullptr, false) : json();
+  }
+  json WaitFor(int64_t id, const std::function<bool(const json&)>& done, double seconds = 120) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    json job;
+    while (std::chrono::steady_clock::now() < end) {
+      job = Get("/v1/jobs/" + std::to_string(id));
+      if (done(job)) return job;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    ADD_FAILURE() << "job " << id << " did not get there: " << job.dump();
+    return job;
+  }
+  json WaitFinished(int64_t id) {
+    return WaitFor(id, [](const json& j) { return j["status"] != "queued" && j["status"] != "running"; });
+  }
+  // The error object of a reply, checking its status.
+  static json Error(const httplib::Result& r, int status) {
+    EXPECT_TRUE(r);
+    if (!r) return {};
+    EXPECT_EQ(r->status, status) << r->body;
+    return json::parse(r->body, nullptr, false).value("error", json::object());
+  }
+  // A copy of the campaign under the data root, to be spoilt.
+  static fs::path CopyCampaign(const std::string& name) {
+    const fs::path copy = root_ / "data" / name;
+    fs::remove_all(copy);
+    fs::copy(campaign_dir(), copy);
+    return copy;
+  }
+  static void ExpectSameFit(const json& served, const json& direct) {
+    ASSERT_TRUE(served.contains("parameters")) << served.dump().substr(0, 500);
+    ASSERT_EQ(served["parameters"].size(), direct["parameters"].size());
+    for (const auto& [name, p] : direct["parameters"].items()) {
+      ASSERT_TRUE(served["parameters"].contains(name)) << name;
+      const double a = served["parameters"][name]["value"], b = p["value"];
+      EXPECT_NEAR(a, b, kSameFitTolerance * std::abs(b)) << name;
+    }
+    EXPECT_EQ(served["model"], direct["model"]);
+  }
+
+  static fs::path root_;
+  static json* direct_fit_;
+  fs::path dir_;
+  ServiceOptions options_;
+  std::unique_ptr<Service> service_;
+  int port_ = 0;
+};
+
+fs::path CampaignJobsTest::root_;
+json* CampaignJobsTest::direct_fit_ = nullptr;
+
+TEST_F(CampaignJobsTest, UploadedCampaignFitsAsTheDirectFit) {
+  const std::string id = UploadOk(Tar(EntriesOf(campaign_dir(), "campaign-a/")));
+  ASSERT_EQ(id.size(), 16u);
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "jobs.db.campaigns" / id / "manifest.json"));
+  const int64_t job = Submit({{"kind", "fit"}, {"name", "upload"}, {"campaign", {{"id", id}}}});
+  const json status = WaitFinished(job);
+  ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  EXPECT_EQ(status["progress"]["total"], 1);
+  ExpectSameFit(Get("/v1/jobs/" + std::to_string(job) + "/result"), *direct_fit_);
+  // A fit has no HTML report; a sweep has no result document.
+  EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(job) + "/report", Auth(kReadToken)), 400)["code"],
+            "no_report");
+}
+
+TEST_F(CampaignJobsTest, CampaignAtTheArchiveTopAndUnderTheDataRoot) {
+  const std::string id = UploadOk(Tar(EntriesOf(campaign_dir(), "")));
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "jobs.db.campaigns" / id / "manifest.json"));
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  ASSERT_EQ(WaitFinished(job)["status"], "succeeded");
+  ExpectSameFit(Get("/v1/jobs/" + std::to_string(job) + "/result"), *direct_fit_);
+}
+
+TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
+  fs::create_directories(root_ / "outside");
+  fs::copy(campaign_dir(), root_ / "outside" / "campaign-b");
+  fs::create_directory_symlink(root_ / "outside" / "campaign-b", root_ / "data" / "link-out");
+  const fs::path leaky = CopyCampaign("leaky");
+  fs::remove(leaky / "truth.json");
+  fs::create_symlink(root_ / "truth.json", leaky / "truth.json");
+  struct Case {
+    json campaign;
+    std::string field, message;
+  } cases[] = {
+      {{{"path", (root_ / "data" / "campaign-a").string()}}, "/campaign/path", "not absolute"},
+      {{{"path", "../outside/campaign-b"}}, "/campaign/path", "'..'"},
+      {{{"path", "campaign-a/../../outside/campaign-b"}}, "/campaign/path", "'..'"},
+      {{{"path", "link-out"}}, "/campaign/path", "outside the data root"},
+      {{{"path", "leaky"}}, "/campaign/path", "'truth.json' is a symbolic link leading outside"},
+      {{{"path", "no-such-campaign"}}, "/campaign/path", "no campaign directory"},
+      {{{"id", "../../outside/campaign-b"}}, "/campaign/id", "is not a campaign id"},
+      {{{"id", "0123456789abcdef"}}, "/campaign/id", "no uploaded campaign"},
+      {{{"id", "0123456789abcdef"}, {"path", "campaign-a"}}, "/campaign", "exactly one of path"},
+      {json::object(), "/campaign", "exactly one of path"},
+  };
+  for (const Case& c : cases) {
+    const json error = Error(Post({{"kind", "fit"}, {"campaign", c.campaign}}), 400);
+    EXPECT_EQ(error["code"], "invalid_job") << c.campaign.dump();
+    EXPECT_EQ(error["field"], c.field) << c.campaign.dump();
+    EXPECT_THAT(error.value("message", ""), HasSubstr(c.message)) << c.campaign.dump();
+  }
+  // Without a data root, paths are refused outright.
+  options_.data_root.clear();
+  Restart();
+  const json error = Error(Post({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}}), 400);
+  EXPECT_EQ(error["field"], "/campaign/path");
+  EXPECT_THAT(error.value("message", ""), HasSubstr("no data root"));
+  fs::remove_all(root_ / "outside");
+  fs::remove(root_ / "data" / "link-out");
+  fs::remove_all(leaky);
+}
+
+TEST_F(CampaignJobsTest, BadOptionsNameTheirField) {
+  const json cases[] = {
+      {{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"model", "cubic"}},
+      {{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"harmonics", 0}}}},
+      {{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"heldout_every", 3}}}},
+      {{"kind", "diagnose"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"heldout_every", 1}}}},
+      {{"kind", "fit"}, {"campaign", {{"path", 3}}}},
+  };
+  const char* fields[] = {"/model", "/options/harmonics", "/options/heldout_every", "/options/heldout_every",
+                          "/campaign/path"};
+  for (size_t i = 0; i < std::size(cases); ++i)
+    EXPECT_EQ(Error(Post(cases[i]), 400)["field"], fields[i]) << cases[i].dump();
+}
+
+TEST_F(CampaignJobsTest, BadArchivesAreRefusedNamingTheMember) {
+  const std::vector<TarEntry> good = EntriesOf(campaign_dir(), "campaign-a/");
+  const std::string tar = Tar(good);
+  std::string bad_checksum = tar;
+  bad_checksum[512 * 1 + 3] ^= 1;  // a byte of the second header's name
+  std::vector<TarEntry> dotdot = good, absolute = good, link = good;
+  dotdot.push_back({"campaign-a/../escape.csv", "x"});
+  absolute.push_back({"/tmp/escape.csv", "x"});
+  link.push_back({"campaign-a/evil", "", '2'});
+  struct Case {
+    std::string name, body, message;
+  } cases[] = {
+      {"truncated in a member's data", tar.substr(0, 512 * 3 + 100), "truncated"},
+      {"truncated before the end block", tar.substr(0, tar.size() - 1024), "end-of-archive"},
+      {"bad checksum", bad_checksum, "checksum mismatch"},
+      {"'..' member", Tar(dotdot), "'..' in the name"},
+      {"absolute member", Tar(absolute), "absolute name"},
+      {"symbolic link", Tar(link), "symbolic link (only regular files"},
+      {"twice the same name", Tar({{"a.csv", "1"}, {"a.csv", "2"}}), "appears twice"},
+      {"not a tar", std::string(2048, 'x'), "no ustar magic"},
+      {"no campaign", Tar({{"notes.txt", "hello"}}), "no manifest.json"},
+  };
+  for (const Case& c : cases) {
+    const json error = Error(Upload(c.body), 400);
+    EXPECT_EQ(error["code"], "bad_archive") << c.name;
+    EXPECT_EQ(error["field"], "archive") << c.name;
+    EXPECT_THAT(error.value("message", ""), HasSubstr(c.message)) << c.name;
+  }
+  EXPECT_EQ(Error(Upload(tar, "application/zip"), 415)["code"], "unsupported_media_type");
+  // Nothing is left behind by the refused uploads.
+  const fs::path uploads = dir_ / "jobs.db.campaigns";
+  EXPECT_TRUE(!fs::exists(uploads) || fs::is_empty(uploads));
+  // Over the upload limit: 413 before anything is read; the JSON limit does not apply to uploads.
+  options_.max_campaign_bytes = tar.size() - 1;
+  Restart();
+  EXPECT_EQ(Error(Upload(tar), 413)["code"], "body_too_large");
+  options_.max_campaign_bytes = tar.size();
+  Restart();
+  UploadOk(tar);
+}
+
+TEST_F(CampaignJobsTest, BadCsvIsRefusedNamingFileAndLine) {
+  const fs::path spoilt = CopyCampaign("spoilt");
+  const std::string csv = json::parse(ReadBytes(spoilt / "manifest.json"))["records"][1]["file"];
+  std::string text = ReadBytes(spoilt / csv);
+  size_t at = 0;
+  for (int line = 1; line < 7; ++line) at = text.find('\n', at) + 1;  // the start of line 7
+  text.replace(at, text.find(',', at) - at, "abc");
+  std::ofstream(spoilt / csv, std::ios::binary) << text;
+  for (const bool upload : {true, false}) {
+    const json error = upload ? Error(Upload(Tar(EntriesOf(spoilt, ""))), 400)
+                              : Error(Post({{"kind", "fit"}, {"campaign", {{"path", "spoilt"}}}}), 400);
+    EXPECT_EQ(error["code"], "invalid_campaign") << upload;
+    EXPECT_EQ(error["field"], csv + ":7") << upload << " " << error.dump();
+  }
+  fs::remove_all(spoilt);
+}
+
+TEST_F(CampaignJobsTest, AFitSurvivesARestartAndCanBeCancelled) {
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  WaitFor(job, [](const json& j) { return j["status"] == "running"; });
+  Restart();  // the in-process worker gives the task up; the new service leases it again at once
+  ASSERT_EQ(WaitFinished(job)["status"], "succeeded");
+  ExpectSameFit(Get("/v1/jobs/" + std::to_string(job) + "/result"), *direct_fit_);
+
+  // Cancelled while it runs: the job stays cancelled and the worker is free at once.
+  const int64_t cancelled = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"harmonics", 8}}}});
+  WaitFor(cancelled, [](const json& j) { return j["status"] == "running"; });
+  auto r = Client().Delete("/v1/jobs/" + std::to_string(cancelled), Auth(kSubmitToken));
+  ASSERT_TRUE(r && r->status == 200) << (r ? r->body : "");
+  const int64_t next = Submit({{"kind", "simulate"}, {"model", "paper"}, {"frequency_hz", 10}, {"amplitude_v", 0.2},
+                               {"duration_s", 0.5}});
+  WaitFor(next, [](const json& j) { return j["status"] == "succeeded"; }, 10);
+  EXPECT_EQ(Get("/v1/jobs/" + std::to_string(cancelled))["status"], "cancelled");
+  EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(cancelled) + "/result", Auth(kReadToken)), 409)["code"],
+            "not_finished");
+}
+
+TEST_F(CampaignJobsTest, WithoutInProcessWorkersCampaignJobsAreRefused) {
+  options_.workers = 0;
+  Restart();
+  const json error = Error(Post({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}}), 400);
+  EXPECT_EQ(error["code"], "unsupported_kind");
+  EXPECT_EQ(error["field"], "/kind");
+}
+
+TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
+  const std::string id = UploadOk(Tar(EntriesOf(campaign_dir(), "campaign-a/")));
+  const int64_t job = Submit({{"kind", "diagnose"},
+                              {"campaign", {{"id", id}}},
+                              {"options", {{"heldout_every", 4}, {"pairs", false}, {"max_seconds", 15}}}});
+  const json status = WaitFinished(job);
+  ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  const std::string base = "/v1/jobs/" + std::to_string(job);
+  const json result = Get(base + "/result");
+  EXPECT_TRUE(result.contains("missing_physics")) << result.dump().substr(0, 300);
+  EXPECT_TRUE(result.contains("conclusion"));
+  auto page = Client().Get(base + "/report", Auth(kReadToken));
+  ASSERT_TRUE(page && page->status == 200) << (page ? page->body.substr(0, 300) : "");
+  EXPECT_THAT(page->get_header_value("Content-Type"), HasSubstr("text/html"));
+  EXPECT_THAT(page->body, HasSubstr("<base href=\"" + base + "/report/\">"));  // its links reach the tables
+  EXPECT_THAT(page->body, HasSubstr(result["conclusion"].get<std::string>().substr(0, 20)));
+  auto table = Client().Get(base + "/report/records.csv", Auth(kReadToken));
+  ASSERT_TRUE(table && table->status == 200);
+  EXPECT_THAT(table->get_header_value("Content-Type"), HasSubstr("text/csv"));
+  EXPECT_EQ(Error(Client().Get(base + "/report/nothing.csv", Auth(kReadToken)), 404)["code"], "no_report_file");
+  // The report is in the database: it is served after a restart.
+  Restart();
+  auto again = Client().Get(base + "/report", Auth(kReadToken));
+  ASSERT_TRUE(again && again->status == 200);
+  EXPECT_EQ(again->body, page->body);
+}
+
+// ---- The reader itself, on archives of the system's tar --------------------------------------
+
+TEST(ReadUstar, ReadsPaxAndGnuArchivesOfTheSystemTar) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("ustar_test_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string long_name(120, 'n');
+  fs::create_directories(dir / "c" / "sub");
+  std::ofstream(dir / "c" / "manifest.json") << "{}";
+  std::ofstream(dir / "c" / "sub" / long_name) << "long";
+  for (const char* format : {"ustar", "pax", "gnu"}) {
+    const fs::path tar = dir / (std::string(format) + ".tar");
+    const std::string command = "tar --format=" + std::string(format) + " -C " + dir.string() + " -cf " + tar.string() +
+                                (std::string(format) == "ustar" ? " c/manifest.json" : " c") + " 2>/dev/null";
+    if (std::system(command.c_str()) != 0) GTEST_SKIP() << "no system tar";
+    const std::string bytes = ReadBytes(tar);
+    const std::vector<TarMember> members = ReadUstar(bytes);
+    std::vector<std::string> files;
+    for (const TarMember& m : members)
+      if (!m.directory) files.push_back(m.path + "=" + std::string(m.data));
+    std::sort(files.begin(), files.end());
+    if (std::string(format) == "ustar")
+      EXPECT_THAT(files, ::testing::ElementsAre("c/manifest.json={}")) << format;
+    else
+      EXPECT_THAT(files, ::testing::ElementsAre("c/manifest.json={}", "c/sub/" + long_name + "=long")) << format;
+  }
+  fs::remove_all(dir);
+}
+
+TEST(ReadUstar, LimitsAreEnforced) {
+  const std::string tar = Tar({{"a.csv", std::string(1000, 'x')}, {"b.csv", "y"}});
+  TarLimits limits;
+  limits.max_file_bytes = 999;
+  try {
+    ReadUstar(tar, limits);
+    ADD_FAILURE() << "no error";
+  } catch (const ArchiveError& e) {
+    EXPECT_THAT(e.bare_message(), HasSubstr("member 1 'a.csv': 1000 bytes, over the limit of 999"));
+  }
+  limits = {};
+  limits.max_members = 1;
+  EXPECT_THROW(ReadUstar(tar, limits), ArchiveError);
+  limits = {};
+  limits.max_total_bytes = 1000;
+  EXPECT_THROW(ReadUstar(tar, limits), ArchiveError);
+  EXPECT_EQ(ReadUstar(tar).size(), 2u);
+}
+
+}  // namespace
+}  // namespace strokelab::server
