@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,9 @@ struct EffectCase {
   bool hertzian = false;  // the contact law is Hertzian (value is k_s in N/m^1.5)
   uint64_t seed = 0;
 };
+
+// Test names and failure messages show the case's name, not its bytes.
+void PrintTo(const EffectCase& c, std::ostream* out) { *out << c.name; }
 
 SynthOptions CampaignOptions(uint64_t seed) {
   SynthOptions o;
