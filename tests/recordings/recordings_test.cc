@@ -401,7 +401,8 @@ std::vector<Defect> Defects() {
     const size_t n = columns.at(file);
     add(
         "truncated " + file + ":" + std::to_string(line),
-        [file, line](Fixture& f) {
+        // Named copies: clang 14 cannot capture structured bindings.
+        [file = file, line = line](Fixture& f) {
           std::string& text = f.csv.at(file).at(line - 1);
           text = text.substr(0, text.rfind(','));
         },

@@ -107,7 +107,9 @@ class BadInputTest : public ::testing::Test {
     std::string group;
     for (const BadRequest& b : cases) {
       if (b.group != group) {
-        if (!group.empty()) ASSERT_TRUE(Healthy()) << "after the '" << group << "' requests";
+        if (!group.empty()) {
+          ASSERT_TRUE(Healthy()) << "after the '" << group << "' requests";
+        }
         group = b.group;
       }
       const httplib::Result result = client_->send(b.request);
@@ -147,7 +149,17 @@ TEST_F(BadInputTest, EveryMalformedRequestGetsItsErrorAndTheServerNeitherFallsNo
   std::printf("[          ] server RSS %ld KiB after %d warm-up rounds, %ld KiB after %d more (%zu requests): %+ld KiB\n",
               warm_kib, kWarmUpRounds, after_kib, kMeasuredRounds, kMeasuredRounds * cases.size(),
               after_kib - warm_kib);
+#if defined(__SANITIZE_ADDRESS__)
+  // Under AddressSanitizer freed memory sits in its quarantine (up to 256 MB) and RSS grows by design;
+  // LeakSanitizer checks the server for leaks at its exit instead.
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define STROKELAB_ASAN_RSS_SKIPPED
+#endif
+#endif
+#if !defined(__SANITIZE_ADDRESS__) && !defined(STROKELAB_ASAN_RSS_SKIPPED)
   EXPECT_LT(after_kib - warm_kib, kMaxGrowthKib);
+#endif
 
   EXPECT_EQ(JobState(jobs_.sweep), sweep_before) << "a refused request changed a job";
   EXPECT_EQ(JobState(jobs_.simulate), simulate_before);
