@@ -139,18 +139,8 @@ void Refresh(const ExtendedProblem& problem, const std::vector<double>& theta0, 
       const std::optional<ModelOrbit> g =
           SolveOrbit(full_shifted, *t->record, f->anchor, kind, orders, OrbitSearch::kNearby);
       if (!g) return;
-      std::vector<Complex> surrogate_change(orders, 0.0);
-      if (!problem.parameters[smooth[j]].smooth) {
-        const ActuatorModel surrogate_shifted = problem.Surrogate(full_shifted);
-        const std::optional<ModelOrbit> s2 =
-            SolveOrbit(surrogate_shifted, *t->record, s->anchor, kind, orders, OrbitSearch::kNearby);
-        if (!s2) return;
-        const std::vector<Complex> s2_sampled =
-            SampledOrbitHarmonics(surrogate_shifted, *t->record, s2->anchor, kind, orders);
-        for (int h = 0; h < orders; ++h) surrogate_change[h] = s2_sampled[h] - s_sampled[h];
-      }
-      for (int h = 0; h < orders; ++h)
-        t->slopes[j][h] = (g->harmonics[h] - f->harmonics[h] - surrogate_change[h]) / kSensitivityStep;
+      // A smooth term does not enter the surrogate: the defect's slope is the full model's.
+      for (int h = 0; h < orders; ++h) t->slopes[j][h] = (g->harmonics[h] - f->harmonics[h]) / kSensitivityStep;
     }
   }
   t->usable = true;
@@ -183,11 +173,6 @@ ActuatorModel ExtendedProblem::Surrogate(const ActuatorModel& full) const {
     m.contact_stiffness = surrogate_contact_stiffness;
   }
   return m;
-}
-
-bool ExtendedProblem::HasSmoothTerms() const {
-  return std::any_of(parameters.begin(), parameters.end(), [](const FreeParameter& p) { return p.smooth; }) ||
-         !base.IsPiecewiseLinear();
 }
 
 std::optional<Prediction> Predict(const ActuatorModel& model, const ActuatorModel& surrogate,

@@ -56,7 +56,6 @@ struct ExtendedProblem {
   ActuatorModel Decode(const double* theta) const;
   // The piecewise-linear stand-in of `full`: k2 = k3 = 0, no friction, linear contact.
   ActuatorModel Surrogate(const ActuatorModel& full) const;
-  bool HasSmoothTerms() const;
 };
 
 struct ExtendedFitOptions {
