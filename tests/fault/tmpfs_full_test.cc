@@ -30,6 +30,9 @@ TEST(FullDisk, TmpfsFillsUpThenGrows) {
   const auto test_start = Clock::now();
   ScratchDir dir("strokelab-fault-tmpfs");
   SmallTmpfs tmpfs(dir.path() / "mnt", 192 * 1024);
+  // Mounting needs unprivileged user namespaces (unshare -rm), which a CI container may forbid:
+  // then this test skips, saying why, and FullDisk.WritesFailClearlyAndNothingIsLost (a file-size
+  // limit, no privileges) still drives the same server path to a full disk and back.
   if (!tmpfs.Ok()) GTEST_SKIP() << tmpfs.Why();
   const fs::path db_inside = tmpfs.MountPoint() / "jobs.db";
   SweepWorkload work(/*first_frequency_points=*/200, /*amplitude_points=*/10, /*thresholds=*/true);
