@@ -4,23 +4,21 @@
 #include "strokelab/recordings.h"
 
 #include <algorithm>
-#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <exception>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string_view>
 #include <system_error>
-#include <thread>
 #include <vector>
 
 #include "strokelab/errors.h"
+#include "strokelab/parallel_for.h"
 
 namespace strokelab {
 namespace {
@@ -574,24 +572,7 @@ Campaign ReadCampaign(const fs::path& dir) {
 
   // The records, on up to one thread per core; the first failure in manifest order is reported.
   campaign.records.resize(specs.size());
-  std::vector<std::exception_ptr> failures(specs.size());
-  std::atomic<size_t> next{0};
-  const auto work = [&] {
-    for (size_t i = next++; i < specs.size(); i = next++) {
-      try {
-        campaign.records[i] = ReadRecord(dir, specs[i], channels);
-      } catch (...) {
-        failures[i] = std::current_exception();
-      }
-    }
-  };
-  const size_t threads = std::min<size_t>(specs.size(), std::max(1u, std::thread::hardware_concurrency()));
-  std::vector<std::thread> pool;
-  for (size_t k = 1; k < threads; ++k) pool.emplace_back(work);
-  work();
-  for (std::thread& thread : pool) thread.join();
-  for (const std::exception_ptr& failure : failures)
-    if (failure) std::rethrow_exception(failure);
+  ParallelFor(specs.size(), [&](size_t i) { campaign.records[i] = ReadRecord(dir, specs[i], channels); });
   return campaign;
 }
 

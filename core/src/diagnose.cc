@@ -8,8 +8,8 @@
 #include <sstream>
 
 #include "diagnose_internal.h"
-#include "parallel_for.h"
 #include "strokelab/errors.h"
+#include "strokelab/parallel_for.h"
 #include "strokelab/steady_state.h"
 
 namespace strokelab {
@@ -35,7 +35,7 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, const ActuatorMode
                                   std::span<const RecordAnalysis> analyses, const std::vector<bool>& heldout,
                                   ResponseKind kind, int orders) {
   std::vector<RecordMatch> matches(analyses.size());
-  internal::ParallelFor(analyses.size(), [&](size_t i) {
+  ParallelFor(analyses.size(), [&](size_t i) {
     const RecordAnalysis& a = analyses[i];
     RecordMatch& m = matches[i];
     m.name = a.name;

@@ -10,8 +10,9 @@
 #include <limits>
 #include <thread>
 
-#include "parallel_for.h"
+#include "step_callback.h"
 #include "strokelab/errors.h"
+#include "strokelab/parallel_for.h"
 
 namespace strokelab::internal {
 namespace {
@@ -79,36 +80,6 @@ class DefectCost {
   const std::vector<double>* theta0_;
   const std::vector<int>* smooth_;
   Target* target_;
-  ResponseKind kind_;
-  int orders_;
-};
-
-// After each successful step the surrogate anchors move to the new iterate's orbits.
-class AnchorUpdate : public ceres::IterationCallback {
- public:
-  AnchorUpdate(const ExtendedProblem* problem, const double* theta, std::vector<Target>* targets, ResponseKind kind,
-               int orders)
-      : problem_(problem), theta_(theta), targets_(targets), kind_(kind), orders_(orders) {}
-
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
-    if (!summary.step_is_successful) return ceres::SOLVER_CONTINUE;
-    const ActuatorModel surrogate = problem_->Surrogate(problem_->Decode(theta_));
-    ParallelFor(targets_->size(), [&](size_t i) {
-      Target& t = (*targets_)[i];
-      try {
-        if (auto orbit = SolveOrbit(surrogate, *t.record, t.surrogate_anchor, kind_, orders_, OrbitSearch::kAttractor))
-          t.surrogate_anchor = orbit->anchor;
-      } catch (const std::exception&) {
-        // keep the old anchor
-      }
-    });
-    return ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const ExtendedProblem* problem_;
-  const double* theta_;
-  std::vector<Target>* targets_;
   ResponseKind kind_;
   int orders_;
 };
@@ -261,7 +232,12 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     ceres_problem.SetParameterUpperBound(theta.data(), i, problem.parameters[i].theta_max);
   }
 
-  AnchorUpdate callback(&problem, theta.data(), &targets, kind, orders);
+  // After each successful step the surrogate anchors move to the new iterate's orbits.
+  AfterSuccessfulStep callback([&] {
+    const ActuatorModel surrogate = problem.Surrogate(problem.Decode(theta.data()));
+    ParallelFor(targets.size(),
+                [&](size_t i) { MoveAnchor(surrogate, *targets[i].record, kind, orders, &targets[i].surrogate_anchor); });
+  });
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_QR;
   solver.max_num_iterations = options.max_iterations;

@@ -19,8 +19,9 @@
 
 #include "fit_orbit.h"
 #include "harmonic_fit.h"
-#include "parallel_for.h"
+#include "step_callback.h"
 #include "strokelab/errors.h"
+#include "strokelab/parallel_for.h"
 #include "strokelab/model_json.h"
 #include "strokelab/pwl_system.h"
 #include "strokelab/steady_state.h"
@@ -28,6 +29,7 @@
 namespace strokelab {
 namespace {
 
+using internal::AfterSuccessfulStep;
 using internal::Anchor;
 using internal::BestMatchingOrbit;
 using internal::MismatchSquared;
@@ -230,37 +232,6 @@ ceres::CostFunction* MakeCost(int parameters, const ParameterLayout* layout, Rec
       return MakeCost<6>(layout, target, kind, orders);
   }
 }
-
-// After each successful step: every record's anchor moves to its stable orbit at the new iterate, so
-// that the next evaluations start next to it (and stay on the record's branch).
-class AnchorUpdate : public ceres::IterationCallback {
- public:
-  AnchorUpdate(const ParameterLayout* layout, const double* theta, std::vector<RecordTarget>* targets,
-               ResponseKind kind, int orders)
-      : layout_(layout), theta_(theta), targets_(targets), kind_(kind), orders_(orders) {}
-
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
-    if (!summary.step_is_successful) return ceres::SOLVER_CONTINUE;
-    const ActuatorModel model = layout_->Decode(theta_);
-    for (RecordTarget& t : *targets_) {
-      try {
-        if (std::optional<ModelOrbit> orbit =
-                SolveOrbit(model, *t.record, t.anchor, kind_, orders_, OrbitSearch::kAttractor))
-          t.anchor = orbit->anchor;
-      } catch (const std::exception&) {
-        // keep the old anchor
-      }
-    }
-    return ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const ParameterLayout* layout_;
-  const double* theta_;
-  std::vector<RecordTarget>* targets_;
-  ResponseKind kind_;
-  int orders_;
-};
 
 // ---- Reporting -----------------------------------------------------------------------------------
 
@@ -911,7 +882,11 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   bool solved = true;
   update_corrections();
   if (options.refine) {
-    AnchorUpdate callback(&layout, theta.data(), &targets, kind, orders);
+    // After each successful step every record's anchor moves to its orbit at the new iterate.
+    AfterSuccessfulStep callback([&] {
+      const ActuatorModel model = layout.Decode(theta.data());
+      for (RecordTarget& t : targets) internal::MoveAnchor(model, *t.record, kind, orders, &t.anchor);
+    });
     ceres::Solver::Options solver;
     solver.linear_solver_type = ceres::DENSE_QR;
     solver.max_num_iterations = options.max_iterations;
@@ -1061,7 +1036,7 @@ std::vector<RecordAnalysis> AnalyseCampaign(const Campaign& campaign, const FitO
     throw InputError("records", "the campaign holds no stepped-sine record (broadband records are not fitted)");
   // Records are independent: analysed side by side, the first error (in campaign order) re-thrown.
   std::vector<RecordAnalysis> analyses(stepped.size());
-  internal::ParallelFor(stepped.size(), [&](size_t i) { analyses[i] = AnalyseRecord(*stepped[i], campaign.response, options); });
+  ParallelFor(stepped.size(), [&](size_t i) { analyses[i] = AnalyseRecord(*stepped[i], campaign.response, options); });
   for (const RecordAnalysis& a : analyses) {
     const double drift = a.drive.frequency_hz / a.nominal_frequency_hz - 1.0;
     if (std::abs(drift) > 1e-3 && warnings != nullptr)

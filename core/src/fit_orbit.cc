@@ -9,7 +9,6 @@
 #include "harmonic_fit.h"
 #include "strokelab/errors.h"
 #include "strokelab/pwl_system.h"
-#include "strokelab/signal.h"
 #include "strokelab/steady_state.h"
 
 namespace strokelab::internal {
@@ -85,20 +84,23 @@ double PowerOf(const RecordAnalysis& record) {
 
 std::vector<Complex> SampledOrbitHarmonics(const ActuatorModel& model, const RecordAnalysis& record,
                                            const Anchor& anchor, ResponseKind kind, int orders) {
-  constexpr double kSamplesPerPeriod = 2048;  // as OrbitHarmonics for models that are not piecewise linear
   const double f = record.drive.frequency_hz;
   const int periods = anchor.period > 0 ? anchor.period : kAperiodicPeriods;
-  SimulationOptions options;
-  options.duration_s = periods / f;
-  options.sample_rate_hz = kSamplesPerPeriod * f;
-  options.initial = anchor.start;
-  options.record_velocity = false;
-  const Record r = MakeCvodeEngine()->Simulate(model, SineDrive{record.drive.amplitude_v, f, 0.0}, options);
-  const SampleWindow window{0, r.size(), static_cast<double>(periods)};
-  const std::vector<Complex> x = HarmonicAmplitudes(r.displacement_m, options.sample_rate_hz, f, window, orders);
+  const PeriodMap map(model, f, record.drive.amplitude_v);
+  const std::vector<Complex> x = strokelab::SampledOrbitHarmonics(map, anchor.start, periods, orders);
   std::vector<Complex> out(orders);
   for (int h = 1; h <= orders; ++h) out[h - 1] = ResponseHarmonic(x[h - 1], h, kTwoPi * f, kind, model.mass_kg);
   return out;
+}
+
+void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind, int orders,
+                Anchor* anchor) {
+  try {
+    if (std::optional<ModelOrbit> orbit = SolveOrbit(model, record, *anchor, kind, orders, OrbitSearch::kAttractor))
+      *anchor = orbit->anchor;
+  } catch (const std::exception&) {
+    // keep the old anchor
+  }
 }
 
 // The stable orbit that matches the record best among the attractors reached from the clipped linear

@@ -48,16 +48,20 @@ std::complex<double> ResponseHarmonic(std::complex<double> x_h, int h, double om
 std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAnalysis& record, const Anchor& anchor,
                                      ResponseKind kind, int orders, OrbitSearch search);
 
-// The orbit's response harmonics as OrbitHarmonics gives them for a model that is not piecewise
-// linear (CVODE, 2048 samples per period, least squares), for any model: a defect between a smooth
-// model and its piecewise-linear stand-in taken this way on both sides leaves out the sampling's own
-// error (the impacts' harmonics near 2048 alias onto the low ones).
+// The orbit's response harmonics by strokelab::SampledOrbitHarmonics (steady_state.h), in the
+// record's response units: a defect between a smooth model and its piecewise-linear stand-in taken
+// this way on both sides leaves out the sampling's own error.
 std::vector<std::complex<double>> SampledOrbitHarmonics(const ActuatorModel& model, const RecordAnalysis& record,
                                                         const Anchor& anchor, ResponseKind kind, int orders);
 
 // sum_h |C_h - model_h|^2 and sum_h |C_h|^2 over the record's usable harmonics.
 double MismatchSquared(const RecordAnalysis& record, const std::vector<std::complex<double>>& model);
 double PowerOf(const RecordAnalysis& record);
+
+// Moves `anchor` to the orbit SolveOrbit (kAttractor) finds from it for `model`; keeps it when none
+// is found or an engine fails.
+void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind, int orders,
+                Anchor* anchor);
 
 // The stable orbit that matches the record best among the attractors reached from the clipped linear
 // start, from rest and from half the linear start (a bistable record may sit on either branch).

@@ -1,5 +1,5 @@
 // ParallelFor (parallel_for.h).
-#include "parallel_for.h"
+#include "strokelab/parallel_for.h"
 
 #include <algorithm>
 #include <atomic>
@@ -7,10 +7,11 @@
 #include <thread>
 #include <vector>
 
-namespace strokelab::internal {
+namespace strokelab {
 
-void ParallelFor(size_t n, const std::function<void(size_t)>& f) {
-  const size_t threads = std::min<size_t>(n, std::max(1u, std::thread::hardware_concurrency()));
+void ParallelFor(size_t n, const std::function<void(size_t)>& f, size_t max_threads) {
+  const size_t cores = std::max(1u, std::thread::hardware_concurrency());
+  const size_t threads = std::min<size_t>(n, max_threads > 0 ? max_threads : cores);
   std::vector<std::exception_ptr> errors(n);
   std::atomic<size_t> next{0};
   auto work = [&] {
@@ -30,4 +31,4 @@ void ParallelFor(size_t n, const std::function<void(size_t)>& f) {
     if (e) std::rethrow_exception(e);
 }
 
-}  // namespace strokelab::internal
+}  // namespace strokelab

@@ -248,22 +248,26 @@ State PeriodMap::ClippedLinearStart() const {
   return y;
 }
 
+std::vector<std::complex<double>> SampledOrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
+  constexpr double kSamplesPerPeriod = 2048;  // resolve x (smooth) for its harmonics by least squares
+  const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
+  SimulationOptions options;
+  options.duration_s = period / drive.frequency_hz;
+  options.sample_rate_hz = kSamplesPerPeriod * drive.frequency_hz;
+  options.initial = start;
+  options.record_velocity = false;
+  const Record record = MakeCvodeEngine()->Simulate(map.model(), drive, options);
+  const SampleWindow window{0, record.size(), static_cast<double>(period)};
+  return HarmonicAmplitudes(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window, orders);
+}
+
 std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
   if (period < 1) throw InputError("period", "must be >= 1 (got " + std::to_string(period) + ")");
   if (orders < 1) throw InputError("orders", "must be >= 1 (got " + std::to_string(orders) + ")");
   const ActuatorModel& model = map.model();
   const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
   const double t_end = period / drive.frequency_hz;
-  if (!model.IsPiecewiseLinear()) {
-    SimulationOptions options;
-    options.duration_s = t_end;
-    options.sample_rate_hz = 2048 * drive.frequency_hz;
-    options.initial = start;
-    options.record_velocity = false;
-    const Record record = MakeCvodeEngine()->Simulate(model, drive, options);
-    const SampleWindow window{0, record.size(), static_cast<double>(period)};
-    return HarmonicAmplitudes(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window, orders);
-  }
+  if (!model.IsPiecewiseLinear()) return SampledOrbitHarmonics(map, start, period, orders);
   // The same segments as PeriodMap's closed-form trace, each integrated at every harmonic.
   const PiecewiseLinearSystem sys(model, drive);
   const double omega = drive.AngularFrequency();

@@ -115,4 +115,9 @@ double LengthScaleM(const ActuatorModel& model);
 // over a periodic orbit (x and x' are continuous). Throws InputError if period < 1 or orders < 1.
 std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders);
 
+// The same harmonics as OrbitHarmonics takes them for models that are not piecewise linear (CVODE,
+// 2048 samples per period, least squares), for any model: a difference of two orbits taken this way
+// on both sides leaves out the sampling's own error (an impact's high harmonics alias onto C_1..C_N).
+std::vector<std::complex<double>> SampledOrbitHarmonics(const PeriodMap& map, State start, int period, int orders);
+
 }  // namespace strokelab
