@@ -29,7 +29,9 @@ TEST(WorkerKill, RepeatedKillsMidLease) {
   // Tasks (rows of 150 frequencies) of ~0.3 s: a worker holds a lease nearly all the time. Leases
   // of 2 s, since remote workers do not renew theirs: on a busy machine a 1 s lease can run out
   // under a task, which is then taken over while its worker still runs (no kill to test).
-  SweepWorkload work(/*first_frequency_points=*/150, /*amplitude_points=*/16, /*thresholds=*/false);
+  // Threshold columns make tasks long enough that kills catch leases on an idle machine too (without
+  // them only 3 of 12 did once, under the guard of 4).
+  SweepWorkload work(/*first_frequency_points=*/150, /*amplitude_points=*/16, /*thresholds=*/true);
 
   Server server = StartServer(dir.path(), "serve", {"--workers", "0", "--lease-s", "2", "--db", db.string(), "--quiet"});
   auto client = Client(server);
