@@ -69,6 +69,35 @@ TEST(SaturationThresholdTest, LowestContactAmplitudeAgreesWithTheTimeDomain) {
   EXPECT_FALSE(keeps_contact(lowest - 0.002));
 }
 
+TEST(SaturationThresholdTest, BelowResonanceAFoldCanLieJustUnderGrazing) {
+  // At 5.5 Hz (about a third of the resonance) the impact rings the suspension and the contacting
+  // branch folds back 1.8e-4 below grazing. Second method: a stepped-amplitude ramp down in the
+  // time domain, the state carried from step to step, lets go of the stop within one step of it.
+  const SweepResult r = Sweep({5.5, 5.5, 1}, {0.3, 0.3, 1});
+  const double lowest = r.saturation_threshold[0].lowest_contact_amplitude_v;
+  const double grazing = r.saturation_threshold[0].grazing_amplitude_v;
+  ASSERT_LT(lowest, grazing * (1 - 1e-4));
+  const double step_v = 2e-6 * grazing;
+  State state = ContactingAttractor(5.5, grazing * 1.001).start;
+  double last_touching_v = NAN, first_free_v = NAN;
+  for (double v = grazing * 1.0001; v > lowest - 10 * step_v; v -= step_v) {
+    SimulationOptions options;
+    options.duration_s = 1000 / 5.5;
+    options.sample_rate_hz = 5.5 * 64;
+    options.initial = state;
+    const SineDrive drive{v, 5.5, 0.0};
+    const Record run = MakeExactEngine()->Simulate(PaperModel(), drive, options);
+    state = run.final_state;
+    if (Summarize(run, drive).contacts == 0) {
+      first_free_v = v;
+      break;
+    }
+    last_touching_v = v;
+  }
+  EXPECT_GE(last_touching_v, lowest);
+  EXPECT_LT(first_free_v, lowest + step_v);
+}
+
 // The jump interval at one amplitude from continuation, and where stepped-sine sweeps jump.
 void ExpectJumpMatchesSteppedSine(double amplitude_v) {
   const GridAxis eq1{5.0, 5.0 * std::pow(1.02, 116), 117, true};
