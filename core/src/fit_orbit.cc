@@ -41,7 +41,12 @@ std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAna
                                      ResponseKind kind, int orders, OrbitSearch search) {
   const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
   std::optional<SteadyState> s;
-  if (anchor.period > 0) s = Shoot(map, anchor.start, anchor.period);
+  if (search == OrbitSearch::kSettled) {
+    s = SettledAttractor(map, anchor.start);
+    if (!s) return std::nullopt;
+  } else if (anchor.period > 0) {
+    s = Shoot(map, anchor.start, anchor.period);
+  }
   if (search == OrbitSearch::kAttractor && (!s || !s->stable)) s = SolveAttractor(map, s ? s->start : anchor.start);
   if (!s) {
     State y = anchor.start;
@@ -103,8 +108,6 @@ void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, Respon
   }
 }
 
-// The stable orbit that matches the record best among the attractors reached from the clipped linear
-// start, from rest and from half the linear start (a bistable record may sit on either branch).
 std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind,
                                             int orders) {
   const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
@@ -120,15 +123,17 @@ std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const Re
   if (model.HasLowerStop()) starts.push_back(State{model.lower_stop_m, -speed});
   if (model.HasUpperStop()) starts.push_back(State{model.upper_stop_m, speed});
   for (const State start : starts) {
-    std::optional<ModelOrbit> orbit;
-    try {
-      orbit = SolveOrbit(model, record, Anchor{start, 0}, kind, orders, OrbitSearch::kAttractor);
-    } catch (const NumericalError&) {
-      continue;
+    for (const OrbitSearch search : {OrbitSearch::kAttractor, OrbitSearch::kSettled}) {
+      std::optional<ModelOrbit> orbit;
+      try {
+        orbit = SolveOrbit(model, record, Anchor{start, 0}, kind, orders, search);
+      } catch (const NumericalError&) {
+        continue;
+      }
+      if (!orbit) continue;
+      const double mismatch = MismatchSquared(record, orbit->harmonics);
+      if (mismatch < best_mismatch) best = std::move(orbit), best_mismatch = mismatch;
     }
-    if (!orbit) continue;
-    const double mismatch = MismatchSquared(record, orbit->harmonics);
-    if (mismatch < best_mismatch) best = std::move(orbit), best_mismatch = mismatch;
   }
   return best;
 }

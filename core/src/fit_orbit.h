@@ -37,6 +37,9 @@ enum class OrbitSearch {
   // For anchors: Newton, and the attractor (SolveAttractor: long plain iteration, period search)
   // when Newton fails or finds an unstable orbit.
   kAttractor,
+  // For branch choice: the attractor whose basin holds the anchor (SettledAttractor), which may differ
+  // from the one kAttractor's early Newton finds where attractors coexist.
+  kSettled,
 };
 
 // C_h of the response of `kind` from C_h of x at harmonic h of omega [rad/s] (f = m_p x'').
@@ -63,8 +66,9 @@ double PowerOf(const RecordAnalysis& record);
 void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind, int orders,
                 Anchor* anchor);
 
-// The stable orbit that matches the record best among the attractors reached from the clipped linear
-// start, from rest and from half the linear start (a bistable record may sit on either branch).
+// The stable orbit that matches the record best among the attractors reached (kAttractor and kSettled)
+// from the clipped linear start, from rest, from half the linear start and from the stops (a record
+// where attractors coexist may sit on any of them).
 std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const RecordAnalysis& record,
                                             ResponseKind kind, int orders);
 

@@ -386,6 +386,17 @@ int DetectPeriod(const PeriodMap& map, State y, int max_period, double tolerance
   return 0;
 }
 
+// The stable periodic orbit the settled motion from `y` follows, if its period is at most max_period.
+std::optional<SteadyState> PeriodicOrbitOfSettled(const PeriodMap& map, State y, const ShootingOptions& options) {
+  for (double tolerance : {1e-8, 1e-5}) {
+    const int p = DetectPeriod(map, y, options.max_period, tolerance);
+    if (p == 0) continue;
+    // Newton may land on a divisor's orbit: keep the true period.
+    if (std::optional<SteadyState> orbit = Shoot(map, y, p, options); orbit && orbit->stable) return orbit;
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOptions& options) {
@@ -398,14 +409,7 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
   // the unstable orbit (plain iteration from exactly on it would stay there for a while).
   y = period1 ? State{period1->start.x_m + 1e-6 * LengthScaleM(map.model()), period1->start.v_m_per_s} : y;
   for (int i = 0; i < options.settle_periods; ++i) y = map.Apply(y);
-  for (double tolerance : {1e-8, 1e-5}) {
-    const int p = DetectPeriod(map, y, options.max_period, tolerance);
-    if (p == 0) continue;
-    if (std::optional<SteadyState> orbit = Shoot(map, y, p, options); orbit && orbit->stable) {
-      // Newton may land on a divisor's orbit: keep the true period.
-      return *orbit;
-    }
-  }
+  if (std::optional<SteadyState> orbit = PeriodicOrbitOfSettled(map, y, options)) return *orbit;
   // No period found: aperiodic. Figures over max_period periods of the settled motion.
   SteadyState s;
   s.start = y;
@@ -414,6 +418,11 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
   s.multipliers = s.figures.monodromy.Eigenvalues();
   s.stable = true;  // it is the attractor; its multipliers describe a finite stretch only
   return s;
+}
+
+std::optional<SteadyState> SettledAttractor(const PeriodMap& map, State guess, const ShootingOptions& options) {
+  for (int i = 0; i < options.settle_periods; ++i) guess = map.Apply(guess);
+  return PeriodicOrbitOfSettled(map, guess, options);
 }
 
 }  // namespace strokelab

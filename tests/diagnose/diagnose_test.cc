@@ -134,15 +134,10 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
     EXPECT_NEAR(p.value, truth, 0.25 * std::abs(truth));
   }
   EXPECT_TRUE(found) << "no parameter " << key << " in the chosen candidate";
-  if (c.name == "second_stop") {
-    // KNOWN SHORTFALL (not met on this seed, reported in the issue): on held-out record 24 (11 Hz,
-    // 0.5 V) the fitted model hits both stops once a period and the record does not match that
-    // orbit (its error stays ~0.84: a record near the upper stop's grazing point), so the held-out
-    // error falls only from 0.69 to 0.57. Here it must at least fall.
-    EXPECT_LT(d.fit_after.heldout_nrmse, d.fit_before.heldout_nrmse);
-  } else {
-    EXPECT_LE(d.fit_after.heldout_nrmse, 0.5 * d.fit_before.heldout_nrmse);
-  }
+  // second_stop: held-out record 24 (11 Hz, 0.5 V) is, in the truth, a period-2 orbit just past
+  // grazing the upper stop, coexisting with a stable two-contact period-1 orbit; it is matched only
+  // because the branch choice follows the settled motion (SettledAttractor), not Newton's period 1.
+  EXPECT_LE(d.fit_after.heldout_nrmse, 0.5 * d.fit_before.heldout_nrmse);
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -105,6 +105,13 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period =
 // `aperiodic` (period 0) when none is found. Never reports an unstable orbit as the response.
 SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOptions& options = {});
 
+// The attractor whose basin holds `guess`, as a test rig or a time simulation reaches it: settle_periods
+// plain periods first, then the period of the settled motion and Newton on that period. SolveAttractor
+// tries Newton on period 1 early and can land on a coexisting stable period-1 orbit instead (e.g. just
+// past grazing a second stop, where a period-2 orbit and a two-contact period-1 orbit coexist);
+// nullopt when the settled motion has no stable period up to max_period.
+std::optional<SteadyState> SettledAttractor(const PeriodMap& map, State guess, const ShootingOptions& options = {});
+
 // The length scale of the model used to scale residuals [m]: |d| or the upper stop, else 1 mm.
 double LengthScaleM(const ActuatorModel& model);
 
