@@ -173,6 +173,45 @@ TEST(PeriodDoublingTest, JustPastGrazingAt8HzTheResponseIsPeriod2) {
   EXPECT_TRUE(saw_unstable_period1);
 }
 
+TEST(AttractorTest, SettledAttractorIsTheOneTheTimeDomainReaches) {
+  // A paper-like model with a second stop at +1.45 mm (the diagnosis test's second_stop truth), at
+  // 11 Hz / 0.5 V: from rest the motion settles on a period-2 orbit that touches the upper stop every
+  // other period, while a stable two-contact period-1 orbit coexists (SolveAttractor's early Newton
+  // lands there). Second method: 200 periods of the exact engine from rest.
+  ActuatorModel m = PaperModel();
+  m.stiffness_n_per_m = 114.493;
+  m.damping_n_s_per_m = 1.19997;
+  m.gain_n_per_v = 0.288994;
+  m.lower_stop_m = -1.05036e-3;
+  m.contact_stiffness = 1.17959e6;
+  m.upper_stop_m = 1.45e-3;
+  const PeriodMap map(m, 11.0, 0.5);
+  const std::optional<SteadyState> settled = SettledAttractor(map, State{0.0, 0.0});
+  ASSERT_TRUE(settled.has_value());
+  EXPECT_EQ(settled->period, 2);
+  EXPECT_TRUE(settled->stable);
+  EXPECT_DOUBLE_EQ(settled->ContactsPerPeriod(), 1.5);
+  const SteadyState newton_first = SolveAttractor(map, State{0.0, 0.0});
+  EXPECT_EQ(newton_first.period, 1);
+  EXPECT_TRUE(newton_first.stable);
+  EXPECT_DOUBLE_EQ(newton_first.ContactsPerPeriod(), 2.0);
+
+  SimulationOptions options;
+  options.duration_s = 200 / 11.0;
+  options.sample_rate_hz = 11.0 * 512;
+  const Record run = MakeExactEngine()->Simulate(m, SineDrive{0.5, 11.0, 0.0}, options);
+  size_t upper = 0, lower = 0;
+  for (const ContactInterval& c : run.contacts)
+    if (c.start_s > options.duration_s - 20 / 11.0) ++(c.upper ? upper : lower);
+  EXPECT_EQ(upper, 10u);  // one every other period over the last 20
+  EXPECT_EQ(lower, 20u);
+  // The state after 200 periods is on the settled orbit (at phase 0 of one of its two periods).
+  const State a = settled->start, b = map.Apply(a), end = run.final_state;
+  const double off = std::min(std::hypot(end.x_m - a.x_m, (end.v_m_per_s - a.v_m_per_s) / (2 * std::numbers::pi * 11.0)),
+                              std::hypot(end.x_m - b.x_m, (end.v_m_per_s - b.v_m_per_s) / (2 * std::numbers::pi * 11.0)));
+  EXPECT_LT(off, 1e-9);  // m; the transient decays by ~0.18 per period
+}
+
 TEST(SweepEngineTest, ResultsDoNotDependOnTheThreadCount) {
   const GridAxis f{6.0, 16.0, 24}, v{0.2, 0.6, 5};
   const SweepResult one = Sweep(f, v, 1), two = Sweep(f, v, 2);
