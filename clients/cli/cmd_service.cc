@@ -32,6 +32,9 @@ void InstallStopSignals() {
   action.sa_handler = OnSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  // A write past a file-size limit (RLIMIT_FSIZE) then fails with EFBIG, which the store reports as
+  // storage trouble (503, health degraded), instead of killing the process with SIGXFSZ.
+  signal(SIGXFSZ, SIG_IGN);
 }
 
 // The token for client commands: --token, else --token-file's first submit token, else $STROKELAB_TOKEN.

@@ -1,5 +1,5 @@
-// The server's database on a "full disk": the server runs under RLIMIT_FSIZE (prlimit --fsize,
-// with SIGXFSZ ignored, so that writes past the limit fail with EFBIG as on a full file system;
+// The server's database on a "full disk": the server runs under RLIMIT_FSIZE (prlimit --fsize; the
+// server ignores SIGXFSZ itself, so that writes past the limit fail with EFBIG as on a full file system;
 // mounting a small tmpfs needs privileges a test does not have). The server must say so (503 with
 // the file and the cause; /v1/health degraded), keep what it had committed, not damage the file,
 // and finish the job once restarted without the limit.
@@ -49,7 +49,8 @@ TEST(FullDisk, WritesFailClearlyAndNothingIsLost) {
 
   // Room for about 40 kB more than the file has now.
   const uintmax_t limit = fs::file_size(db) + 40 * 1024;
-  signal(SIGXFSZ, SIG_IGN);  // inherited through exec: the server gets EFBIG, not a fatal signal
+  // SIGXFSZ keeps its default (fatal) disposition here: the server must ignore it on its own.
+  signal(SIGXFSZ, SIG_DFL);
   {
     Server server = StartServer(dir.path(), "serve-full", serve_args,
                                 {kPrlimit, "--fsize=" + std::to_string(limit), "--"});
@@ -94,7 +95,6 @@ TEST(FullDisk, WritesFailClearlyAndNothingIsLost) {
     server.child->Signal(SIGTERM);
     EXPECT_EQ(server.child->WaitExit(20), 0) << server.child->Log();
   }
-  signal(SIGXFSZ, SIG_DFL);
   {
     Db file(db);
     EXPECT_EQ(file.One("PRAGMA integrity_check"), "ok");
