@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "strokelab/recordings.h"
+#include "ustar.h"
+#include "zip_reader.h"
 
 namespace strokelab::server {
 namespace {
@@ -33,6 +35,21 @@ void WriteMember(const fs::path& target, std::string_view data, const std::strin
   std::ofstream out(target, std::ios::binary);
   out.write(data.data(), static_cast<std::streamsize>(data.size()));
   if (!out.flush()) throw std::runtime_error("cannot write " + target.string());
+}
+
+// Writes the members (TarMember or ZipMember: path, directory, data) under `dir`.
+template <class Member>
+void Unpack(const std::vector<Member>& members, const fs::path& dir) {
+  for (const Member& m : members) {
+    const fs::path target = dir / fs::path(m.path);
+    if (m.directory) {
+      std::error_code error;
+      fs::create_directories(target, error);
+      if (error) throw ArchiveError("member '" + m.path + "': cannot create the directory (" + error.message() + ")");
+    } else {
+      WriteMember(target, m.data, m.path);
+    }
+  }
 }
 
 // The campaign directory of an unpacked archive: its top, or its single top-level directory.
@@ -70,8 +87,13 @@ bool IsCampaignId(std::string_view id) {
          std::all_of(id.begin(), id.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
 }
 
-UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path& uploads_dir, const TarLimits& limits) {
-  const std::vector<TarMember> members = ReadUstar(archive, limits);
+UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path& uploads_dir,
+                                       const ArchiveLimits& limits) {
+  // The archive is read whole before anything is written: a bad one leaves no trace.
+  std::vector<TarMember> tar;
+  std::vector<ZipMember> zip;
+  if (LooksLikeZip(archive)) zip = ReadZip(archive, limits);
+  else tar = ReadUstar(archive, limits);
   fs::create_directories(uploads_dir);
   UploadedCampaign result;
   result.id = NewCampaignId();
@@ -79,16 +101,8 @@ UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path&
   fs::remove_all(incoming);
   fs::create_directory(incoming);
   try {
-    for (const TarMember& m : members) {
-      const fs::path target = incoming / fs::path(m.path);
-      if (m.directory) {
-        std::error_code error;
-        fs::create_directories(target, error);
-        if (error) throw ArchiveError("member '" + m.path + "': cannot create the directory (" + error.message() + ")");
-      } else {
-        WriteMember(target, m.data, m.path);
-      }
-    }
+    Unpack(tar, incoming);
+    Unpack(zip, incoming);
     const fs::path root = CampaignRoot(incoming);
     try {
       result.campaign = ReadCampaign(root);

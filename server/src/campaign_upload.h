@@ -1,10 +1,11 @@
-// Campaigns for fit and diagnose jobs: uploaded as a tar archive (POST /v1/campaigns) into the
-// service's storage directory, or named by a path under the data root (serve --data-root).
+// Campaigns for fit and diagnose jobs: uploaded as a tar or zip archive (POST /v1/campaigns) into
+// the service's storage directory, or named by a path under the data root (serve --data-root).
 //
-// Uploads: the archive (ustar.h) is unpacked into UPLOADS/.incoming-ID/, its campaign directory
-// found (manifest.json at the archive's top, or in its single top-level directory), read and
-// validated with ReadCampaign (recordings.h), and only then renamed to UPLOADS/ID: a campaign id
-// always names a complete, valid, immutable campaign. IDs are 16 random hex digits.
+// Uploads: the archive (zip_reader.h when it starts with a zip signature, else ustar.h) is unpacked
+// into UPLOADS/.incoming-ID/, its campaign directory found (manifest.json at the archive's top, or
+// in its single top-level directory), read and validated with ReadCampaign (recordings.h), and only
+// then renamed to UPLOADS/ID: a campaign id always names a complete, valid, immutable campaign. IDs
+// are 16 random hex digits.
 //
 // Paths under the data root: relative, without ".." components; the directory and every file in it
 // are canonicalised (symbolic links resolved) and must stay inside the canonical data root.
@@ -16,9 +17,9 @@
 #include <string>
 #include <string_view>
 
+#include "archive.h"
 #include "strokelab/campaign.h"
 #include "strokelab/server/jobs.h"
-#include "ustar.h"
 
 namespace strokelab::server {
 
@@ -34,11 +35,12 @@ struct UploadedCampaign {
   Campaign campaign;
 };
 
-// Unpacks, validates and stores an uploaded archive under `uploads_dir` (created if needed).
+// Unpacks, validates and stores an uploaded archive (zip by its first bytes, else tar) under
+// `uploads_dir` (created if needed).
 // Throws ArchiveError (a bad archive), CampaignError (a bad campaign; nothing is kept), or
 // std::runtime_error when the file system refuses.
 UploadedCampaign StoreUploadedCampaign(std::string_view archive, const std::filesystem::path& uploads_dir,
-                                       const TarLimits& limits = {});
+                                       const ArchiveLimits& limits = {});
 
 // Whether `id` has the form of a campaign id (so that it can be joined to a path safely).
 bool IsCampaignId(std::string_view id);

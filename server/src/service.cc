@@ -702,11 +702,14 @@ void Service::Impl::SetUpRoutes() {
   // Campaigns for fit and diagnose jobs (campaign_upload.h).
   http.Post("/v1/campaigns", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
               const std::string type = req.get_header_value("Content-Type");
-              if (type.rfind("application/x-tar", 0) != 0)
+              const auto is = [&type](const char* media) { return type.rfind(media, 0) == 0; };
+              if (!is("application/x-tar") && !is("application/zip") && !is("application/x-zip-compressed"))
                 throw HttpError{415, "unsupported_media_type",
                                 "send the campaign as a tar archive (ustar or pax) with Content-Type "
-                                "application/x-tar, not '" + type + "'", ""};
-              TarLimits limits;
+                                "application/x-tar, or as a zip archive with Content-Type application/zip, "
+                                "not '" + type + "'", ""};
+              // The body's first bytes, not the type, choose the reader (campaign_upload.h).
+              ArchiveLimits limits;
               limits.max_file_bytes = limits.max_total_bytes = options.max_campaign_bytes;
               const UploadedCampaign upload = StoreUploadedCampaign(req.body, campaigns.uploads, limits);
               SendJson(res, {{"campaign_id", upload.id}, {"campaign", CampaignSummary(upload.campaign)}}, 201);

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <limits>
-#include <set>
 
 namespace strokelab::server {
 namespace {
@@ -26,11 +25,6 @@ std::string_view Text(std::string_view block, Field f) {
 
 bool IsZeroBlock(std::string_view block) {
   return std::all_of(block.begin(), block.end(), [](char c) { return c == '\0'; });
-}
-
-// Where a message says which member it is about.
-std::string Where(size_t index, std::string_view name) {
-  return "member " + std::to_string(index + 1) + (name.empty() ? "" : " '" + std::string(name) + "'");
 }
 
 // An octal field: optional leading blanks, octal digits, then NULs or blanks to the end.
@@ -95,35 +89,11 @@ std::string PaxPath(std::string_view data, const std::string& where) {
   return path;
 }
 
-// The normalised relative path of a member name, or "" for the archive root ("." or "./").
-std::string NormaliseName(std::string_view name, const std::string& where, const TarLimits& limits) {
-  if (name.empty()) throw ArchiveError(where + ": empty name");
-  if (name.front() == '/') throw ArchiveError(where + ": absolute name (members must be relative)");
-  std::string out;
-  size_t start = 0;
-  while (start <= name.size()) {
-    const size_t slash = std::min(name.size(), name.find('/', start));
-    const std::string_view part = name.substr(start, slash - start);
-    start = slash + 1;
-    if (part.empty() || part == ".") continue;
-    if (part == "..") throw ArchiveError(where + ": '..' in the name (members must stay inside the archive)");
-    for (char c : part)
-      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f || c == '\\')
-        throw ArchiveError(where + ": control character or backslash in the name");
-    if (!out.empty()) out += '/';
-    out += part;
-  }
-  if (out.size() > limits.max_name_bytes)
-    throw ArchiveError(where + ": name longer than " + std::to_string(limits.max_name_bytes) + " bytes");
-  return out;
-}
-
 }  // namespace
 
-std::vector<TarMember> ReadUstar(std::string_view archive, const TarLimits& limits) {
+std::vector<TarMember> ReadUstar(std::string_view archive, const ArchiveLimits& limits) {
   std::vector<TarMember> members;
-  std::set<std::string, std::less<>> seen;
-  uint64_t total_bytes = 0;
+  MemberTally tally(limits, /*directories_may_repeat=*/true);
   std::string pending_name;  // from a pax 'x' header or a GNU 'L' long name, for the next member
   size_t offset = 0;
   for (size_t index = 0;; ++index) {
@@ -138,7 +108,7 @@ std::vector<TarMember> ReadUstar(std::string_view archive, const TarLimits& limi
       break;  // end of archive; what follows (the second zero block, record padding) is ignored
     }
     const std::string_view header_name = Text(block, kName);
-    const std::string where = Where(index, header_name);
+    const std::string where = MemberWhere(index, header_name);
     const std::string_view magic = Raw(block, kMagic);
     if (magic.substr(0, 5) != "ustar")
       throw ArchiveError(where + ": no ustar magic at offset " + std::to_string(offset) +
@@ -175,7 +145,7 @@ std::vector<TarMember> ReadUstar(std::string_view archive, const TarLimits& limi
     } else if (posix && !Text(block, kPrefix).empty()) {
       name = std::string(Text(block, kPrefix)) + "/" + name;
     }
-    const std::string where_full = Where(index, name);
+    const std::string where_full = MemberWhere(index, name);
     const bool directory = type == '5';
     if (!directory && type != '0' && type != '\0' && type != '7') {
       const char* what = type == '1' ? "a hard link"
@@ -186,25 +156,8 @@ std::vector<TarMember> ReadUstar(std::string_view archive, const TarLimits& limi
                                        : "of an unknown type";
       throw ArchiveError(where_full + ": is " + std::string(what) + " (only regular files and directories are accepted)");
     }
-    const std::string path = NormaliseName(name, where_full, limits);
-    if (directory && size != 0) throw ArchiveError(where_full + ": a directory with data");
-    if (path.empty()) {
-      if (!directory) throw ArchiveError(where_full + ": a file without a name");
-      continue;  // "./"
-    }
-    if (members.size() >= limits.max_members)
-      throw ArchiveError("more than " + std::to_string(limits.max_members) + " members");
-    if (size > limits.max_file_bytes)
-      throw ArchiveError(where_full + ": " + std::to_string(size) + " bytes, over the limit of " +
-                         std::to_string(limits.max_file_bytes) + " bytes per file");
-    total_bytes += size;
-    if (total_bytes > limits.max_total_bytes)
-      throw ArchiveError("the members hold more than " + std::to_string(limits.max_total_bytes) + " bytes");
-    if (!seen.insert(path).second) {
-      // A directory may be listed again (tar writes it once per --append); a file may not.
-      if (!directory) throw ArchiveError(where_full + ": the name appears twice");
-      continue;
-    }
+    const std::string path = NormaliseMemberName(name, where_full, limits);
+    if (!tally.Add(where_full, path, directory, size)) continue;
     members.push_back({path, directory, directory ? std::string_view() : data});
   }
   return members;

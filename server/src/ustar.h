@@ -14,32 +14,18 @@
 //   end         the archive must end with a zero block; a member whose data runs past the end is
 //               truncated and refused.
 //
-// Every failure throws ArchiveError (an InputError with field "archive") whose message names the
-// member (its position and name) and what is wrong. The reader copies nothing: member data are views
-// into the archive.
+// Every failure throws ArchiveError (archive.h: an InputError with field "archive") whose message
+// names the member (its position and name) and what is wrong. The reader copies nothing: member
+// data are views into the archive.
 #pragma once
 
-#include <cstddef>
-#include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
 
-#include "strokelab/errors.h"
+#include "archive.h"
 
 namespace strokelab::server {
-
-class ArchiveError : public InputError {
- public:
-  explicit ArchiveError(const std::string& message) : InputError("archive", message) {}
-};
-
-struct TarLimits {
-  size_t max_members = 10'000;               // files and directories
-  uint64_t max_file_bytes = 1ull << 30;      // one member's data [bytes]
-  uint64_t max_total_bytes = 1ull << 30;     // all members' data [bytes]
-  size_t max_name_bytes = 1024;              // a member's path after normalisation [bytes]
-};
 
 struct TarMember {
   std::string path;       // normalised relative path, '/'-separated, no "." or ".." components
@@ -48,6 +34,6 @@ struct TarMember {
 };
 
 // The members of `archive` in archive order. Throws ArchiveError.
-std::vector<TarMember> ReadUstar(std::string_view archive, const TarLimits& limits = {});
+std::vector<TarMember> ReadUstar(std::string_view archive, const ArchiveLimits& limits = {});
 
 }  // namespace strokelab::server

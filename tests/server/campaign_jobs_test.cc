@@ -1,5 +1,6 @@
-// Fit and diagnose jobs over REST: a synthetic campaign (synth.h) is uploaded as a tar built here,
-// or named under the data root; the service's fit must be the direct FitCampaign on the same files;
+// Fit and diagnose jobs over REST: a synthetic campaign (synth.h) is uploaded as a tar or a zip
+// built here, or named under the data root; the service's fit must be the direct FitCampaign on the
+// same files, and a zip upload's fit the tar upload's;
 // every way out of the upload area or the data root, and every malformed archive, is refused with a
 // 400 naming the field or the archive member; a bad CSV is refused naming its file and line; a fit
 // survives a restart of the service (its task is leased again) and can be cancelled.
@@ -21,7 +22,9 @@
 #include "strokelab/recordings.h"
 #include "strokelab/server/service.h"
 #include "strokelab/synth.h"
+#include "campaign_upload.h"
 #include "ustar.h"
+#include "zip_writer.h"
 
 namespace strokelab::server {
 namespace {
@@ -80,6 +83,16 @@ std::string Tar(const std::vector<TarEntry>& entries) {
   }
   out.append(1024, '\0');
   return out;
+}
+
+// The same entries as a zip (zip_writer.h): files deflated, directories as "NAME/" entries.
+std::string ZipOf(const std::vector<TarEntry>& entries) {
+  std::vector<zip_writer::ZipEntry> zip;
+  for (const TarEntry& e : entries) {
+    zip.emplace_back(e.name, e.data);
+    if (e.type == '5') zip.back().mode = 040755;
+  }
+  return zip_writer::Zip(zip);
 }
 
 std::string ReadBytes(const fs::path& path) {
@@ -162,8 +175,8 @@ class CampaignJobsTest : public ::testing::Test {
   httplib::Result Upload(const std::string& tar, const char* type = "application/x-tar") {
     return Client().Post("/v1/campaigns", Auth(kSubmitToken), tar, type);
   }
-  std::string UploadOk(const std::string& tar) {
-    auto r = Upload(tar);
+  std::string UploadOk(const std::string& archive, const char* type = "application/x-tar") {
+    auto r = Upload(archive, type);
     EXPECT_TRUE(r && r->status == 201) << (r ? r->body : "no reply");
     return r ? json::parse(r->body).value("campaign_id", "") : "";
   }
@@ -242,6 +255,34 @@ TEST_F(CampaignJobsTest, UploadedCampaignFitsAsTheDirectFit) {
   // A fit has no HTML report; a sweep has no result document.
   EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(job) + "/report", Auth(kReadToken)), 400)["code"],
             "no_report");
+}
+
+TEST_F(CampaignJobsTest, ZipUploadFitsAsTheTarUpload) {
+  const std::vector<TarEntry> entries = EntriesOf(campaign_dir(), "campaign-a/");
+  const std::string tar_id = UploadOk(Tar(entries));
+  const std::string zip_id = UploadOk(ZipOf(entries), "application/zip");
+  ASSERT_EQ(zip_id.size(), 16u);
+  const fs::path uploads = dir_ / "jobs.db.campaigns";
+  EXPECT_EQ(CampaignDigest(uploads / zip_id), CampaignDigest(uploads / tar_id));  // the same bytes
+  // Each upload is its own task (the campaign directory is part of its key): both fits run.
+  const int64_t tar_job = Submit({{"kind", "fit"}, {"campaign", {{"id", tar_id}}}});
+  const int64_t zip_job = Submit({{"kind", "fit"}, {"campaign", {{"id", zip_id}}}});
+  ASSERT_EQ(WaitFinished(tar_job)["status"], "succeeded");
+  ASSERT_EQ(WaitFinished(zip_job)["status"], "succeeded");
+  const json zip_fit = Get("/v1/jobs/" + std::to_string(zip_job) + "/result");
+  ExpectSameFit(zip_fit, Get("/v1/jobs/" + std::to_string(tar_job) + "/result"));
+  ExpectSameFit(zip_fit, *direct_fit_);
+  // Windows' type name is accepted too; a bad zip is refused naming its member, and nothing is kept.
+  UploadOk(ZipOf(EntriesOf(campaign_dir(), "")), "application/x-zip-compressed");
+  std::vector<zip_writer::ZipEntry> with_link = {{"campaign-a/manifest.json", "{}"}, {"campaign-a/evil", "/etc"}};
+  with_link.back().mode = 0120777;
+  const json error = Error(Upload(zip_writer::Zip(with_link), "application/zip"), 400);
+  EXPECT_EQ(error["code"], "bad_archive");
+  EXPECT_EQ(error["field"], "archive");
+  EXPECT_THAT(error.value("message", ""), HasSubstr("member 2 'campaign-a/evil': is a symbolic link"));
+  size_t kept = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(uploads)) kept += e.path().filename().string()[0] != '.';
+  EXPECT_EQ(kept, 3u);  // the three good uploads, no scratch directory either
 }
 
 TEST_F(CampaignJobsTest, CampaignAtTheArchiveTopAndUnderTheDataRoot) {
@@ -333,7 +374,9 @@ TEST_F(CampaignJobsTest, BadArchivesAreRefusedNamingTheMember) {
     EXPECT_EQ(error["field"], "archive") << c.name;
     EXPECT_THAT(error.value("message", ""), HasSubstr(c.message)) << c.name;
   }
-  EXPECT_EQ(Error(Upload(tar, "application/zip"), 415)["code"], "unsupported_media_type");
+  const json wrong_type = Error(Upload(tar, "application/gzip"), 415);
+  EXPECT_EQ(wrong_type["code"], "unsupported_media_type");
+  EXPECT_THAT(wrong_type.value("message", ""), HasSubstr("application/x-tar, or as a zip archive"));
   // Nothing is left behind by the refused uploads.
   const fs::path uploads = dir_ / "jobs.db.campaigns";
   EXPECT_TRUE(!fs::exists(uploads) || fs::is_empty(uploads));
@@ -449,7 +492,7 @@ TEST(ReadUstar, ReadsPaxAndGnuArchivesOfTheSystemTar) {
 
 TEST(ReadUstar, LimitsAreEnforced) {
   const std::string tar = Tar({{"a.csv", std::string(1000, 'x')}, {"b.csv", "y"}});
-  TarLimits limits;
+  ArchiveLimits limits;
   limits.max_file_bytes = 999;
   try {
     ReadUstar(tar, limits);
