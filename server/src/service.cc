@@ -15,6 +15,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <regex>
 #include <thread>
 #include <type_traits>
 
@@ -312,6 +313,33 @@ struct Service::Impl {
                       ""};
   }
 
+  // Every route's path pattern with its methods: a request for a known path with another method is
+  // answered 405 with an Allow header, not 404 (set_error_handler).
+  std::vector<std::pair<std::regex, std::string>> route_methods;
+
+  // Registers a route (httplib matches the whole path against the pattern, as std::regex_match).
+  void On(const std::string& method, const std::string& pattern, httplib::Server::Handler handler) {
+    route_methods.emplace_back(std::regex(pattern), method);
+    if (method == "GET") {
+      http.Get(pattern, std::move(handler));
+    } else if (method == "POST") {
+      http.Post(pattern, std::move(handler));
+    } else if (method == "DELETE") {
+      http.Delete(pattern, std::move(handler));
+    } else {
+      throw std::logic_error("no route registration for method " + method);
+    }
+  }
+
+  // The methods routed for `path` ("GET, DELETE"); empty when no route matches it.
+  std::string AllowedMethods(const std::string& path) const {
+    std::string allowed;
+    for (const auto& [pattern, method] : route_methods)
+      if (std::regex_match(path, pattern) && allowed.find(method) == std::string::npos)
+        allowed += (allowed.empty() ? "" : ", ") + method;
+    return allowed;
+  }
+
   // Wraps a handler with authorisation, error mapping, metrics and the access log.
   httplib::Server::Handler Route(Role required, std::function<void(const httplib::Request&, httplib::Response&)> h) {
     return [this, required, h](const httplib::Request& req, httplib::Response& res) {
@@ -562,10 +590,18 @@ void Service::Impl::SetUpRoutes() {
     int yes = 1;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
   });
-  http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+  http.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
     if (!res.body.empty()) return;
     if (res.status == 413) SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
-    else if (res.status == 404) SendError(res, {404, "not_found", "no such endpoint", ""});
+    else if (res.status == 404) {
+      const std::string allowed = AllowedMethods(req.path);
+      if (allowed.empty()) {
+        SendError(res, {404, "not_found", "no such endpoint", ""});
+      } else {
+        SendError(res, {405, "method_not_allowed", req.method + " is not allowed here; allowed: " + allowed, ""});
+        res.set_header("Allow", allowed);
+      }
+    }
     else if (res.status == 400) {
       SendError(res, {400, "bad_request", "malformed HTTP request (e.g. a POST without Content-Length)", ""});
       // The request could not be parsed, so where its body ends is unknown: read on, its bytes would
@@ -575,9 +611,9 @@ void Service::Impl::SetUpRoutes() {
     else if (res.status >= 400) SendError(res, {res.status, "http_error", "HTTP error " + std::to_string(res.status), ""});
   });
 
-  http.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(WebPage(), "text/html"); });
+  On("GET", "/", [](const httplib::Request&, httplib::Response& res) { res.set_content(WebPage(), "text/html"); });
   // Health is open (load balancers and probes carry no token) and says nothing about jobs.
-  http.Get("/v1/health", [this](const httplib::Request&, httplib::Response& res) {
+  On("GET", "/v1/health", [this](const httplib::Request&, httplib::Response& res) {
     // 503 while writes fail (disk full, I/O error): the service answers reads but cannot take work.
     const json problem = storage.Problem();
     json body = {{"status", problem.is_null() ? "ok" : "degraded"}, {"code_version", kCodeVersion}};
@@ -590,11 +626,11 @@ void Service::Impl::SetUpRoutes() {
     }
     SendJson(res, body, body["status"] == "ok" ? 200 : 503);
   });
-  http.Get("/metrics", Route(Role::kRead, [this](const httplib::Request&, httplib::Response& res) {
+  On("GET", "/metrics", Route(Role::kRead, [this](const httplib::Request&, httplib::Response& res) {
              res.set_content(metrics.Text(store->GetCounts(NowMs())), "text/plain; version=0.0.4");
            }));
 
-  http.Post("/v1/jobs", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+  On("POST", "/v1/jobs", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
               const json job = JsonBody(req);
               // Validates; InputError -> 400 (a campaign's file and line: CampaignError).
               const std::vector<TaskSpec> tasks = PlanTasks(job, campaigns);
@@ -612,7 +648,7 @@ void Service::Impl::SetUpRoutes() {
                                 record->started_ms == record->finished_ms;
               SendJson(res, {{"id", id}, {"status", done ? "succeeded" : "queued"}}, 201);
             }));
-  http.Get("/v1/jobs", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+  On("GET", "/v1/jobs", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const int limit = QueryLimit(req, 50, 500);
              const int64_t before = req.has_param("before") ? QueryInteger(req, "before") : 0;
              json jobs = json::array();
@@ -624,10 +660,10 @@ void Service::Impl::SetUpRoutes() {
              SendJson(res, {{"jobs", jobs},
                             {"next_before", static_cast<int>(jobs.size()) == limit ? json(last) : json(nullptr)}});
            }));
-  http.Get(R"(/v1/jobs/(\d+))", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+  On("GET", R"(/v1/jobs/(\d+))", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              SendJson(res, JobJson(RequireJob(req.matches[1])));
            }));
-  http.Delete(R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+  On("DELETE", R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
                 const JobRecord job = RequireJob(req.matches[1]);
                 if (!store->CancelJob(job.id, NowMs()))
                   throw HttpError{409, "already_finished", "job " + std::to_string(job.id) + " has already " +
@@ -639,7 +675,7 @@ void Service::Impl::SetUpRoutes() {
                 }
                 SendJson(res, JobJson(*store->GetJob(job.id)));
               }));
-  http.Get(R"(/v1/jobs/(\d+)/points)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+  On("GET", R"(/v1/jobs/(\d+)/points)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              Store::Filter filter;
              if (req.has_param("frequency_min_hz")) filter.frequency_min_hz = QueryNumber(req, "frequency_min_hz");
@@ -662,7 +698,7 @@ void Service::Impl::SetUpRoutes() {
              SendJson(res, {{"points", page.rows},
                             {"next_cursor", page.next_cursor ? json(page.next_cursor) : json(nullptr)}});
            }));
-  http.Get(R"(/v1/jobs/(\d+)/saturation-map)",
+  On("GET", R"(/v1/jobs/(\d+)/saturation-map)",
            Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              if (job.kind != "sweep") throw HttpError{400, "not_a_sweep", "only sweep jobs have a saturation map", ""};
@@ -677,7 +713,7 @@ void Service::Impl::SetUpRoutes() {
                             {"saturation_threshold", thresholds},
                             {"jump", store->Results(job.id, "jumps", {}, 0, 1000000).rows}});
            }));
-  http.Get(R"(/v1/jobs/(\d+)/frf)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+  On("GET", R"(/v1/jobs/(\d+)/frf)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              if (job.kind != "sweep") throw HttpError{400, "not_a_sweep", "only sweep jobs have FRFs", ""};
              if (WantsSvg(req)) {
@@ -700,7 +736,7 @@ void Service::Impl::SetUpRoutes() {
            }));
 
   // Campaigns for fit and diagnose jobs (campaign_upload.h).
-  http.Post("/v1/campaigns", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+  On("POST", "/v1/campaigns", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
               const std::string type = req.get_header_value("Content-Type");
               const auto is = [&type](const char* media) { return type.rfind(media, 0) == 0; };
               if (!is("application/x-tar") && !is("application/zip") && !is("application/x-zip-compressed"))
@@ -714,14 +750,14 @@ void Service::Impl::SetUpRoutes() {
               const UploadedCampaign upload = StoreUploadedCampaign(req.body, campaigns.uploads, limits);
               SendJson(res, {{"campaign_id", upload.id}, {"campaign", CampaignSummary(upload.campaign)}}, 201);
             }));
-  http.Get(R"(/v1/jobs/(\d+)/result)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+  On("GET", R"(/v1/jobs/(\d+)/result)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              const std::vector<json> rows = CampaignJobRows(job, job.kind == "fit" ? "fit" : "diagnosis");
              if (rows.empty()) throw std::runtime_error("job " + std::to_string(job.id) + " has no stored result");
              SendJson(res, rows.front());
            }));
   // The report's main page is its index.html (else its first .html file); FILE is another file of it.
-  http.Get(R"(/v1/jobs/(\d+)/report(/.*)?)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+  On("GET", R"(/v1/jobs/(\d+)/report(/.*)?)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
              if (job.kind != "diagnose")
                throw HttpError{400, "no_report", "only diagnose jobs have an HTML report", ""};
@@ -749,7 +785,7 @@ void Service::Impl::SetUpRoutes() {
            }));
 
   // Remote workers.
-  http.Post("/v1/tasks/lease", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+  On("POST", "/v1/tasks/lease", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
               const json body = req.body.empty() ? json::object() : JsonBody(req);
               if (!body.is_object()) throw HttpError{400, "bad_request", "expected a JSON object", ""};
               if (body.contains("worker") && !body["worker"].is_string())
@@ -765,7 +801,7 @@ void Service::Impl::SetUpRoutes() {
                              {"kind", lease->kind}, {"spec", lease->spec}, {"lease_token", lease->lease_token},
                              {"expires_ms", lease->expires_ms}});
             }));
-  http.Post(R"(/v1/tasks/(\d+)/complete)",
+  On("POST", R"(/v1/tasks/(\d+)/complete)",
             Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
               const json body = JsonBody(req);
               const TaskLease lease = LeaseOf(req, body);
@@ -784,7 +820,7 @@ void Service::Impl::SetUpRoutes() {
               metrics.TaskDone(rows.size());
               SendJson(res, {{"accepted", true}});
             }));
-  http.Post(R"(/v1/tasks/(\d+)/fail)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+  On("POST", R"(/v1/tasks/(\d+)/fail)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
               const json body = JsonBody(req);
               const TaskLease lease = LeaseOf(req, body);
               const std::string error =

@@ -191,6 +191,28 @@ TEST_F(ServiceTest, QueryParametersAreChecked) {
   EXPECT_EQ(Error(c.Get("/v1/nothing", Auth(kReadToken)), 404)["code"], "not_found");
 }
 
+TEST_F(ServiceTest, AKnownPathWithAnotherMethodIs405WithAllow) {
+  auto c = Client();
+  const std::string job = "/v1/jobs/" + std::to_string(Submit(kSmallSweep)["id"].get<int64_t>());
+  struct Case {
+    httplib::Result result;
+    std::string allow;
+  };
+  std::vector<Case> cases;
+  cases.push_back({c.Put(job, Auth(kSubmitToken), "{}", "application/json"), "GET, DELETE"});
+  cases.push_back({c.Post("/v1/health", Auth(kSubmitToken), "{}", "application/json"), "GET"});
+  cases.push_back({c.Get("/v1/tasks/lease", Auth(kSubmitToken)), "POST"});
+  cases.push_back({c.Delete("/v1/jobs", Auth(kSubmitToken)), "POST, GET"});
+  cases.push_back({c.Post(job + "/points", Auth(kSubmitToken), "{}", "application/json"), "GET"});
+  for (const Case& k : cases) {
+    ASSERT_TRUE(k.result);
+    EXPECT_EQ(Error(k.result, 405)["code"], "method_not_allowed") << k.allow;
+    EXPECT_EQ(k.result->get_header_value("Allow"), k.allow);
+  }
+  // Not a route under any method: still 404.
+  EXPECT_EQ(Error(c.Put("/v1/nothing", Auth(kSubmitToken), "{}", "application/json"), 404)["code"], "not_found");
+}
+
 TEST_F(ServiceTest, HealthMetricsAndPage) {
   auto c = Client();
   auto health = c.Get("/v1/health", Auth(kReadToken));
