@@ -799,8 +799,15 @@ void Service::Impl::SetUpRoutes() {
               }
               SendJson(res, {{"task_id", lease->task_id}, {"job_id", lease->job_id}, {"index", lease->index},
                              {"kind", lease->kind}, {"spec", lease->spec}, {"lease_token", lease->lease_token},
-                             {"expires_ms", lease->expires_ms}});
+                             {"expires_ms", lease->expires_ms}, {"lease_ms", options.lease_ms}});
             }));
+  // A remote worker keeps its lease while a long task runs (remote_worker.cc renews every lease_ms / 4).
+  On("POST", R"(/v1/tasks/(\d+)/renew)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+       const TaskLease lease = LeaseOf(req, JsonBody(req));
+       if (!store->RenewLease(lease, NowMs(), options.lease_ms))
+         throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled", ""};
+       SendJson(res, {{"renewed", true}, {"lease_ms", options.lease_ms}});
+     }));
   On("POST", R"(/v1/tasks/(\d+)/complete)",
             Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
               const json body = JsonBody(req);

@@ -45,9 +45,11 @@ constexpr int kMeasuredRounds = 8;
 constexpr long kMaxGrowthKib = 512;
 // glibc raises its mmap threshold after the first large free, after which the 1-2 MB bodies of the
 // table land in the per-thread heaps and RSS wanders by +-15 MB with the order the threads serve
-// them (measured). Fixed thresholds keep large blocks in mmap (returned on free) and two arenas
-// keep fragmentation small, so that RSS follows what the server keeps rather than allocator history.
-const std::vector<std::string> kSteadyMalloc = {"MALLOC_ARENA_MAX=2", "MALLOC_MMAP_THRESHOLD_=65536",
+// them (measured). Fixed thresholds keep large blocks in mmap (returned on free) and one arena keeps
+// fragmentation small, so that RSS follows what the server keeps rather than allocator history
+// (with two, the second arena was sometimes first made during the measured rounds on a loaded
+// machine: +12.5 MB once in six runs; with one, +20..40 KiB in ten runs).
+const std::vector<std::string> kSteadyMalloc = {"MALLOC_ARENA_MAX=1", "MALLOC_MMAP_THRESHOLD_=65536",
                                                 "MALLOC_TRIM_THRESHOLD_=131072"};
 
 // What was wrong with one reply, or "" when it is the documented error.

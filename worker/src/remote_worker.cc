@@ -3,7 +3,9 @@
 #include <httplib.h>
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
 #include <vector>
@@ -25,6 +27,41 @@ httplib::Headers AuthHeaders(const std::string& token) {
 void Pause(int ms, const std::atomic<bool>& stop) {
   for (int waited = 0; waited < ms && !stop; waited += 50) std::this_thread::sleep_for(std::chrono::milliseconds(50));
 }
+
+// Renews a task's lease every period_ms while it lives (the task runs), so that a task longer than
+// the lease is not leased again by another worker. Its own client: httplib clients are not shared
+// between threads. A failed renewal is left to the completion (the server answers 409 if the lease
+// was lost, and nothing is stored twice).
+class LeaseKeeper {
+ public:
+  LeaseKeeper(const std::string& host, int port, httplib::Headers headers, std::string endpoint, std::string body,
+              int period_ms)
+      : thread_([=, this] {
+          httplib::Client client(host, port);
+          client.set_connection_timeout(5);
+          client.set_read_timeout(10);
+          std::unique_lock<std::mutex> lock(mutex_);
+          while (!cv_.wait_for(lock, std::chrono::milliseconds(period_ms), [this] { return done_; })) {
+            lock.unlock();
+            client.Post(endpoint, headers, body, "application/json");
+            lock.lock();
+          }
+        }) {}
+  ~LeaseKeeper() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      done_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread thread_;  // last: started once the members it uses exist
+};
 
 }  // namespace
 
@@ -79,6 +116,10 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
       json reply = {{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}};
       std::string endpoint = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>());
       try {
+        // Renewed at a quarter of the lease, so that one or two lost renewals do not lose it.
+        const int64_t lease_ms = task.value("lease_ms", int64_t{120000});
+        const LeaseKeeper keeper(host, port, headers, endpoint + "/renew", reply.dump(),
+                                 static_cast<int>(std::max<int64_t>(lease_ms / 4, 10)));
         json rows = json::array();
         for (const server::ResultRow& row : server::RunTask(task.at("spec")))
           rows.push_back({{"table", row.table}, {"values", row.values}});

@@ -1,0 +1,139 @@
+// Remote workers keep their lease while a task runs longer than the lease (POST /v1/tasks/{id}/renew,
+// remote_worker.cc's LeaseKeeper): nobody else is handed the task meanwhile, and a lease that was not
+// renewed is lost (409) and handed out again.
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "strokelab/server/service.h"
+#include "strokelab/worker/remote_worker.h"
+
+namespace strokelab::server {
+namespace {
+
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+constexpr int64_t kLeaseMs = 200;
+
+// A one-task job that takes ~0.7 s of CPU in Release (CVODE, 60 s at 51.2 kHz): several leases long.
+const char* kLongSimulate =
+    R"({"kind": "simulate", "model": {"preset": "paper", "k3": 4e7}, "frequency_hz": 13, "amplitude_v": 0.5,
+        "duration_s": 60, "sample_rate_hz": 51200, "method": "cvode"})";
+// One sweep row: a single task.
+const char* kOneTaskSweep =
+    R"({"kind": "sweep", "model": "paper", "grid": {"frequency_hz": {"from": 5, "to": 20, "points": 8},
+        "amplitude_v": {"from": 0.3, "to": 0.3, "points": 1}}, "thresholds": false})";
+
+class RemoteLeaseTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::path(::testing::TempDir()) /
+           ("remote_lease_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    ServiceOptions options;
+    options.port = 0;
+    options.db_path = (dir_ / "jobs.db").string();
+    options.workers = 0;  // remote workers only
+    options.lease_ms = kLeaseMs;
+    options.quiet = true;
+    service_ = std::make_unique<Service>(options);
+    port_ = service_->Start();
+  }
+  void TearDown() override {
+    service_->Stop();
+    std::filesystem::remove_all(dir_);
+  }
+  httplib::Client Client() const { return httplib::Client("127.0.0.1", port_); }
+  int64_t Submit(const char* job) const {
+    auto r = Client().Post("/v1/jobs", job, "application/json");
+    EXPECT_TRUE(r && r->status == 201) << (r ? r->body : httplib::to_string(r.error()));
+    return r && r->status == 201 ? json::parse(r->body).at("id").get<int64_t>() : 0;
+  }
+  httplib::Result Lease(const std::string& worker) const {
+    return Client().Post("/v1/tasks/lease", json({{"worker", worker}}).dump(), "application/json");
+  }
+  std::string Status(int64_t id) const {
+    auto r = Client().Get("/v1/jobs/" + std::to_string(id));
+    return r && r->status == 200 ? json::parse(r->body).at("status").get<std::string>() : "?";
+  }
+
+  std::filesystem::path dir_;
+  std::unique_ptr<Service> service_;
+  int port_ = 0;
+};
+
+TEST_F(RemoteLeaseTest, RenewedLeaseIsKeptAndAnUnrenewedOneIsLost) {
+  Submit(kOneTaskSweep);
+  auto first = Lease("a");
+  ASSERT_TRUE(first);
+  ASSERT_EQ(first->status, 200) << first->body;
+  const json task = json::parse(first->body);
+  EXPECT_EQ(task.at("lease_ms"), kLeaseMs);
+  const std::string renew = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>()) + "/renew";
+  const std::string proof = json({{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}}).dump();
+
+  // Five leases' time, renewed at a quarter of the lease: the task stays with "a".
+  const auto start = Clock::now();
+  while (Clock::now() - start < std::chrono::milliseconds(5 * kLeaseMs)) {
+    auto r = Client().Post(renew, proof, "application/json");
+    ASSERT_TRUE(r);
+    ASSERT_EQ(r->status, 200) << r->body;
+    auto other = Lease("b");
+    ASSERT_TRUE(other);
+    EXPECT_EQ(other->status, 204) << "the renewed task was handed to another worker: " << other->body;
+    std::this_thread::sleep_for(std::chrono::milliseconds(kLeaseMs / 4));
+  }
+  // Not renewed for two leases: lost, and handed out again.
+  std::this_thread::sleep_for(std::chrono::milliseconds(2 * kLeaseMs));
+  auto late = Client().Post(renew, proof, "application/json");
+  ASSERT_TRUE(late);
+  EXPECT_EQ(late->status, 409) << late->body;
+  EXPECT_EQ(json::parse(late->body).at("error").at("code"), "lease_lost");
+  auto again = Lease("b");
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->status, 200) << again->body;
+}
+
+TEST_F(RemoteLeaseTest, RemoteWorkerKeepsItsLeaseThroughALongTask) {
+  const int64_t id = Submit(kLongSimulate);
+  std::atomic<bool> stop{false};
+  int completed = -1;
+  worker::RemoteWorkerOptions options;
+  options.server_url = "http://127.0.0.1:" + std::to_string(port_);
+  options.name = "long";
+  options.max_tasks = 1;
+  const auto start = Clock::now();
+  std::thread remote([&] { completed = worker::RunRemoteWorker(options, stop); });
+  // Once "long" holds the task, another worker asks all along: there is nothing to lease.
+  while (Status(id) == "queued" && Clock::now() - start < std::chrono::seconds(30))
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_EQ(Status(id), "running");
+  int asked = 0;
+  while (Status(id) != "succeeded" && Clock::now() - start < std::chrono::seconds(120)) {
+    auto r = Lease("other");
+    ASSERT_TRUE(r);
+    ASSERT_EQ(r->status, 204) << "the task was leased again while the remote worker ran it: " << r->body;
+    ++asked;
+    std::this_thread::sleep_for(std::chrono::milliseconds(kLeaseMs / 4));
+  }
+  remote.join();
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  EXPECT_EQ(Status(id), "succeeded");
+  EXPECT_EQ(completed, 1);
+  // The check means something only if the task outlived its lease several times over.
+  EXPECT_GT(seconds * 1000, 3 * kLeaseMs) << "the task was too short to test renewal";
+  std::printf("task ran %.2f s (lease %lld ms); %d lease requests by another worker got 204\n", seconds,
+              static_cast<long long>(kLeaseMs), asked);
+}
+
+}  // namespace
+}  // namespace strokelab::server
