@@ -42,6 +42,7 @@ using internal::SolveOrbit;
 using Complex = std::complex<double>;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kMadToSigma = 1.4826;  // sigma / MAD for normal noise
 
 // EstimateDrive.
@@ -68,6 +69,9 @@ constexpr double kTable2ContactStiffness = 1.3e6;  // k_s [N/m], start when no s
 constexpr double kBracketMargin = 1.05;            // |d| start just above the largest clear amplitude
 constexpr int kMaxCorrectionPasses = 4;            // refinement passes with refreshed sampling corrections
 constexpr double kCorrectionTolerance = 1e-3;      // their change [standard errors] that ends the passes
+// A record moves to another coexisting orbit between passes when that one's mismatch is below this
+// fraction of its anchor orbit's (a clear win, not noise between two near-identical orbits).
+constexpr double kBranchSwitchRatio = 0.5;
 constexpr double kParameterRange = 3.0;            // refinement bounds: staged estimate times or over this (k_p, c_p, g, d)
 constexpr double kContactRange = 30.0;             // ... and this for k_s, c_s
 // Relative step of the central differences in theta = 1 + ln(p / p0): a relative change of about
@@ -879,6 +883,30 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     return change;
   };
 
+  // Records whose best-matching stable orbit at the current iterate is another one than their anchor's
+  // (a bistable record the start model put on the other branch: the contacting branch may not exist
+  // at the start model) move to it; returns how many moved.
+  auto reselect_branches = [&] {
+    const ActuatorModel model = layout.Decode(theta.data());
+    size_t moved = 0;
+    for (RecordTarget& t : targets) {
+      try {
+        const std::optional<ModelOrbit> best = BestMatchingOrbit(model, *t.record, kind, orders);
+        if (!best) continue;
+        const std::optional<ModelOrbit> current =
+            SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
+        const double now = current ? MismatchSquared(*t.record, current->harmonics) : kInf;
+        if (MismatchSquared(*t.record, best->harmonics) < kBranchSwitchRatio * now) {
+          t.anchor = best->anchor;
+          ++moved;
+        }
+      } catch (const std::exception&) {
+        // keep the anchor
+      }
+    }
+    return moved;
+  };
+
   bool solved = true;
   update_corrections();
   if (options.refine) {
@@ -914,8 +942,10 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       summary.report = ceres_summary.BriefReport();
       solved = ceres_summary.termination_type == ceres::CONVERGENCE;
       summary.correction_passes = pass + 1;
+      const size_t switched = reselect_branches();
+      summary.branch_switches += switched;
       const double change = update_corrections();
-      if (!solved || change < kCorrectionTolerance) break;
+      if (!solved || (change < kCorrectionTolerance && switched == 0)) break;
     }
     if (!solved) {
       summary.report += "\nNOT CONVERGED: Ceres stopped without convergence";
@@ -1170,6 +1200,7 @@ nlohmann::json FitResultToJson(const FitResult& r) {
                      {"converged", f.converged},
                      {"iterations", f.iterations},
                      {"correction_passes", f.correction_passes},
+                     {"branch_switches", f.branch_switches},
                      {"initial_cost", Number(f.initial_cost)},
                      {"final_cost", Number(f.final_cost)},
                      {"residuals", f.residuals},

@@ -198,6 +198,7 @@ struct RefinementSummary {
   bool converged = false;     // Ceres converged and the covariance exists
   int iterations = 0;         // Ceres iterations over all passes
   int correction_passes = 0;  // solves with refreshed sampling corrections
+  size_t branch_switches = 0; // records moved to a better-matching coexisting orbit between passes
   double initial_cost = 0.0;  // SSR / 2 in units of the harmonic standard errors
   double final_cost = 0.0;
   size_t residuals = 0;            // M real residuals
