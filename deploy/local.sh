@@ -2,9 +2,11 @@
 # One-machine set-up: installs what is missing (Debian packages), builds, then runs or tests.
 #   deploy/local.sh run    build and run the main job: the service with a demo sweep
 #   deploy/local.sh demo   build and write the demo sweep and the paper's figures as files
-#   deploy/local.sh test   build and run every test (what .ci/run calls)
+#   deploy/local.sh test   build and run every test (what .ci/run calls): the Release build and its
+#                          tests, then the sanitizer stages (ASan+UBSan with the fuzz harnesses, TSan)
+#   deploy/local.sh test-release    the Release build and its tests only (the quick loop)
 #   deploy/local.sh build  build only
-#   deploy/local.sh sanitize        the ASan+UBSan and TSan builds and their tests (not yet in CI: see below)
+#   deploy/local.sh sanitize        the sanitizer stages only
 #   deploy/local.sh fuzz [SECONDS]  build the libFuzzer harnesses and run each for SECONDS (default 600)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -54,15 +56,22 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1}
 export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 
-# ASan + UBSan: every test but these. FitCampaign.Explore fits every model to a campaign (32 s in
-# Release, over 60 s here); web_page drives Chromium, whose own code the sanitizers do not see and
-# whose page the server_process and python_client tests already serve.
-# The diagnosis tests (Library/DiagnoseTest.*) run 10-40 s each in Release.
-ASAN_EXCLUDE='^(FitCampaign\.Explore|web_page|Library/DiagnoseTest\..*)$'
-asan_stage() {
-  configure_clang build/asan -DSTROKELAB_SANITIZE=address,undefined
-  cmake --build build/asan -j "$(nproc)"
-  ctest --test-dir build/asan --output-on-failure -j "$(nproc)" -E "$ASAN_EXCLUDE"
+# ASan + UBSan, with libFuzzer's coverage instrumentation so that the same build holds the fuzz
+# harnesses (one clang build instead of two; the instrumentation costs the tests little): every test
+# but these. Library/DiagnoseTest.* run 10-40 s each in Release (minutes here); web_page drives
+# Chromium, whose own code the sanitizers do not see and whose page the server_process and
+# python_client tests already serve. Then each harness's corpus is replayed (ctest) and each harness
+# fuzzed for FUZZ_SECONDS.
+ASAN_DIR=build/asan
+ASAN_EXCLUDE='^(web_page|Library/DiagnoseTest\..*)$'
+asan_build() {
+  configure_clang "$ASAN_DIR" -DSTROKELAB_SANITIZE=address,undefined -DSTROKELAB_FUZZ=ON
+  cmake --build "$ASAN_DIR" -j "$(nproc)"
+}
+asan_stage() {  # FUZZ_SECONDS
+  asan_build
+  ctest --test-dir "$ASAN_DIR" --output-on-failure -j "$(nproc)" -E "$ASAN_EXCLUDE"
+  STROKELAB_FUZZ_DIR="$ASAN_DIR" tests/fuzz/run_fuzzers.sh "$1"
 }
 
 # TSan: the tests of the threaded parts, the job store's task queue, the service with its workers
@@ -78,14 +87,8 @@ tsan_stage() {
   done
 }
 
-# libFuzzer harnesses (tests/fuzz): built with ASan + UBSan, each corpus replayed (ctest), then each
-# harness fuzzed for FUZZ_SECONDS.
-fuzz_stage() {  # FUZZ_SECONDS
-  configure_clang build/fuzz -DSTROKELAB_FUZZ=ON
-  make -C build/fuzz/tests/fuzz --no-print-directory -j "$(nproc)" >/dev/null
-  ctest --test-dir build/fuzz/tests/fuzz --output-on-failure
-  tests/fuzz/run_fuzzers.sh "$1"
-}
+# Seconds each libFuzzer harness runs in `test` and `sanitize` (a smoke run; `fuzz` runs longer).
+CI_FUZZ_SECONDS=15
 
 # Runs NAME's command and keeps its wall time for the summary printed at the end.
 STAGE_TIMES=()
@@ -116,27 +119,33 @@ case "${1:-}" in
     install_missing
     stage "release build" build
     stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
+    stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
+    stage "tsan build and tests" tsan_stage
+    printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
+    ;;
+  test-release)
+    install_missing
+    stage "release build" build
+    stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
   sanitize)
-    # Not part of `test` (and so of CI): on 2 cores the two builds add ~8 min with a warm cache
-    # (more from a cold one); their tests passed with no sanitizer report (ASan 143 s, TSan 85 s).
     install_missing
-    stage "asan+ubsan build and tests" asan_stage
+    stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
     stage "tsan build and tests" tsan_stage
-    stage "fuzz build, corpus replay, 20 s per harness" fuzz_stage 20
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
   fuzz)
     install_missing
-    fuzz_stage "${2:-600}"
+    asan_build
+    STROKELAB_FUZZ_DIR="$ASAN_DIR" tests/fuzz/run_fuzzers.sh "${2:-600}"
     ;;
   build)
     install_missing
     build
     ;;
   *)
-    echo "usage: deploy/local.sh run|demo|test|build|sanitize|fuzz [SECONDS]" >&2
+    echo "usage: deploy/local.sh run|demo|test|test-release|build|sanitize|fuzz [SECONDS]" >&2
     exit 2
     ;;
 esac

@@ -2,20 +2,21 @@
 # Runs every libFuzzer harness of tests/fuzz for SECONDS each (default 60) and prints, per harness,
 # the executions, executions per second, corpus size and findings; exits 1 if any harness found a
 # crash, leak, timeout or out-of-memory. The harnesses must be built first (deploy/local.sh fuzz
-# SECONDS builds them into build/fuzz and calls this script; CI runs it for 20 s per harness).
+# SECONDS builds them into build/asan, the ASan+UBSan build, and calls this script; CI runs it for 15 s
+# per harness).
 #
 #   tests/fuzz/run_fuzzers.sh [SECONDS] [HARNESS ...]
 #
 # Each harness starts from its checked-in seeds (tests/fuzz/corpus/NAME, read only) and a working
-# corpus in build/fuzz/corpus/NAME that keeps the inputs found by earlier runs on this machine.
-# Findings go to build/fuzz/findings/NAME/ (crash-*, leak-*, timeout-*, oom-*); to keep one as a
+# corpus in build/asan/corpus/NAME that keeps the inputs found by earlier runs on this machine.
+# Findings go to build/asan/findings/NAME/ (crash-*, leak-*, timeout-*, oom-*); to keep one as a
 # regression, copy it into tests/fuzz/corpus/NAME/ and add a GoogleTest case for it.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
 SECONDS_EACH=${1:-60}
 shift || true
-FUZZ_DIR=${STROKELAB_FUZZ_DIR:-build/fuzz}
+FUZZ_DIR=${STROKELAB_FUZZ_DIR:-build/asan}
 HARNESSES=("$@")
 [ ${#HARNESSES[@]} -gt 0 ] || HARNESSES=(job_spec recordings http)
 
