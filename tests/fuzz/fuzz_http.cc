@@ -14,6 +14,9 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -57,12 +60,27 @@ void PrintThreadStacks() {
   if (std::system(command.c_str()) != 0) std::fprintf(stderr, "(no thread stacks: gdb failed or is missing)\n");
 }
 
+// poll() for input on `fd` for up to timeout_ms in all. libFuzzer's -timeout runs on SIGALRM, which
+// interrupts poll (EINTR) about once a second: taken for "no answer", that looked like a server hang
+// (found by a 10-minute run; strace showed the alarm and the harness giving up 16 ms after connect).
+int PollIn(int fd, int timeout_ms) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fd, POLLIN, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<long long>(0, left.count())));
+    if (ready < 0 && errno == EINTR) continue;
+    return ready;
+  }
+}
+
 // Sends the request and reads the whole response. The server may answer and close before it has
 // read everything (e.g. 413 on a large Content-Length): then the rest cannot be sent, which is fine.
 std::string Exchange(std::string_view request) {
   const int fd = Connect();
   while (!request.empty()) {
     const ssize_t n = ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+    if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;
     request.remove_prefix(static_cast<size_t>(n));
   }
@@ -70,13 +88,13 @@ std::string Exchange(std::string_view request) {
   std::string response;
   char buffer[65536];
   for (;;) {
-    pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, kResponseTimeoutMs) != 1) {
+    if (PollIn(fd, kResponseTimeoutMs) != 1) {
       std::fprintf(stderr, "no end of response within %d ms; so far:\n%s\n", kResponseTimeoutMs, response.c_str());
       PrintThreadStacks();
       std::abort();
     }
     const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+    if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;  // end of stream (or a reset after an early answer)
     response.append(buffer, static_cast<size_t>(n));
   }
