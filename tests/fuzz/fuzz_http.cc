@@ -41,6 +41,21 @@ int g_port = 0;
   std::abort();
 }
 
+// poll() for `events` on `fd` for up to timeout_ms in all. libFuzzer's -timeout runs on SIGALRM, which
+// interrupts system calls (EINTR) about once a second: poll taken for "no answer" looked like a server
+// hang (10-minute runs; strace showed the alarm and the harness giving up 16 ms after connect), and an
+// interrupted connect, send or recv must be finished or retried too.
+int PollFor(int fd, short events, int timeout_ms) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fd, events, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<long long>(0, left.count())));
+    if (ready < 0 && errno == EINTR) continue;
+    return ready;
+  }
+}
+
 int Connect() {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   if (fd < 0) Fail("socket");
@@ -48,7 +63,18 @@ int Connect() {
   address.sin_family = AF_INET;
   address.sin_port = htons(static_cast<uint16_t>(g_port));
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) Fail("connect");
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) {
+    if (errno != EINTR) Fail("connect");
+    // Interrupted: the connection goes on in the background; wait for it and read its outcome.
+    int error = 0;
+    socklen_t length = sizeof error;
+    if (PollFor(fd, POLLOUT, kResponseTimeoutMs) != 1) Fail("connect (no completion)");
+    if (::getsockopt(fd, SOL_SOCKET, SO_ERROR, &error, &length) != 0) Fail("getsockopt");
+    if (error != 0) {
+      errno = error;
+      Fail("connect");
+    }
+  }
   return fd;
 }
 
@@ -58,20 +84,6 @@ void PrintThreadStacks() {
   const std::string command = "gdb -p " + std::to_string(::getpid()) +
                               " -batch -ex 'thread apply all bt' 1>&2 2>/dev/null";
   if (std::system(command.c_str()) != 0) std::fprintf(stderr, "(no thread stacks: gdb failed or is missing)\n");
-}
-
-// poll() for input on `fd` for up to timeout_ms in all. libFuzzer's -timeout runs on SIGALRM, which
-// interrupts poll (EINTR) about once a second: taken for "no answer", that looked like a server hang
-// (found by a 10-minute run; strace showed the alarm and the harness giving up 16 ms after connect).
-int PollIn(int fd, int timeout_ms) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
-  for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    pollfd p{fd, POLLIN, 0};
-    const int ready = ::poll(&p, 1, static_cast<int>(std::max<long long>(0, left.count())));
-    if (ready < 0 && errno == EINTR) continue;
-    return ready;
-  }
 }
 
 // Sends the request and reads the whole response. The server may answer and close before it has
@@ -88,7 +100,7 @@ std::string Exchange(std::string_view request) {
   std::string response;
   char buffer[65536];
   for (;;) {
-    if (PollIn(fd, kResponseTimeoutMs) != 1) {
+    if (PollFor(fd, POLLIN, kResponseTimeoutMs) != 1) {
       std::fprintf(stderr, "no end of response within %d ms; so far:\n%s\n", kResponseTimeoutMs, response.c_str());
       PrintThreadStacks();
       std::abort();
