@@ -8,7 +8,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <thread>
 
 #include "step_callback.h"
 #include "strokelab/errors.h"
@@ -238,16 +237,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     ParallelFor(targets.size(),
                 [&](size_t i) { MoveAnchor(surrogate, *targets[i].record, kind, orders, &targets[i].surrogate_anchor); });
   });
-  ceres::Solver::Options solver;
-  solver.linear_solver_type = ceres::DENSE_QR;
-  solver.max_num_iterations = options.max_iterations;
-  solver.num_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  solver.logging_type = ceres::SILENT;
-  solver.function_tolerance = 1e-10;
-  solver.parameter_tolerance = 1e-9;
-  solver.gradient_tolerance = 1e-12;
-  solver.update_state_every_iteration = true;
-  solver.callbacks.push_back(&callback);
+  ceres::Solver::Options solver = RefinementSolverOptions(options.max_iterations, &callback);
   const auto deadline = clock_start + std::chrono::duration<double>(options.max_seconds);
 
   auto refresh_all = [&] {

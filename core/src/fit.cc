@@ -14,7 +14,6 @@
 #include <numeric>
 #include <optional>
 #include <sstream>
-#include <thread>
 #include <utility>
 
 #include "fit_orbit.h"
@@ -915,18 +914,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       const ActuatorModel model = layout.Decode(theta.data());
       for (RecordTarget& t : targets) internal::MoveAnchor(model, *t.record, kind, orders, &t.anchor);
     });
-    ceres::Solver::Options solver;
-    solver.linear_solver_type = ceres::DENSE_QR;
-    solver.max_num_iterations = options.max_iterations;
-    solver.num_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    solver.logging_type = ceres::SILENT;
-    // Stopping tests (Ceres): |d cost| / cost < function_tolerance, |d theta| < parameter_tolerance
-    // (|theta| + parameter_tolerance); theta ~ 1, so 1e-9 is a relative change of 1e-9 in each parameter.
-    solver.function_tolerance = 1e-10;
-    solver.parameter_tolerance = 1e-9;
-    solver.gradient_tolerance = 1e-12;
-    solver.update_state_every_iteration = true;
-    solver.callbacks.push_back(&callback);
+    ceres::Solver::Options solver = internal::RefinementSolverOptions(options.max_iterations, &callback);
     const auto deadline = clock_start + std::chrono::duration<double>(options.max_refinement_seconds);
     // Outer passes: solve with the corrections frozen, recompute them at the solution, and solve
     // again while they moved by more than kCorrectionTolerance standard errors.

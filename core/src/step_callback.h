@@ -1,11 +1,14 @@
 // A Ceres iteration callback that runs an action after each successful step: the fit and the
 // extended fit move their records' anchors to the new iterate's orbits there, so that the next
-// evaluations start next to them (and stay on each record's branch).
+// evaluations start next to them (and stay on each record's branch). And the solver options both
+// refinements share.
 #pragma once
 
 #include <ceres/ceres.h>
 
+#include <algorithm>
 #include <functional>
+#include <thread>
 #include <utility>
 
 namespace strokelab::internal {
@@ -22,5 +25,22 @@ class AfterSuccessfulStep : public ceres::IterationCallback {
  private:
   std::function<void()> action_;
 };
+
+// Dense least squares on all cores, silent, with `callback` after each iteration and the state
+// updated every iteration (the callback reads it). Stopping tests (Ceres): |d cost| / cost < 1e-10,
+// |d theta| < 1e-9 (|theta| + 1e-9); theta ~ 1, so 1e-9 is a relative change of 1e-9 in each parameter.
+inline ceres::Solver::Options RefinementSolverOptions(int max_iterations, ceres::IterationCallback* callback) {
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::DENSE_QR;
+  solver.max_num_iterations = max_iterations;
+  solver.num_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  solver.logging_type = ceres::SILENT;
+  solver.function_tolerance = 1e-10;
+  solver.parameter_tolerance = 1e-9;
+  solver.gradient_tolerance = 1e-12;
+  solver.update_state_every_iteration = true;
+  solver.callbacks.push_back(callback);
+  return solver;
+}
 
 }  // namespace strokelab::internal
