@@ -3,6 +3,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "strokelab/sincos.h"
+
 namespace strokelab {
 
 LinearRegion::LinearRegion(double mass_kg, double damping, double stiffness, double sine_force_n,
@@ -41,8 +43,9 @@ Transition LinearRegion::Propagator(double tau) const {
     c_part = 1.0 - 0.5 * bt2;
     s_part = tau * (1.0 - bt2 / 6.0);
   } else if (beta2_ > 0) {
-    c_part = std::cos(beta_ * tau);
-    s_part = std::sin(beta_ * tau) / beta_;
+    const SinCos beta_tau = SinCosOf(beta_ * tau);
+    c_part = beta_tau.cos;
+    s_part = beta_tau.sin / beta_;
   } else {
     c_part = std::cosh(beta_ * tau);
     s_part = std::sinh(beta_ * tau) / beta_;
@@ -57,8 +60,7 @@ Transition LinearRegion::Propagator(double tau) const {
 }
 
 State LinearRegion::ParticularAt(double time_s) const {
-  const double theta = omega_ * time_s + phase_;
-  const double s = std::sin(theta), c = std::cos(theta);
+  const auto [s, c] = SinCosOf(omega_ * time_s + phase_);
   return {ps_ * s + pc_ * c + offset_m_, omega_ * (ps_ * c - pc_ * s)};
 }
 
@@ -80,15 +82,14 @@ State LinearRegion::PropagateHomogeneous(State z0, double t0, double tau) const 
 LinearRegion::Motion LinearRegion::MotionAt(State z0, double t0, double tau) const {
   const State z = Propagator(tau).Apply(z0);
   // ParticularAt and Force, term for term, on one sin/cos.
-  const double theta = omega_ * (t0 + tau) + phase_;
-  const double s = std::sin(theta), c = std::cos(theta);
+  const auto [s, c] = SinCosOf(omega_ * (t0 + tau) + phase_);
   const State p{ps_ * s + pc_ * c + offset_m_, omega_ * (ps_ * c - pc_ * s)};
   const State y{z.x_m + p.x_m, z.v_m_per_s + p.v_m_per_s};
   return {y, sine_force_n_ * s + constant_force_n_ - stiffness_ * y.x_m - damping_ * y.v_m_per_s, s, c};
 }
 
 double LinearRegion::Force(State y, double time_s) const {
-  return sine_force_n_ * std::sin(omega_ * time_s + phase_) + constant_force_n_ - stiffness_ * y.x_m -
+  return sine_force_n_ * SinCosOf(omega_ * time_s + phase_).sin + constant_force_n_ - stiffness_ * y.x_m -
          damping_ * y.v_m_per_s;
 }
 

@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <numbers>
 
+#include "strokelab/sincos.h"
+
 namespace strokelab {
 namespace {
 
@@ -176,20 +178,22 @@ double PiecewiseLinearSystem::SafeSpanS(PwlMode mode, const LinearRegion& r, dou
   const double zx = y.x_m - p.x_m, zv = y.v_m_per_s - p.v_m_per_s;
   // Amplitudes (for all later times, e^{-a tau} <= 1) of the particular and homogeneous parts of
   // x, x' and x'' (linear_region.h: z_x = e^{-a tau}(zx cos + (a zx + zv)/b sin), z_v likewise).
-  const double particular_x = std::hypot(r.ps(), r.pc());
-  const double homogeneous_x = std::hypot(zx, (a * zx + zv) / b);
-  const double homogeneous_v = std::hypot(zv, (omega0_sq * zx + a * zv) / b);
+  // (sqrt rather than hypot, which is slow: these lengths can neither overflow nor underflow.)
+  const auto length = [](double p, double q) { return std::sqrt(p * p + q * q); };
+  const double particular_x = length(r.ps(), r.pc());
+  const double homogeneous_x = length(zx, (a * zx + zv) / b);
+  const double homogeneous_v = length(zv, (omega0_sq * zx + a * zv) / b);
   const double bound_x = particular_x + homogeneous_x;
   const double bound_v = omega * particular_x + homogeneous_v;
   const double bound_a = omega * omega * particular_x + omega0_sq * homogeneous_x + 2.0 * a * homogeneous_v;
-  const double theta = omega * t + drive_.phase_rad;
+  const double sin_theta = SinCosOf(omega * t + drive_.phase_rad).sin;
   double safe = INFINITY;
   for (int i = 0; i < count; ++i) {
     const Surface& s = surfaces[i];
     const double lowest = s.alpha * r.offset_m() + s.gamma - std::abs(s.alpha) * bound_x - std::abs(s.beta) * bound_v -
                           std::abs(s.delta);
     if (lowest > 0.0) continue;  // never reachable in this region
-    const double h = s.alpha * y.x_m + s.beta * y.v_m_per_s + s.gamma + s.delta * std::sin(theta);
+    const double h = s.alpha * y.x_m + s.beta * y.v_m_per_s + s.gamma + s.delta * sin_theta;
     if (!(h > 0.0)) return 0.0;
     const double rate = std::abs(s.alpha) * bound_v + std::abs(s.beta) * bound_a + std::abs(s.delta) * omega;
     safe = std::min(safe, h / rate);
