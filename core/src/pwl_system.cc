@@ -83,6 +83,7 @@ PiecewiseLinearSystem::PiecewiseLinearSystem(const ActuatorModel& model, const S
   const double w = drive.AngularFrequency();
   const double drive_period_s = 1.0 / drive.frequency_hz;
   for (int clip = -1; clip <= 1; ++clip) {
+    if (clip != 0 && !model.HasAmplifierLimit()) continue;  // modes it cannot enter (a map is built per Newton step)
     for (int contacts = 0; contacts < 4; ++contacts) {
       PwlMode mode{{(contacts & 1) != 0, (contacts & 2) != 0}, clip};
       // Paper Eq. 2, continuous form: each pushing stop adds k_s (d - x) - c_s x'.
