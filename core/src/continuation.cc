@@ -72,11 +72,13 @@ class BranchProblem {
   State StateOf(const Vec3& u) const { return {u.x * length_m_, u.v * speed_m_per_s_}; }
   double ParameterOf(const Vec3& u) const { return u.p * p_ref_; }
 
-  Evaluation Evaluate(const Vec3& u) const {
+  // with_figures = false: only G and its Jacobian (PeriodMap::Linearize), for Newton steps.
+  Evaluation Evaluate(const Vec3& u, bool with_figures = true) const {
     const double p = ParameterOf(u);
     const State y = StateOf(u);
     Evaluation e;
-    e.figures = MapAt(p).Trace(y);
+    const PeriodMap map = MapAt(p);
+    e.figures = with_figures ? map.Trace(y) : map.Linearize(y);
     const Matrix2& m = e.figures.monodromy;
     e.g[0] = (e.figures.end.x_m - y.x_m) / length_m_;
     e.g[1] = (e.figures.end.v_m_per_s - y.v_m_per_s) / speed_m_per_s_;
@@ -105,10 +107,15 @@ class BranchProblem {
       // Newton may wander out of the physical range (a frequency <= 0): treat that as a failure.
       const double p = ParameterOf(u);
       if (!std::isfinite(p) || !std::isfinite(u.x) || !std::isfinite(u.v) || p <= 0.0) return std::nullopt;
-      Evaluation e = Evaluate(u);
+      // Newton's iterates only linearize (2-3 of them per point on a 200 x 200 sweep); the orbit it
+      // lands on is traced once more for its figures.
+      Evaluation e = Evaluate(u, false);
       if (!std::isfinite(e.Residual())) return std::nullopt;
       const double constraint = tangent.Dot(u - predicted);
-      if (e.Residual() < o.tolerance && std::abs(constraint) < 1e-9) return Corrected{u, e, iteration};
+      if (e.Residual() < o.tolerance && std::abs(constraint) < 1e-9) {
+        e.figures = MapAt(ParameterOf(u)).Trace(StateOf(u));
+        return Corrected{u, e, iteration};
+      }
       const double a[3][3] = {{e.jacobian[0][0], e.jacobian[0][1], e.jacobian[0][2]},
                               {e.jacobian[1][0], e.jacobian[1][1], e.jacobian[1][2]},
                               {tangent.x, tangent.v, tangent.p}};

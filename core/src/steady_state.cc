@@ -116,7 +116,7 @@ struct PeriodMap::Impl {
   std::optional<PiecewiseLinearSystem> system;
   std::unique_ptr<Engine> cvode;
 
-  OrbitFigures TraceClosedForm(State y0, int periods) const;
+  OrbitFigures TraceClosedForm(State y0, int periods, bool with_figures) const;
   OrbitFigures TraceCvode(State y0, int periods) const;
   State ApplyCvode(State y0, int periods) const;
 };
@@ -148,10 +148,15 @@ State PeriodMap::Apply(State y) const {
 }
 
 OrbitFigures PeriodMap::Trace(State y, int periods) const {
-  return impl_->system ? impl_->TraceClosedForm(y, periods) : impl_->TraceCvode(y, periods);
+  return impl_->system ? impl_->TraceClosedForm(y, periods, true) : impl_->TraceCvode(y, periods);
 }
 
-OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods) const {
+OrbitFigures PeriodMap::Linearize(State y, int periods) const {
+  // (CVODE's figures come from the samples its Jacobian needs anyway.)
+  return impl_->system ? impl_->TraceClosedForm(y, periods, false) : impl_->TraceCvode(y, periods);
+}
+
+OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_figures) const {
   const PiecewiseLinearSystem& sys = *system;
   const double omega = drive.AngularFrequency(), phase = drive.phase_rad;
   const double t_end = periods / drive.frequency_hz;
@@ -172,6 +177,7 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods) const {
     const LinearRegion& region = sys.Region(segment_mode);
     const double tau = t_close - segment_t;
     figures.monodromy = ToMatrix(region.Propagator(tau)) * figures.monodromy;
+    if (!with_figures) return;
     integral += SegmentIntegral(region, segment_t, segment_y, tau, omega, phase);
     extrema.clear();
     sys.AppendExtrema(segment_mode, segment_t, segment_y, tau, &extrema);
@@ -194,8 +200,12 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods) const {
     segment_mode = e.after;
   });
   close_segment(t_end);
-  note(sys.Region(mode), t_end, y);
   figures.end = y;
+  if (!with_figures) {
+    figures.min_displacement_m = figures.max_displacement_m = figures.peak_force_n = NAN;  // not computed
+    return figures;
+  }
+  note(sys.Region(mode), t_end, y);
   figures.x1 = 2.0 * integral / t_end;
   return figures;
 }
@@ -320,7 +330,10 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
   State y = guess;
   double best = INFINITY;
   int stalled = 0;
-  OrbitFigures figures = map.Trace(y, period);
+  // The guess is rarely the orbit (the continuation's guesses need one Newton step): its pass only
+  // linearizes, and a guess that is the orbit after all is traced again for its figures.
+  OrbitFigures figures = map.Linearize(y, period);
+  bool figures_traced = false;
   for (int iteration = 0; iteration < options.max_newton_iterations; ++iteration) {
     const State residual = Minus(figures.end, y);
     const double error = ScaledNorm(residual, length, speed);
@@ -329,7 +342,7 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
       SteadyState s;
       s.start = y;
       s.period = period;
-      s.figures = figures;
+      s.figures = figures_traced ? figures : map.Trace(y, period);
       s.multipliers = figures.monodromy.Eigenvalues();
       s.stable = s.MaxMultiplier() < 1.0;
       s.newton_iterations = iteration;
@@ -355,6 +368,7 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
     if (ScaledNorm(Minus(full_figures.end, full), length, speed) < error) {
       y = full;
       figures = full_figures;
+      figures_traced = true;
       continue;
     }
     double lambda = 0.5;
@@ -368,6 +382,7 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
       lambda *= 0.5;
     }
     figures = map.Trace(y, period);
+    figures_traced = true;
   }
   return std::nullopt;
 }

@@ -212,6 +212,29 @@ TEST(AttractorTest, SettledAttractorIsTheOneTheTimeDomainReaches) {
   EXPECT_LT(off, 1e-9);  // m; the transient decays by ~0.18 per period
 }
 
+// Newton's iterates use Linearize, the reported orbit Trace: the two must agree bit for bit on what
+// both compute, on a contacting orbit (switches, saltation) and a free one.
+TEST(PeriodMapTest, LinearizeIsTraceWithoutTheFigures) {
+  struct Case {
+    double f_hz, amplitude_v;
+    bool contacts;
+  };
+  for (const Case c : {Case{8.0, 0.5, true}, Case{30.0, 0.2, false}}) {
+    const PeriodMap map(PaperModel(), c.f_hz, c.amplitude_v);
+    const State y = map.ClippedLinearStart();
+    const OrbitFigures full = map.Trace(y, 2), light = map.Linearize(y, 2);
+    EXPECT_EQ(light.end.x_m, full.end.x_m);
+    EXPECT_EQ(light.end.v_m_per_s, full.end.v_m_per_s);
+    EXPECT_EQ(light.monodromy.a, full.monodromy.a);
+    EXPECT_EQ(light.monodromy.b, full.monodromy.b);
+    EXPECT_EQ(light.monodromy.c, full.monodromy.c);
+    EXPECT_EQ(light.monodromy.d, full.monodromy.d);
+    EXPECT_EQ(light.contacts, full.contacts);
+    EXPECT_EQ(full.contacts > 0, c.contacts) << c.f_hz << " Hz";
+    EXPECT_TRUE(std::isnan(light.min_displacement_m)) << "figures it does not compute must not look computed";
+  }
+}
+
 TEST(SweepEngineTest, ResultsDoNotDependOnTheThreadCount) {
   const GridAxis f{6.0, 16.0, 24}, v{0.2, 0.6, 5};
   const SweepResult one = Sweep(f, v, 1), two = Sweep(f, v, 2);

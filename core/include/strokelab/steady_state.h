@@ -65,6 +65,9 @@ class PeriodMap {
   State Apply(State y) const;
   // `periods` drive periods, with the Jacobian and the orbit's figures.
   OrbitFigures Trace(State y, int periods = 1) const;
+  // The same with only `end`, `monodromy` and `contacts` filled in (the displacement extrema and the
+  // first harmonic are about half a closed-form trace): for Newton steps whose figures are not kept.
+  OrbitFigures Linearize(State y, int periods = 1) const;
   // The state of the linear (no-contact) steady state at phase 0, clipped into the stops' range:
   // the shooting start of build-notes.
   State ClippedLinearStart() const;
