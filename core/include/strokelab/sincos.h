@@ -1,7 +1,7 @@
 // sin and cos of one argument in one call, without libm's rounding-mode save and restore.
 //
-// The closed-form engine spends a third of a sweep in glibc's sincos (perf, 200 x 200 sweep), most
-// of it in the 53-bit rounding guard that glibc wraps around every call. Here: Cody-Waite reduction
+// The closed-form engine spent a third of a sweep in glibc's sincos (perf, 200 x 200 sweep), a good
+// part of it in the rounding-mode guard glibc wraps around every call. Here: Cody-Waite reduction
 // by pi/2 in three parts (33 + 33 + 53 bits, so n * part is exact for |n| < 2^20), then the
 // minimax kernels of fdlibm (Sun Microsystems, 1993; FreeBSD msun k_sin.c and k_cos.c, error below
 // one ulp on [-pi/4, pi/4]). The tail of the reduced argument is dropped, which costs at most about
