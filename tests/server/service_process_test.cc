@@ -1,7 +1,7 @@
 // The service as separate processes on loopback: the real `strokelab serve` and `strokelab worker`
 // binaries started as children, talked to over HTTP on 127.0.0.1, killed with SIGKILL mid-run.
 //
-//   CrashAndResume: a 2,000-point sweep on one in-process worker; the server is SIGKILLed three
+//   CrashAndResume: a 4,000-point sweep on one in-process worker; the server is SIGKILLed three
 //     times at different progress levels and restarted on the same file; the job finishes with
 //     every point exactly once and bitwise equal to a single-process CLI sweep.
 //   RemoteWorkerKilledMidLease: a server with no workers of its own and 2 s leases, three remote
@@ -39,7 +39,7 @@ TEST(ServiceProcess, CrashAndResume) {
   ScratchDir dir;
   const std::string db = (dir.path() / "jobs.db").string();
   const std::vector<std::string> serve_args = {"--workers", "1", "--db", db};
-  constexpr int kFrequencies = 200, kAmplitudes = 10;
+  constexpr int kFrequencies = 400, kAmplitudes = 10;  // ~40 ms a task here: the kills come mid-job
 
   Server server = StartServer(dir.path(), "serve-0", serve_args);
   const int64_t id = Submit(*Client(server), SweepJob(kFrequencies, kAmplitudes, true));
