@@ -56,8 +56,11 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
       << General(d.fit_after.nrmse) << "; held-out records (" << d.heldout.size() << "): before "
       << General(d.fit_before.heldout_nrmse) << ", after " << General(d.fit_after.heldout_nrmse) << "\n";
   if (d.chosen >= 0) {
-    out << "\nfitted parameters of " << d.candidates[d.chosen].label << ":\n";
-    for (const FitParameter& p : d.candidates[d.chosen].parameters)
+    const CandidateFit& chosen = d.candidates[d.chosen];
+    out << "\nfitted parameters of " << chosen.label
+        << (chosen.converged ? "" : " (the fit did NOT converge: the standard errors understate the uncertainty)")
+        << ":\n";
+    for (const FitParameter& p : chosen.parameters)
       out << "  " << p.name << " = " << General(p.value, 6) << " +- " << General(p.standard_error, 3) << " " << p.unit
           << (p.note.empty() ? "" : "  (" + p.note + ")") << "\n";
   }

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "step_callback.h"
@@ -260,6 +261,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   };
   bool moved = true;
   std::vector<double> previous_step;
+  std::vector<double> last_pass_start, last_pass_end;  // theta0 and theta of the last pass
   for (int pass = 0; pass < options.max_passes && moved; ++pass) {
     refresh_all();
     set_pass_bounds();
@@ -274,6 +276,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     result.iterations += static_cast<int>(summary.iterations.size()) - 1;
     result.passes = pass + 1;
     result.report = summary.BriefReport();
+    last_pass_start = theta0;
+    last_pass_end = theta;
     double change = 0.0;
     for (int i = 0; i < p; ++i) change = std::max(change, std::abs(theta[i] - theta0[i]));
     moved = change > kPassTolerance;
@@ -340,6 +344,17 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     out.standard_error = fp.StandardError(theta[i], covariance(i, i));
     if (std::abs(theta[i] - fp.theta_min) < 1e-6 || std::abs(theta[i] - fp.theta_max) < 1e-6)
       out.note = "on its bound";
+    // Unconverged passes: the standard error does not hold the distance still to go, so say how far
+    // the last pass moved the parameter, for the reader to set beside it.
+    if (moved && std::abs(last_pass_end[i] - last_pass_start[i]) > kPassTolerance) {
+      const double before = fp.Value(last_pass_start[i]), after = fp.Value(last_pass_end[i]);
+      char text[120];
+      int n = std::snprintf(text, sizeof text, "still moving: the last pass changed it by %+.2g %s", after - before,
+                            fp.unit.c_str());
+      if (before != 0.0 && n > 0 && n < static_cast<int>(sizeof text))
+        std::snprintf(text + n, sizeof text - n, " (%+.2g %%)", 100.0 * (after - before) / std::abs(before));
+      out.note += (out.note.empty() ? "" : "; ") + std::string(text);
+    }
     result.parameters.push_back(out);
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
