@@ -346,7 +346,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
       out.note = "on its bound";
     // Unconverged passes: the standard error does not hold the distance still to go, so say how far
     // the last pass moved the parameter, for the reader to set beside it.
-    if (moved && std::abs(last_pass_end[i] - last_pass_start[i]) > kPassTolerance) {
+    if (moved && !last_pass_end.empty() && std::abs(last_pass_end[i] - last_pass_start[i]) > kPassTolerance) {
       const double before = fp.Value(last_pass_start[i]), after = fp.Value(last_pass_end[i]);
       char text[120];
       int n = std::snprintf(text, sizeof text, "still moving: the last pass changed it by %+.2g %s", after - before,
