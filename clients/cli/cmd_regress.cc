@@ -109,6 +109,8 @@ json ParseJsonFile(const std::string& path) {
     return json::parse(text);
   } catch (const json::parse_error& e) {
     throw InputError(path, "not valid JSON: " + ParseMessage(e));
+  } catch (const json::exception& e) {  // a number beyond a double (out_of_range 406)
+    throw InputError(path, std::string("not valid JSON: ") + e.what());
   }
 }
 

@@ -62,7 +62,7 @@ ActuatorModel LoadModel(const Args& args) {
     nlohmann::json json;
     try {
       json = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
+    } catch (const nlohmann::json::exception& e) {  // syntax, or a number beyond a double
       throw InputError("--model " + name, std::string("not valid JSON: ") + e.what());
     }
     model = ModelFromJson(json, name + ":");

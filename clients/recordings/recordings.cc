@@ -547,6 +547,11 @@ Campaign ReadCampaign(const fs::path& dir) {
     // "[json.exception.parse_error.101] parse error at line 3, column 5: syntax error ..." -> after the position.
     if (const size_t colon = what.find(": "); colon != std::string::npos) what = what.substr(colon + 2);
     throw InputError(std::string(kManifestName) + ":" + std::to_string(line), "not valid JSON: " + what);
+  } catch (const json::exception& e) {
+    // Not a syntax error: a number beyond a double ("1e400", out_of_range 406), which has no position.
+    std::string what = e.what();
+    if (const size_t bracket = what.find("] "); bracket != std::string::npos) what = what.substr(bracket + 2);
+    throw InputError(kManifestName, "not valid JSON: " + what);
   }
   if (!manifest.is_object()) ManifestError("", "expected a JSON object");
   const json* format = Find(manifest, "format");

@@ -547,6 +547,10 @@ std::vector<Defect> Defects() {
       },
       "manifest.json:5", "not valid JSON");
   add(
+      "manifest number beyond a double",  // a fuzz finding: json's out_of_range went uncaught
+      [](Fixture& f) { f.manifest_text = "{\n \"format\": 59375e397180\n}\n"; }, "manifest.json",
+      "not valid JSON: number overflow parsing '59375e397180'");
+  add(
       "manifest an array", [](Fixture& f) { f.manifest_text = "[1, 2]"; }, "manifest.json", "expected a JSON object");
   add(
       "format missing", [](Fixture& f) { f.manifest.erase("format"); }, "manifest.json:/format", "missing");
