@@ -60,8 +60,8 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # harnesses (one clang build instead of two; the instrumentation costs the tests little): every test
 # but these. Library/DiagnoseTest.* and UnconvergedFit.* run 10-40 s each in Release (minutes
 # here); web_page drives Chromium, whose own code the sanitizers do not see and whose page the
-# server_process and python_client tests already serve; of the seven ForceCampaign tests one runs: each process
-# synthesises and fits the same campaign (~30 s here) before checking a different figure of it.
+# server_process and python_client tests already serve; of the seven ForceCampaign tests one runs:
+# each process synthesises and fits the same campaign (~30 s here) before checking another figure.
 # Then each harness's corpus is replayed (ctest) and each harness fuzzed for FUZZ_SECONDS.
 ASAN_DIR=build/asan
 ASAN_EXCLUDE='^(web_page|Library/DiagnoseTest\..*|UnconvergedFit\..*|ForceCampaign\.[^J].*)$'
@@ -101,6 +101,16 @@ stage() {  # NAME COMMAND...
   STAGE_TIMES+=("$name $((SECONDS - start)) s")
 }
 
+# The stages `test` runs: the Release build and its tests, then the sanitizer builds and theirs.
+release_stages() {
+  stage "release build" build
+  stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
+}
+sanitizer_stages() {
+  stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
+  stage "tsan build and tests" tsan_stage
+}
+
 case "${1:-}" in
   run)
     # The service on its embedded SQLite file with one worker per core; once it is up it submits
@@ -118,22 +128,18 @@ case "${1:-}" in
     ;;
   test)
     install_missing
-    stage "release build" build
-    stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
-    stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
-    stage "tsan build and tests" tsan_stage
+    release_stages
+    sanitizer_stages
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
   test-release)
     install_missing
-    stage "release build" build
-    stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
+    release_stages
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
   sanitize)
     install_missing
-    stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
-    stage "tsan build and tests" tsan_stage
+    sanitizer_stages
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
   fuzz)
