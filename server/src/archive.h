@@ -10,7 +10,7 @@
 #include <string>
 #include <string_view>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 
 namespace strokelab::server {
 

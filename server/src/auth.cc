@@ -3,7 +3,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 
 namespace strokelab::server {
 

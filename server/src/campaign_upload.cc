@@ -1,31 +1,21 @@
 #include "campaign_upload.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <fstream>
-#include <random>
-#include <sstream>
 #include <system_error>
 #include <vector>
 
-#include "strokelab/recordings.h"
+#include "strokelab/data/recordings.h"
 #include "ustar.h"
 #include "zip_reader.h"
 
 namespace strokelab::server {
 namespace {
 
+using jobs::CampaignError;
+
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-constexpr size_t kMaxCampaignFiles = 10'000;
-constexpr size_t kCampaignIdDigits = 16;
-
-// Whether `path` lies inside `root` (both canonical), by whole components.
-bool Inside(const fs::path& path, const fs::path& root) {
-  const fs::path relative = path.lexically_relative(root);
-  return !relative.empty() && *relative.begin() != "..";
-}
 
 void WriteMember(const fs::path& target, std::string_view data, const std::string& name) {
   std::error_code error;
@@ -66,27 +56,6 @@ fs::path CampaignRoot(const fs::path& unpacked) {
 
 }  // namespace
 
-std::string NewCampaignId() {
-  std::random_device random;
-  std::uniform_int_distribution<int> digit(0, 15);
-  std::string id;
-  for (size_t i = 0; i < kCampaignIdDigits; ++i) id += "0123456789abcdef"[digit(random)];
-  return id;
-}
-
-std::string ReadFileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot read " + path.string());
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  return bytes.str();
-}
-
-bool IsCampaignId(std::string_view id) {
-  return id.size() == kCampaignIdDigits &&
-         std::all_of(id.begin(), id.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
-}
-
 UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path& uploads_dir,
                                        const ArchiveLimits& limits) {
   // The archive is read whole before anything is written: a bad one leaves no trace.
@@ -96,7 +65,7 @@ UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path&
   else tar = ReadUstar(archive, limits);
   fs::create_directories(uploads_dir);
   UploadedCampaign result;
-  result.id = NewCampaignId();
+  result.id = jobs::NewCampaignId();
   const fs::path incoming = uploads_dir / (".incoming-" + result.id);
   fs::remove_all(incoming);
   fs::create_directory(incoming);
@@ -117,63 +86,6 @@ UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path&
     throw;
   }
   return result;
-}
-
-fs::path ResolveCampaign(const json& campaign, const CampaignDirs& dirs) {
-  const bool has_path = campaign.contains("path"), has_id = campaign.contains("id");
-  if (has_path == has_id)
-    throw InputError("/campaign", "must give exactly one of path (under the server's data root) and id (an upload)");
-  if (has_id) {
-    const std::string id = campaign.at("id");
-    if (!IsCampaignId(id))
-      throw InputError("/campaign/id", "is not a campaign id (16 hex digits, as POST /v1/campaigns returns)");
-    const fs::path dir = dirs.uploads.empty() ? fs::path() : dirs.uploads / id;
-    if (dir.empty() || !fs::is_directory(dir))
-      throw InputError("/campaign/id", "no uploaded campaign " + id + " on this server");
-    return fs::canonical(dir);
-  }
-  const std::string text = campaign.at("path");
-  if (dirs.data_root.empty())
-    throw InputError("/campaign/path", "this server has no data root (serve --data-root DIR); upload the campaign instead");
-  const fs::path relative(text);
-  if (relative.is_absolute() || relative.has_root_name() || relative.has_root_directory())
-    throw InputError("/campaign/path", "must be relative to the server's data root, not absolute");
-  for (const fs::path& part : relative)
-    if (part == "..") throw InputError("/campaign/path", "must not contain '..' (it must stay inside the data root)");
-  std::error_code error;
-  const fs::path root = fs::canonical(dirs.data_root, error);
-  if (error) throw std::runtime_error("data root " + dirs.data_root.string() + ": " + error.message());
-  const fs::path dir = fs::canonical(root / relative, error);
-  if (error || !fs::is_directory(dir))
-    throw InputError("/campaign/path", "no campaign directory '" + text + "' under the data root");
-  if (!Inside(dir, root) && dir != root)
-    throw InputError("/campaign/path", "leads outside the data root (through a symbolic link)");
-  return dir;
-}
-
-std::string CampaignDigest(const fs::path& dir, const fs::path& root) {
-  std::vector<fs::path> files;
-  for (const fs::directory_entry& e : fs::recursive_directory_iterator(dir)) {
-    if (!root.empty()) {
-      std::error_code error;
-      const fs::path target = fs::canonical(e.path(), error);
-      if (error || !Inside(target, root))
-        throw InputError("/campaign/path", "'" + e.path().lexically_relative(dir).string() +
-                                               "' is a symbolic link leading outside the data root (or nowhere)");
-    }
-    if (!fs::is_regular_file(e.status())) continue;
-    files.push_back(e.path());
-    if (files.size() > kMaxCampaignFiles)
-      throw InputError("/campaign", "holds more than " + std::to_string(kMaxCampaignFiles) + " files");
-  }
-  std::sort(files.begin(), files.end());
-  std::string listing;
-  for (const fs::path& file : files) {
-    const std::string bytes = ReadFileBytes(file);
-    listing += file.lexically_relative(dir).generic_string() + '\0' + std::to_string(bytes.size()) + '\0' +
-               ContentKey(bytes) + '\n';
-  }
-  return ContentKey(listing);
 }
 
 json CampaignSummary(const Campaign& campaign) {

@@ -20,16 +20,16 @@
 #include <type_traits>
 
 #include "campaign_upload.h"
-#include "strokelab/errors.h"
-#include "strokelab/parse.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/base/parse.h"
 #include "strokelab/server/auth.h"
-#include "strokelab/server/job_spec.h"
-#include "strokelab/server/jobs.h"
+#include "strokelab/jobs/job_spec.h"
+#include "strokelab/jobs/jobs.h"
 #include "strokelab/server/store.h"
 #include "strokelab/server/web_page.h"
 #include "storage_health.h"
-#include "strokelab/sweep.h"
-#include "strokelab/sweep_report.h"
+#include "strokelab/sweep/sweep.h"
+#include "strokelab/report/sweep_report.h"
 #include "event_log.h"
 
 namespace strokelab::server {
@@ -281,7 +281,7 @@ struct Service::Impl {
   int port = 0;
   internal::StorageHealth storage;  // whether writes work, for /v1/health
   int local_workers = 0;  // in-process workers, set by Start before the HTTP thread
-  CampaignDirs campaigns;
+  jobs::CampaignDirs campaigns;
   // Fit and diagnose tasks that a remote lease request drew: they need the server's disk, so they
   // are handed to the in-process workers under that lease (LeaseForRemote).
   std::mutex handoff_mutex;
@@ -358,9 +358,9 @@ struct Service::Impl {
         SendError(res, e);
       } catch (const ArchiveError& e) {
         SendError(res, {400, "bad_archive", e.bare_message(), e.field()});
-      } catch (const CampaignError& e) {
+      } catch (const jobs::CampaignError& e) {
         SendError(res, {400, "invalid_campaign", e.bare_message(), e.field()});
-      } catch (const JobLimitError& e) {
+      } catch (const jobs::JobLimitError& e) {
         SendError(res, {400, "job_too_large", e.bare_message(), e.field()});
       } catch (const InputError& e) {
         SendError(res, {400, "invalid_job", e.bare_message(), e.field()});
@@ -383,7 +383,7 @@ struct Service::Impl {
   // The stored results of a sweep job as a SweepResult (for the pictures).
   SweepResult SweepResultOf(const JobRecord& job) {
     SweepResult r;
-    const SweepSpec spec = SweepSpecFromJob(job.spec);
+    const SweepSpec spec = jobs::SweepSpecFromJob(job.spec);
     r.frequency_hz = spec.frequency_hz.Values();
     r.amplitude_v = spec.amplitude_v.Values();
     for (int64_t cursor = 0;;) {
@@ -426,7 +426,7 @@ struct Service::Impl {
 
   // A finished fit or diagnose job's stored rows of `table` (409 while it is not finished).
   std::vector<json> CampaignJobRows(const JobRecord& job, const std::string& table) {
-    if (!IsCampaignKind(job.kind))
+    if (!jobs::IsCampaignKind(job.kind))
       throw HttpError{400, "no_result_document",
                       "only fit and diagnose jobs have a result document (a sweep's results are at /points, "
                       "/saturation-map and /frf)", ""};
@@ -480,7 +480,7 @@ struct Service::Impl {
 std::optional<TaskLease> Service::Impl::LeaseForRemote(const std::string& worker) {
   for (;;) {
     std::optional<TaskLease> lease = store->LeaseTask(worker, NowMs(), options.lease_ms);
-    if (!lease || !IsCampaignKind(lease->kind)) return lease;
+    if (!lease || !jobs::IsCampaignKind(lease->kind)) return lease;
     if (local_workers == 0) {
       store->FailTask(*lease, lease->kind + " jobs need the server's in-process workers (serve --workers >= 1)", NowMs());
       continue;
@@ -526,7 +526,7 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
                                 std::vector<ResultRow> rows;
                                 std::exception_ptr error;
                                 try {
-                                  rows = RunTask(spec);
+                                  rows = jobs::RunTask(spec);
                                 } catch (...) {
                                   error = std::current_exception();
                                 }
@@ -616,7 +616,7 @@ void Service::Impl::SetUpRoutes() {
   On("GET", "/v1/health", [this](const httplib::Request&, httplib::Response& res) {
     // 503 while writes fail (disk full, I/O error): the service answers reads but cannot take work.
     const json problem = storage.Problem();
-    json body = {{"status", problem.is_null() ? "ok" : "degraded"}, {"code_version", kCodeVersion}};
+    json body = {{"status", problem.is_null() ? "ok" : "degraded"}, {"code_version", jobs::kCodeVersion}};
     if (!problem.is_null()) body["storage_error"] = problem;
     try {
       body["schema_version"] = store->SchemaVersion();
@@ -632,9 +632,9 @@ void Service::Impl::SetUpRoutes() {
 
   On("POST", "/v1/jobs", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
               const json job = JsonBody(req);
-              // Validates; InputError -> 400 (a campaign's file and line: CampaignError).
-              const std::vector<TaskSpec> tasks = PlanTasks(job, campaigns);
-              if (IsCampaignKind(job.at("kind")) && local_workers == 0)
+              // Validates; InputError -> 400 (a campaign's file and line: jobs::CampaignError).
+              const std::vector<TaskSpec> tasks = jobs::PlanTasks(job, campaigns);
+              if (jobs::IsCampaignKind(job.at("kind")) && local_workers == 0)
                 throw HttpError{400, "unsupported_kind",
                                 job.at("kind").get<std::string>() +
                                     " jobs need the server's in-process workers (this server runs with --workers 0)",
@@ -860,7 +860,7 @@ void Service::Impl::WorkLoop(int index) {
     }
     try {
       const std::optional<std::vector<ResultRow>> rows =
-          IsCampaignKind(lease->kind) ? RunHeldTask(*lease, *cancel) : RunTask(lease->spec, cancel.get());
+          jobs::IsCampaignKind(lease->kind) ? RunHeldTask(*lease, *cancel) : jobs::RunTask(lease->spec, cancel.get());
       if (rows && StoreCompletion(*lease, *rows, name)) metrics.TaskDone(rows->size());
     } catch (const Cancelled&) {
       // The job was cancelled: its lease is void and nothing is written.

@@ -6,10 +6,10 @@
 
 #include <span>
 
-#include "strokelab/engine.h"
-#include "strokelab/model.h"
-#include "strokelab/record_summary.h"
-#include "strokelab/signal.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/model.h"
+#include "strokelab/engines/record_summary.h"
+#include "strokelab/signal/signal.h"
 
 namespace strokelab {
 namespace {

@@ -15,10 +15,10 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "strokelab/model.h"
-#include "strokelab/signal.h"
-#include "strokelab/steady_state.h"
-#include "strokelab/sweep.h"
+#include "strokelab/model/model.h"
+#include "strokelab/signal/signal.h"
+#include "strokelab/steady/steady_state.h"
+#include "strokelab/sweep/sweep.h"
 
 namespace strokelab {
 namespace {

@@ -1,6 +1,6 @@
 // The diagnosis report (HTML page and CSV tables) on hand-made diagnoses, so that the page is
 // checked without fitting anything: a named effect, "nothing missing", and an empty diagnosis.
-#include "strokelab/diagnose_report.h"
+#include "strokelab/report/diagnose_report.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -11,7 +11,7 @@
 #include <numbers>
 #include <string>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 
 namespace strokelab::cli::regression {
 namespace {

@@ -23,8 +23,8 @@
 #include <string>
 #include <thread>
 
-#include "strokelab/linear_response.h"
-#include "strokelab/model.h"
+#include "strokelab/model/linear_response.h"
+#include "strokelab/model/model.h"
 #include "test_util.h"
 
 namespace {

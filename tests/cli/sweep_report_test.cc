@@ -1,6 +1,6 @@
 // The sweep command's output (JSON object, --out folder, summary) on synthetic sweep results, so
 // that the formatting is checked without running a sweep.
-#include "strokelab/sweep_report.h"
+#include "strokelab/report/sweep_report.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "strokelab/model.h"
+#include "strokelab/model/model.h"
 
 namespace strokelab::report {
 namespace {

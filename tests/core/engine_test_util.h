@@ -7,8 +7,8 @@
 #include <numbers>
 #include <vector>
 
-#include "strokelab/engine.h"
-#include "strokelab/model.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/model.h"
 
 namespace strokelab::testing {
 

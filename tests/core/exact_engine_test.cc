@@ -6,10 +6,10 @@
 #include <complex>
 #include <numbers>
 
-#include "strokelab/engine.h"
-#include "strokelab/linear_response.h"
-#include "strokelab/model.h"
-#include "strokelab/pwl_system.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/linear_response.h"
+#include "strokelab/model/model.h"
+#include "strokelab/engines/pwl_system.h"
 #include "test_util.h"
 
 namespace strokelab {

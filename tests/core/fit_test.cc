@@ -14,7 +14,7 @@
 // sd(z) 0.97-1.05 for each of k_p, c_p, g, d, k_s; the largest |z| seen was 2.96 (d). (On seeds 1-24
 // k_s showed sd(z) 1.3 and |z| up to 3.1, a draw that the fresh seeds did not repeat.) The tests use
 // one seed, fixed below, and ask for |z| <= 3: about 1 % of seeds would fail one parameter.
-#include "strokelab/fit.h"
+#include "strokelab/identify/fit.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -33,10 +33,10 @@
 #include <vector>
 
 #include "engine_test_util.h"
-#include "strokelab/engine.h"
-#include "strokelab/errors.h"
-#include "strokelab/signal.h"
-#include "strokelab/steady_state.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/signal/signal.h"
+#include "strokelab/steady/steady_state.h"
 #include "test_util.h"
 
 namespace strokelab {

@@ -2,7 +2,7 @@
 //   H(w) = -g w^2 / (w_p^2 + j 2 zeta_p w_p w - w^2),
 // on the paper's frequency grid Eq. 1, f(n) = 5 Hz * 1.02^(n-1), n = 1..117, with the Table 2
 // parameters m_p = 0.032 kg, c_p = 1.3 N s/m, k_p = 124 N/m, g = 0.3 N/V.
-#include "strokelab/frf_fit.h"
+#include "strokelab/identify/frf_fit.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 #include "test_util.h"
 
 namespace strokelab {

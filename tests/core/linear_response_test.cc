@@ -1,6 +1,6 @@
 // The linear actuator's closed forms: paper Eq. 3 against the model's m, c, k form, its limits,
 // H_p = -H / (m w^2), and the saturation threshold against the numbers paper-notes gives.
-#include "strokelab/linear_response.h"
+#include "strokelab/model/linear_response.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <complex>
 #include <numbers>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 #include "test_util.h"
 
 namespace strokelab {

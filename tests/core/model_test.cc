@@ -1,11 +1,11 @@
-#include "strokelab/model.h"
+#include "strokelab/model/model.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 
 namespace strokelab {
 namespace {

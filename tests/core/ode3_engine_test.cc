@@ -14,8 +14,8 @@
 #include <numbers>
 #include <vector>
 
-#include "strokelab/engine.h"
-#include "strokelab/errors.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/base/errors.h"
 #include "engine_test_util.h"
 #include "test_util.h"
 

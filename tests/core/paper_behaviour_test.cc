@@ -5,10 +5,10 @@
 #include <cmath>
 #include <numbers>
 
-#include "strokelab/engine.h"
-#include "strokelab/linear_response.h"
-#include "strokelab/record_summary.h"
-#include "strokelab/signal.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/linear_response.h"
+#include "strokelab/engines/record_summary.h"
+#include "strokelab/signal/signal.h"
 #include "test_util.h"
 
 namespace strokelab {

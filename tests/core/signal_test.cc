@@ -1,6 +1,6 @@
 // Signal analysis against closed forms: harmonics of synthetic signals, the least-squares fit against
 // a dense QR solve, Hann spectra of bin-centred sinusoids, the steady-state window and paper Eq. 1.
-#include "strokelab/signal.h"
+#include "strokelab/signal/signal.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -13,7 +13,7 @@
 #include <random>
 #include <vector>
 
-#include "strokelab/errors.h"
+#include "strokelab/base/errors.h"
 #include "test_util.h"
 
 namespace strokelab {

@@ -1,7 +1,7 @@
 // SinCosOf (sincos.h) against libm: the error in ulps of the result, over the arguments the engines
 // use (drive phases up to thousands of radians, propagator angles near zero) and at the quadrant
 // boundaries where the reduction cancels.
-#include "strokelab/sincos.h"
+#include "strokelab/base/sincos.h"
 
 #include <gtest/gtest.h>
 

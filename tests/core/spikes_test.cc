@@ -11,10 +11,10 @@
 #include <random>
 #include <vector>
 
-#include "strokelab/engine.h"
-#include "strokelab/errors.h"
-#include "strokelab/model.h"
-#include "strokelab/signal.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/model/model.h"
+#include "strokelab/signal/signal.h"
 #include "test_util.h"
 
 namespace strokelab {

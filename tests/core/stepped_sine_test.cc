@@ -5,7 +5,7 @@
 //     branch past the frequency where the down-sweep jumps up onto it;
 //   - the cvode path (non-piecewise-linear models) agrees with the exact path;
 //   - JumpIndices on synthetic sweeps; bad input names its field.
-#include "strokelab/stepped_sine.h"
+#include "strokelab/sweep/stepped_sine.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -20,9 +20,9 @@
 #include <string>
 #include <vector>
 
-#include "strokelab/errors.h"
-#include "strokelab/linear_response.h"
-#include "strokelab/signal.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/model/linear_response.h"
+#include "strokelab/signal/signal.h"
 #include "test_util.h"
 
 namespace strokelab {

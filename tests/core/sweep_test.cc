@@ -5,13 +5,13 @@
 #include <cmath>
 #include <numbers>
 
-#include "strokelab/continuation.h"
-#include "strokelab/engine.h"
-#include "strokelab/linear_response.h"
-#include "strokelab/record_summary.h"
-#include "strokelab/signal.h"
-#include "strokelab/stepped_sine.h"
-#include "strokelab/sweep.h"
+#include "strokelab/steady/continuation.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/linear_response.h"
+#include "strokelab/engines/record_summary.h"
+#include "strokelab/signal/signal.h"
+#include "strokelab/sweep/stepped_sine.h"
+#include "strokelab/sweep/sweep.h"
 #include "test_util.h"
 
 namespace strokelab {

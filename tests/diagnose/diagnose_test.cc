@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "strokelab/diagnose.h"
-#include "strokelab/synth.h"
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/data/synth.h"
 
 namespace strokelab {
 namespace {

@@ -5,8 +5,8 @@
 // campaign ended with residual variance 7959 and the record at nrmse 0.85.
 #include <gtest/gtest.h>
 
-#include "strokelab/fit.h"
-#include "strokelab/synth.h"
+#include "strokelab/identify/fit.h"
+#include "strokelab/data/synth.h"
 
 namespace strokelab {
 namespace {

@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <string>
 
-#include "strokelab/diagnose.h"
-#include "strokelab/synth.h"
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/data/synth.h"
 
 namespace strokelab {
 namespace {

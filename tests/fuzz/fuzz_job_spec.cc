@@ -10,9 +10,9 @@
 #include <nlohmann/json.hpp>
 #include <string_view>
 
-#include "strokelab/errors.h"
-#include "strokelab/server/job_spec.h"
-#include "strokelab/server/jobs.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/jobs/job_spec.h"
+#include "strokelab/jobs/jobs.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using nlohmann::json;
@@ -21,14 +21,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const json job = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (job.is_discarded()) return 0;
   try {
-    strokelab::server::ValidateJob(job);
+    strokelab::jobs::ValidateJob(job);
     if (job.at("kind") == "sweep") {
-      const strokelab::SweepSpec spec = strokelab::server::SweepSpecFromJob(job);
+      const strokelab::SweepSpec spec = strokelab::jobs::SweepSpecFromJob(job);
       (void)spec.frequency_hz.Values();
       (void)spec.amplitude_v.Values();
     }
     // No campaign directories: fit and diagnose jobs are refused here with an InputError.
-    (void)strokelab::server::PlanTasks(job);
+    (void)strokelab::jobs::PlanTasks(job);
   } catch (const strokelab::InputError&) {
     // The expected outcome for most inputs (JobLimitError is one too).
   }

@@ -15,8 +15,8 @@
 #include <string_view>
 
 #include "fuzz_temp_dir.h"
-#include "strokelab/errors.h"
-#include "strokelab/recordings.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/data/recordings.h"
 
 namespace {
 

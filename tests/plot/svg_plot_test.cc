@@ -1,4 +1,4 @@
-#include "strokelab/svg_plot.h"
+#include "strokelab/plot/svg_plot.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

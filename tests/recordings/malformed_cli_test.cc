@@ -24,8 +24,8 @@
 #include <string>
 #include <vector>
 
-#include "strokelab/errors.h"
-#include "strokelab/recordings.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/data/recordings.h"
 
 namespace strokelab {
 namespace {

@@ -1,7 +1,7 @@
 // Campaign directories: the real campaign-a, Write -> Read round trips, every kind of malformed
 // campaign (each naming its file and line, or its manifest pointer), and `strokelab synth` against
 // the engine it drives.
-#include "strokelab/recordings.h"
+#include "strokelab/data/recordings.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -20,10 +20,10 @@
 #include <vector>
 
 #include "cli/run_cli.h"
-#include "strokelab/engine.h"
-#include "strokelab/errors.h"
-#include "strokelab/model.h"
-#include "strokelab/synth.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/model/model.h"
+#include "strokelab/data/synth.h"
 
 namespace strokelab {
 namespace {

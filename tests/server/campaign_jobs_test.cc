@@ -17,11 +17,11 @@
 #include <sstream>
 #include <thread>
 
-#include "strokelab/diagnose.h"
-#include "strokelab/fit.h"
-#include "strokelab/recordings.h"
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/identify/fit.h"
+#include "strokelab/data/recordings.h"
 #include "strokelab/server/service.h"
-#include "strokelab/synth.h"
+#include "strokelab/data/synth.h"
 #include "campaign_upload.h"
 #include "ustar.h"
 #include "zip_writer.h"
@@ -263,7 +263,7 @@ TEST_F(CampaignJobsTest, ZipUploadFitsAsTheTarUpload) {
   const std::string zip_id = UploadOk(ZipOf(entries), "application/zip");
   ASSERT_EQ(zip_id.size(), 16u);
   const fs::path uploads = dir_ / "jobs.db.campaigns";
-  EXPECT_EQ(CampaignDigest(uploads / zip_id), CampaignDigest(uploads / tar_id));  // the same bytes
+  EXPECT_EQ(jobs::CampaignDigest(uploads / zip_id), jobs::CampaignDigest(uploads / tar_id));  // the same bytes
   // Each upload is its own task (the campaign directory is part of its key): both fits run.
   const int64_t tar_job = Submit({{"kind", "fit"}, {"campaign", {{"id", tar_id}}}});
   const int64_t zip_job = Submit({{"kind", "fit"}, {"campaign", {{"id", zip_id}}}});

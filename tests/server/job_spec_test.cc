@@ -1,6 +1,6 @@
 // Job specs at the edge: ValidateJob on generated malformed documents (each with the exact JSON
 // pointer and a fragment of the message), valid documents, and the conversion to core types.
-#include "strokelab/server/job_spec.h"
+#include "strokelab/jobs/job_spec.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -12,12 +12,12 @@
 #include <tuple>
 #include <vector>
 
-#include "strokelab/model_json.h"
-#include "strokelab/server/json_schema.h"
-#include "strokelab/signal.h"
+#include "strokelab/model/model_json.h"
+#include "strokelab/jobs/json_schema.h"
+#include "strokelab/signal/signal.h"
 #include "test_util.h"
 
-namespace strokelab::server {
+namespace strokelab::jobs {
 namespace {
 
 using nlohmann::json;
@@ -432,4 +432,4 @@ TEST(SweepSpecFromJobTest, NullStopsAndLimitMeanAbsent) {
 }
 
 }  // namespace
-}  // namespace strokelab::server
+}  // namespace strokelab::jobs

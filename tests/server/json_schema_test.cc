@@ -1,7 +1,7 @@
 // The JSON Schema subset validator (json_schema.h) on small schemas, keyword by keyword, and the
 // schema files compiled into the binary: each loads, matches its file in schema/, uses only the
 // supported keywords, and every $ref resolves.
-#include "strokelab/server/json_schema.h"
+#include "strokelab/jobs/json_schema.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -12,9 +12,9 @@
 #include <set>
 #include <string>
 
-#include "strokelab/model.h"
+#include "strokelab/model/model.h"
 
-namespace strokelab::server {
+namespace strokelab::jobs {
 namespace {
 
 using nlohmann::json;
@@ -438,4 +438,4 @@ TEST(BuiltInSchemaTest, ResultSchemaDescribesPointsAndStatus) {
 }
 
 }  // namespace
-}  // namespace strokelab::server
+}  // namespace strokelab::jobs

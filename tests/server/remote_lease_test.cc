@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "strokelab/server/jobs.h"
+#include "strokelab/jobs/jobs.h"
 #include "strokelab/server/service.h"
 #include "strokelab/worker/remote_worker.h"
 
@@ -112,10 +112,10 @@ TEST_F(RemoteLeaseTest, RenewedLeaseIsKeptAndAnUnrenewedOneIsLost) {
 TEST_F(RemoteLeaseTest, RemoteWorkerKeepsItsLeaseThroughALongTask) {
   // The task's time on this machine and build (a fast machine ran it in 0.51 s, a sanitizer build
   // takes seconds): the lease is a sixth of it, at least 25 ms and at most kLeaseMs.
-  const std::vector<TaskSpec> tasks = PlanTasks(json::parse(kLongSimulate));
+  const std::vector<jobs::TaskSpec> tasks = jobs::PlanTasks(json::parse(kLongSimulate));
   ASSERT_EQ(tasks.size(), 1u);
   const auto timed = Clock::now();
-  (void)RunTask(tasks[0].spec);
+  (void)jobs::RunTask(tasks[0].spec);
   const double task_ms = std::chrono::duration<double, std::milli>(Clock::now() - timed).count();
   const int64_t lease_ms = std::clamp<int64_t>(static_cast<int64_t>(task_ms / 6), 25, kLeaseMs);
   StartService(lease_ms);

@@ -10,9 +10,9 @@
 #include <thread>
 #include <vector>
 
-#include "strokelab/errors.h"
-#include "strokelab/server/jobs.h"
-#include "strokelab/sweep.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/jobs/jobs.h"
+#include "strokelab/sweep/sweep.h"
 
 namespace strokelab::worker {
 namespace {
@@ -121,7 +121,7 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         const LeaseKeeper keeper(host, port, headers, endpoint + "/renew", reply.dump(),
                                  static_cast<int>(std::max<int64_t>(lease_ms / 4, 10)));
         json rows = json::array();
-        for (const server::ResultRow& row : server::RunTask(task.at("spec")))
+        for (const jobs::ResultRow& row : jobs::RunTask(task.at("spec")))
           rows.push_back({{"table", row.table}, {"values", row.values}});
         reply["rows"] = std::move(rows);
         endpoint += "/complete";

@@ -18,7 +18,12 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/jobs/task.h"
+
 namespace strokelab::server {
+
+using jobs::ResultRow;
+using jobs::TaskSpec;
 
 enum class JobStatus { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
 const char* ToString(JobStatus status);
@@ -46,11 +51,6 @@ struct JobEvent {
   std::string reason;              // "submitted", "first task leased by local-0", the error, ...
 };
 
-struct TaskSpec {
-  std::string key;                 // content hash: identical work has the same key
-  nlohmann::json spec;             // what the worker needs to run it
-};
-
 struct TaskLease {
   int64_t task_id = 0;
   int64_t job_id = 0;
@@ -59,14 +59,6 @@ struct TaskLease {
   nlohmann::json spec;
   std::string lease_token;         // proves the lease when completing
   int64_t expires_ms = 0;
-};
-
-// One result row of a task: a table name ("points", "thresholds", "jumps", "records") and its
-// values as a JSON object. Rows are stored as JSON text with their task and row index, which make
-// them unique: (job, task, row).
-struct ResultRow {
-  std::string table;
-  nlohmann::json values;
 };
 
 // An error of the database itself (disk full, I/O error, damaged file, locked too long), as opposed

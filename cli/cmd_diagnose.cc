@@ -1,0 +1,142 @@
+// strokelab diagnose: where a fitted model misses a campaign and which physics it left out
+// (core/include/strokelab/diagnose.h).
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/report/diagnose_report.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/data/recordings.h"
+
+namespace strokelab::cli {
+namespace {
+
+constexpr const char* kHelp = R"(usage: strokelab diagnose --data DIR [--model paper|linear] [--json] [--out DIR] [options]
+
+Fits the base model (as strokelab fit) to all but every n-th record, measures where it misses (per
+record and harmonic, harmonic balance below the stop, resonance against amplitude, contact times,
+the residual around impacts), fits the base model extended by each candidate effect (cubic_stiffness,
+quadratic_stiffness, hertzian_contact, contact_damping, second_stop, dry_friction,
+amplifier_saturation) and names the one that improves the held-out records beyond noise, or says
+"nothing missing".
+
+  --data DIR               campaign directory                                         (required)
+  --model NAME             paper | linear                                             [paper]
+  --json                   one JSON object on stdout instead of the text report
+  --out DIR                also write the HTML report (index.html, CSV tables, diagnosis.json)
+  --heldout-every N        every N-th record is held out of the fits                  [4]
+  --min-gain G             held-out chi-square drop (residual variances) to name an effect [10]
+  --no-pairs               do not try pairs of effects
+  --max-seconds T          wall-time budget; candidates past it are skipped           [600]
+  --progress               one line per stage on stderr
+  (and the fit's options: --harmonics, --mass-kg, --mains-hz, --max-distortion, --max-iterations,
+   --fit-contact-damping, --no-refine; see strokelab fit --help)
+
+Exit codes: 0 diagnosed (including "nothing missing"), 2 bad input (the message names the file and
+line or the flag), 3 numerical failure.
+)";
+
+std::string General(double value, int digits = 4) {
+  if (!std::isfinite(value)) return "-";
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*g", digits, value);
+  return buffer;
+}
+
+void PrintReport(const Diagnosis& d, std::ostream& out) {
+  out << d.conclusion << "\n\n";
+  out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse) << ", after "
+      << General(d.fit_after.nrmse) << "; held-out records (" << d.heldout.size() << "): before "
+      << General(d.fit_before.heldout_nrmse) << ", after " << General(d.fit_after.heldout_nrmse) << "\n";
+  if (d.chosen >= 0) {
+    const CandidateFit& chosen = d.candidates[d.chosen];
+    out << "\nfitted parameters of " << chosen.label
+        << (chosen.converged ? "" : " (the fit did NOT converge: the standard errors understate the uncertainty)")
+        << ":\n";
+    for (const FitParameter& p : chosen.parameters)
+      out << "  " << p.name << " = " << General(p.value, 6) << " +- " << General(p.standard_error, 3) << " " << p.unit
+          << (p.note.empty() ? "" : "  (" + p.note + ")") << "\n";
+  }
+  out << "\ncandidates (held-out gain in residual variances; named when > the threshold):\n";
+  char line[256];
+  std::snprintf(line, sizeof line, "  %-42s %12s %12s %10s %10s %8s\n", "candidate", "heldout gain", "fit gain",
+                "nrmse", "held out", "seconds");
+  out << line;
+  for (const CandidateFit& c : d.candidates) {
+    std::snprintf(line, sizeof line, "  %-42s %12s %12s %10s %10s %8s\n", c.label.c_str(),
+                  General(c.heldout_gain).c_str(), General(c.fit_gain).c_str(), General(c.figures.nrmse).c_str(),
+                  General(c.figures.heldout_nrmse).c_str(), General(c.seconds, 3).c_str());
+    out << line;
+    if (!c.note.empty() && !c.fitted) out << "    " << c.note << "\n";
+  }
+  out << "\nevidence:\n";
+  for (const Evidence& e : d.signatures.evidence) {
+    std::string points;
+    for (Effect effect : e.points_to) points += (points.empty() ? "" : ", ") + std::string(Info(effect).id);
+    out << "  [" << e.kind << "] " << e.summary << (points.empty() ? "" : "  -> " + points) << "\n";
+  }
+  out << "\nworst records of the base model:\n";
+  for (const auto& h : d.signatures.hotspots)
+    out << "  " << h.record << " (" << General(h.frequency_hz) << " Hz, " << General(h.amplitude_v) << " V): chi2/residual "
+        << General(h.chi2_per_residual) << ", worst harmonic " << h.harmonic << " (magnitude "
+        << General(100 * h.magnitude_error, 3) << " %, phase " << General(h.phase_error_rad, 3) << " rad)\n";
+  out << "\n" << General(d.seconds, 3) << " s\n";
+}
+
+}  // namespace
+
+int RunDiagnose(const std::vector<std::string>& argv) {
+  std::vector<std::string> values = kFitValueFlags, switches = kFitSwitches;
+  values.insert(values.end(), {"--data", "--out", "--heldout-every", "--min-gain", "--max-seconds"});
+  switches.insert(switches.end(), {"--json", "--no-pairs", "--progress", "--help"});
+  const Args args(argv, {values.begin(), values.end()}, {switches.begin(), switches.end()});
+  if (args.Has("--help")) {
+    std::cout << kHelp;
+    return 0;
+  }
+  if (!args.Positional().empty())
+    throw InputError(args.Positional().front(), "unexpected argument (see strokelab diagnose --help)");
+  const auto data = args.Get("--data");
+  if (!data) throw InputError("--data", "is required (the campaign directory)");
+  DiagnoseOptions options;
+  options.fit = FitOptionsFromArgs(args);
+  options.heldout_every = args.Integer("--heldout-every", options.heldout_every);
+  options.min_heldout_gain = args.Number("--min-gain", options.min_heldout_gain);
+  options.max_seconds = args.Number("--max-seconds", options.max_seconds);
+  options.pairs = !args.Has("--no-pairs");
+  if (std::string error; !options.IsValid(&error)) {
+    const std::string field = error.substr(0, error.find(':'));
+    const std::string flag = field == "heldout_every"      ? "--heldout-every"
+                             : field == "min_heldout_gain" ? "--min-gain"
+                             : field == "max_seconds"      ? "--max-seconds"
+                                                           : field;
+    throw InputError(flag, error.substr(error.find(": ") + 2));
+  }
+  if (args.Has("--progress")) options.progress = [](const std::string& stage) { std::cerr << stage << std::endl; };
+
+  const Campaign campaign = ReadCampaign(*data);
+  const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
+  const nlohmann::json json = DiagnosisToJson(diagnosis);
+  if (const auto out = args.Get("--out")) {
+    report::WriteDiagnosisReport(diagnosis, *out);
+    std::ofstream file(std::filesystem::path(*out) / "diagnosis.json");
+    file << json.dump(2) << "\n";
+    if (!file) throw InputError("--out", "cannot write " + (std::filesystem::path(*out) / "diagnosis.json").string());
+  }
+  if (args.Has("--json")) {
+    std::cout << json.dump(2) << "\n";
+  } else {
+    PrintReport(diagnosis, std::cout);
+    if (const auto out = args.Get("--out")) std::cout << "report: " << (std::filesystem::path(*out) / "index.html").string() << "\n";
+  }
+  return 0;
+}
+
+}  // namespace strokelab::cli

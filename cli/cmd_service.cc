@@ -1,0 +1,270 @@
+// The service commands: serve (the REST service with its SQLite store and worker pool), worker (a
+// remote worker), and the client side: submit, status, results.
+#include <httplib.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include "commands.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/server/service.h"
+#include "strokelab/worker/remote_worker.h"
+
+namespace strokelab::cli {
+namespace {
+
+using nlohmann::json;
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop = true; }
+
+void InstallStopSignals() {
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  // A write past a file-size limit (RLIMIT_FSIZE) then fails with EFBIG, which the store reports as
+  // storage trouble (503, health degraded), instead of killing the process with SIGXFSZ.
+  signal(SIGXFSZ, SIG_IGN);
+}
+
+// The token for client commands: --token, else --token-file's first submit token, else $STROKELAB_TOKEN.
+std::string ClientToken(const Args& args) {
+  if (auto token = args.Get("--token")) return *token;
+  if (const char* env = std::getenv("STROKELAB_TOKEN")) return env;
+  return "";
+}
+
+httplib::Headers Headers(const std::string& token) {
+  if (token.empty()) return {};
+  return {{"Authorization", "Bearer " + token}};
+}
+
+struct Connection {
+  std::string host;
+  int port;
+  std::string token;
+  httplib::Client client() const {
+    httplib::Client c(host, port);
+    c.set_connection_timeout(5);
+    c.set_read_timeout(120);
+    return c;
+  }
+};
+
+Connection Connect(const Args& args) {
+  const auto [host, port] = worker::ParseServerUrl(args.GetOr("--server", "http://127.0.0.1:8080"));
+  return {host, port, ClientToken(args)};
+}
+
+// The body of a reply, or a one-line error naming the server's error code and field.
+json Expect(const httplib::Result& result, int status, const std::string& what) {
+  if (!result) throw std::runtime_error(what + ": cannot reach the server (" + httplib::to_string(result.error()) + ")");
+  if (result->status != status) {
+    std::string message = "HTTP " + std::to_string(result->status);
+    try {
+      const json error = json::parse(result->body).at("error");
+      message = error.value("code", "") + ": " + error.value("message", "");
+      if (error.contains("field")) message = error["field"].get<std::string>() + ": " + message;
+    } catch (...) {
+    }
+    throw std::runtime_error(what + ": " + message);
+  }
+  return result->body.empty() ? json() : json::parse(result->body);
+}
+
+void PrintProgress(const json& job) {
+  const int done = job["progress"]["done"], total = job["progress"]["total"];
+  const int width = 30, filled = total > 0 ? width * done / total : 0;
+  std::fprintf(stderr, "\r  job %lld [%s%s] %d/%d tasks, %s ", static_cast<long long>(job["id"].get<int64_t>()),
+               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), done, total,
+               job["status"].get<std::string>().c_str());
+  std::fflush(stderr);
+}
+
+// Polls a job until it finishes; a progress bar on a terminal. Returns the final status object.
+json WaitForJob(const Connection& c, int64_t id) {
+  httplib::Client client = c.client();
+  const bool tty = isatty(STDERR_FILENO);
+  for (;;) {
+    const json job = Expect(client.Get("/v1/jobs/" + std::to_string(id), Headers(c.token)), 200, "status");
+    if (tty) PrintProgress(job);
+    const std::string status = job["status"];
+    if (status != "queued" && status != "running") {
+      if (tty) std::fprintf(stderr, "\n");
+      return job;
+    }
+    if (g_stop) throw std::runtime_error("interrupted while waiting (the job goes on on the server)");
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+}
+
+}  // namespace
+
+int RunServe(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--port", "--db", "--workers", "--token-file", "--host", "--lease-s", "--max-body-bytes",
+                   "--data-root", "--max-campaign-bytes"},
+                  {"--demo", "--quiet", "--help"});
+  if (args.Has("--help")) {
+    std::cout << "usage: strokelab serve [--port 8080] [--db var/strokelab.db] [--workers N] [--token-file F]\n"
+                 "                       [--host 127.0.0.1] [--lease-s 120] [--demo] [--quiet]\n"
+                 "                       [--data-root DIR] [--max-campaign-bytes 268435456]\n"
+                 "  --workers 0 leaves all work to remote workers (strokelab worker --server URL);\n"
+                 "    fit and diagnose jobs need in-process workers.\n"
+                 "  --data-root DIR lets fit and diagnose jobs name campaigns as {\"path\": P} relative to DIR;\n"
+                 "    uploads (POST /v1/campaigns) are kept next to the database, in DB.campaigns/.\n"
+                 "  --demo submits a sweep of the paper's model once the service is up and prints where to look.\n";
+    return 0;
+  }
+  server::ServiceOptions options;
+  options.port = args.Integer("--port", 8080);
+  if (options.port < 0 || options.port > 65535) throw InputError("--port", "must be between 0 and 65535");
+  options.db_path = args.GetOr("--db", "var/strokelab.db");
+  options.workers = args.Integer("--workers", -1);
+  if (options.workers < -1 || options.workers > 256) throw InputError("--workers", "must be between 0 and 256");
+  options.token_file = args.GetOr("--token-file", "");
+  options.host = args.GetOr("--host", "127.0.0.1");
+  options.lease_ms = static_cast<int64_t>(args.Number("--lease-s", 120.0) * 1000);
+  if (options.lease_ms < 1000) throw InputError("--lease-s", "must be at least 1 s");
+  options.max_body_bytes = static_cast<size_t>(args.Number("--max-body-bytes", 1 << 20));
+  options.max_campaign_bytes = static_cast<size_t>(args.Number("--max-campaign-bytes", 256.0 * (1 << 20)));
+  options.data_root = args.GetOr("--data-root", "");
+  if (!options.data_root.empty() && !std::filesystem::is_directory(options.data_root))
+    throw InputError("--data-root", "'" + options.data_root + "' is not a directory");
+  options.quiet = args.Has("--quiet");
+  if (const auto parent = std::filesystem::path(options.db_path).parent_path(); !parent.empty())
+    std::filesystem::create_directories(parent);
+
+  InstallStopSignals();
+  server::Service service(options);
+  const int port = service.Start();
+  const std::string url = "http://" + options.host + ":" + std::to_string(port);
+  std::fprintf(stderr, "strokelab serving %s (database %s)\n", url.c_str(), options.db_path.c_str());
+  if (args.Has("--demo")) {
+    httplib::Client client("127.0.0.1", port);
+    const json job = {{"kind", "sweep"}, {"name", "demo: paper model, Eq. 1 grid"}, {"model", "paper"},
+                      {"grid", {{"frequency_hz", {{"from", 5}, {"points", 117}, {"spacing", "eq1"}}},
+                                {"amplitude_v", {{"from", 0.1}, {"to", 0.6}, {"points", 26}}}}}};
+    const json reply = Expect(client.Post("/v1/jobs", job.dump(), "application/json"), 201, "demo submit");
+    std::fprintf(stderr, "demo sweep submitted as job %lld: its saturation map is at %s/?job=%lld\n",
+                 static_cast<long long>(reply["id"].get<int64_t>()), url.c_str(),
+                 static_cast<long long>(reply["id"].get<int64_t>()));
+  }
+  while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  std::fprintf(stderr, "stopping\n");
+  service.Stop();
+  return 0;
+}
+
+int RunWorker(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks"}, {"--help"});
+  if (args.Has("--help")) {
+    std::cout << "usage: strokelab worker --server http://HOST:PORT [--token T] [--threads N] [--name NAME]\n";
+    return 0;
+  }
+  worker::RemoteWorkerOptions options;
+  options.server_url = args.GetOr("--server", "http://127.0.0.1:8080");
+  worker::ParseServerUrl(options.server_url);
+  options.token = ClientToken(args);
+  options.threads = args.Integer("--threads", 1);
+  if (options.threads < 1 || options.threads > 256) throw InputError("--threads", "must be between 1 and 256");
+  char hostname[256] = "worker";
+  gethostname(hostname, sizeof hostname);
+  options.name = args.GetOr("--name", std::string(hostname) + "-" + std::to_string(getpid()));
+  options.max_tasks = args.Integer("--max-tasks", -1);
+  InstallStopSignals();
+  const int done = worker::RunRemoteWorker(options, g_stop);
+  std::fprintf(stderr, "worker %s: %d tasks completed\n", options.name.c_str(), done);
+  return 0;
+}
+
+int RunSubmit(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--server", "--token"}, {"--wait", "--help"});
+  if (args.Has("--help") || args.Positional().size() != 1) {
+    std::cout << "usage: strokelab submit JOB.json [--server URL] [--token T] [--wait]\n";
+    return args.Has("--help") ? 0 : 2;
+  }
+  const std::string path = args.Positional()[0];
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "cannot read the job file");
+  std::stringstream body;
+  body << in.rdbuf();
+  const Connection c = Connect(args);
+  httplib::Client client = c.client();
+  const json reply = Expect(client.Post("/v1/jobs", Headers(c.token), body.str(), "application/json"), 201, path);
+  const int64_t id = reply["id"];
+  std::cout << id << "\n";
+  InstallStopSignals();
+  if (args.Has("--wait")) {
+    const json job = WaitForJob(c, id);
+    std::cerr << "job " << id << " " << job["status"].get<std::string>() << "\n";
+    return job["status"] == "succeeded" ? 0 : 1;
+  }
+  return 0;
+}
+
+int RunStatus(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--server", "--token"}, {"--wait", "--help"});
+  if (args.Has("--help") || args.Positional().size() != 1) {
+    std::cout << "usage: strokelab status JOB_ID [--server URL] [--token T] [--wait]\n";
+    return args.Has("--help") ? 0 : 2;
+  }
+  const Connection c = Connect(args);
+  InstallStopSignals();
+  json job;
+  if (args.Has("--wait")) {
+    job = WaitForJob(c, std::stoll(args.Positional()[0]));
+  } else {
+    httplib::Client client = c.client();
+    job = Expect(client.Get("/v1/jobs/" + args.Positional()[0], Headers(c.token)), 200, "status");
+  }
+  std::cout << job.dump(2) << "\n";
+  return 0;
+}
+
+int RunResults(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--server", "--token", "--branch", "--amplitude-v"}, {"--csv", "--help"});
+  if (args.Has("--help") || args.Positional().size() != 1) {
+    std::cout << "usage: strokelab results JOB_ID [--csv] [--branch up|down|unstable] [--amplitude-v V]\n";
+    return args.Has("--help") ? 0 : 2;
+  }
+  const Connection c = Connect(args);
+  httplib::Client client = c.client();
+  httplib::Headers headers = Headers(c.token);
+  const bool csv = args.Has("--csv");
+  if (csv) headers.emplace("Accept", "text/csv");
+  std::string query = "limit=10000";
+  if (auto b = args.Get("--branch")) query += "&branch=" + *b;
+  if (auto a = args.Get("--amplitude-v")) query += "&amplitude_v=" + *a;
+  json all = json::array();
+  for (std::string cursor = "0";;) {
+    const std::string path = "/v1/jobs/" + args.Positional()[0] + "/points?" + query + "&cursor=" + cursor;
+    auto result = client.Get(path, headers);
+    if (csv) {
+      if (!result || result->status != 200) Expect(result, 200, "results");
+      std::string body = result->body;
+      if (cursor != "0") body = body.substr(body.find('\n') + 1);  // header once
+      std::cout << body;
+      cursor = result->get_header_value("X-Next-Cursor");
+      if (cursor.empty() || cursor == "0") break;
+    } else {
+      const json page = Expect(result, 200, "results");
+      for (const json& p : page["points"]) all.push_back(p);
+      if (page["next_cursor"].is_null()) break;
+      cursor = std::to_string(page["next_cursor"].get<int64_t>());
+    }
+  }
+  if (!csv) std::cout << json({{"points", all}}).dump(2) << "\n";
+  return 0;
+}
+
+}  // namespace strokelab::cli

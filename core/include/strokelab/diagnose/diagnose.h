@@ -1,0 +1,168 @@
+// Diagnosis: where a fitted model and a campaign disagree, which physics the model left out, and how
+// much better the model fits with it added (strokelab diagnose).
+//
+//   1. Split: every `heldout_every`-th stepped-sine record is held out of all fits (campaign order, so
+//      that the held-out set spans the amplitudes and frequencies).
+//   2. Base fit (fit.h) on the other records; the base model is then evaluated on every record.
+//   3. Signatures of the mismatch (Signatures): per record and harmonic, even and odd harmonics of the
+//      records clear of the stop versus amplitude, the resonance (paper Eq. 3 per amplitude level)
+//      versus amplitude, contact times and spike polarity versus impact strength, and the time-domain
+//      residual in windows around contacts against the rest of the period.
+//   4. Candidates (EffectLibrary): the base model extended by each effect (and the best pair when two
+//      effects each beat noise), fitted with the base parameters free (k_s held at the base fit's
+//      value with a smooth suspension term: the impacts fix it), by the defect-corrected refinement
+//      of core/src/extended_fit.h for terms the closed-form engine cannot take.
+//   5. Choice: by the held-out chi-square (harmonic residuals over their standard errors, scaled by
+//      the candidate's residual variance on the fit records): an effect is named only when it lowers
+//      the held-out chi-square by more than `min_heldout_gain` and the fit records' chi-square by more
+//      than the Akaike penalty 2 k (k its parameters); else the answer is "nothing missing".
+//
+// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator" (shared/paper/), Eq. 2-6;
+// conventions of shared/docs/paper-notes.md.
+#pragma once
+
+#include <complex>
+#include <functional>
+#include <nlohmann/json_fwd.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "strokelab/identify/campaign.h"
+#include "strokelab/identify/fit.h"
+#include "strokelab/model/model.h"
+
+namespace strokelab {
+
+enum class Effect {
+  kCubicStiffness,       // k3 x^3 in the suspension (hardening > 0, softening < 0)
+  kQuadraticStiffness,   // k2 x^2: an asymmetric suspension
+  kHertzianContact,      // the stop pushes with k_s p^(3/2)
+  kContactDamping,       // c_s p' while in contact: restitution below one
+  kSecondStop,           // an upper end stop
+  kDryFriction,          // F_c tanh(x' / v_s)
+  kAmplifierSaturation,  // the drive clipped at +-limit before the gain
+};
+
+struct EffectInfo {
+  Effect effect;
+  const char* id;         // "cubic_stiffness", ... (the JSON ids)
+  const char* parameter;  // the model parameter it adds (model.h key)
+  const char* signature;  // the signature it leaves in a campaign, and why
+};
+const std::vector<EffectInfo>& EffectLibrary();
+const EffectInfo& Info(Effect effect);
+Effect ParseEffect(std::string_view id);  // throws InputError("effect") listing the ids
+
+struct DiagnoseOptions {
+  FitOptions fit;               // the base fit (model paper | linear, harmonics, ...)
+  int heldout_every = 4;        // every n-th record is held out (>= 2)
+  double min_heldout_gain = 10; // held-out chi-square drop (in residual variances) an effect must beat
+  bool pairs = true;            // try the best pair when two effects each beat noise
+  int max_passes = 12;           // defect-correction passes of an extended fit
+  double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
+  std::function<void(const std::string&)> progress;  // one line per stage (may be empty)
+  bool IsValid(std::string* error) const;
+};
+
+// How one model matches one record.
+struct RecordMatch {
+  std::string name;
+  double frequency_hz = 0.0, amplitude_v = 0.0;  // estimated drive
+  bool heldout = false;
+  bool clear = false;  // clear of the stop (fit.h)
+  double power = 0.0;  // sum_h |C_h|^2 over the usable harmonics (RecordAnalysis::usable)
+  double nrmse = 0.0;  // sqrt(sum_h |C_h - C_h^model|^2 / power), usable harmonics
+  double chi2 = 0.0;   // sum_h |(C_h - C_h^model) / se|^2 (2N real residuals)
+  std::vector<std::complex<double>> measured, model;  // C_h, h = 1..N, response units
+  int model_period = 1;
+  double model_contacts_per_period = 0.0;
+};
+
+// Error figures of a model over the campaign.
+struct FitFigures {
+  double nrmse = 0.0;          // over all records: sqrt(sum |dC|^2 / sum |C|^2)
+  double heldout_nrmse = 0.0;  // over the held-out records
+  double chi2 = 0.0;           // over the fit records
+  double heldout_chi2 = 0.0;   // over the held-out records
+  double residual_variance = 0.0;  // chi2 / (M - P) on the fit records
+};
+
+// One piece of evidence: a measured figure, what it means, and which effects it points to.
+struct Evidence {
+  std::string kind;     // "harmonic_balance", "resonance_shift", "contact_time_trend", ...
+  std::string summary;  // one sentence with the numbers
+  double value = 0.0;   // the figure (see summary); NaN when not measurable
+  double standard_error = 0.0;
+  double significance = 0.0;    // |value| / standard_error (0 when no error is known)
+  std::vector<Effect> points_to;  // effects this evidence supports
+};
+
+// Where the base model misses, from its residuals.
+struct Signatures {
+  std::vector<Evidence> evidence;
+  // The worst records (largest chi2 per residual) and, for each, its worst harmonic.
+  struct Hotspot {
+    std::string record;
+    double frequency_hz = 0.0, amplitude_v = 0.0;
+    int harmonic = 1;
+    double magnitude_error = 0.0;  // |C_h^model| / |C_h| - 1
+    double phase_error_rad = 0.0;  // arg C_h^model - arg C_h
+    double chi2_per_residual = 0.0;
+  };
+  std::vector<Hotspot> hotspots;
+  // Time-domain residual RMS within +-contact_window_s of the contacts and elsewhere, over the
+  // contacting records [response units] (NaN: no contacts).
+  double contact_window_s = 0.0;
+  double residual_rms_near_contacts = 0.0;
+  double residual_rms_elsewhere = 0.0;
+  // Per amplitude level [V]: resonance of paper Eq. 3 fitted to that level's clear records (NaN when
+  // fewer than 3), and the mean |C_2| / |C_1|, |C_3| / |C_1| of its clear records.
+  struct Level {
+    double amplitude_v = 0.0;
+    size_t clear_records = 0;
+    double resonance_hz = 0.0, resonance_se_hz = 0.0;
+    double second_harmonic_ratio = 0.0, third_harmonic_ratio = 0.0;
+    double mean_contact_time_s = 0.0;  // NaN: no spikes at this level
+  };
+  std::vector<Level> levels;
+};
+
+struct CandidateFit {
+  std::vector<Effect> effects;
+  std::string label;                   // "cubic_stiffness" or "cubic_stiffness+contact_damping"
+  bool fitted = false;                 // false: skipped (reason in `note`)
+  bool converged = false;
+  std::vector<FitParameter> parameters;  // base and effect parameters, with standard errors
+  std::vector<FitParameter> effect_parameters;  // the effect's own
+  ActuatorModel model;
+  FitFigures figures;
+  double heldout_gain = 0.0;  // (base held-out chi2 - this) / max(1, this residual variance)
+  double fit_gain = 0.0;      // the same on the fit records
+  int passes = 0;
+  double seconds = 0.0;
+  std::string note;
+};
+
+struct Diagnosis {
+  FitResult base;                   // the base fit on the fit records
+  std::vector<size_t> heldout;      // record indices (into `records`)
+  std::vector<RecordMatch> before;  // the base model on every record
+  std::vector<RecordMatch> after;   // the chosen model on every record (== before when nothing)
+  FitFigures fit_before, fit_after;
+  Signatures signatures;
+  std::vector<CandidateFit> candidates;  // every candidate tried, best held-out gain first
+  std::vector<Effect> missing_physics;   // named effects, best first (empty: nothing missing)
+  int chosen = -1;                       // index into candidates (-1: nothing missing)
+  std::string conclusion;                // in words
+  double seconds = 0.0;
+};
+
+// Throws InputError for bad options or campaigns (as FitCampaign).
+Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
+
+// missing_physics (effect, parameters, evidence), fit_before, fit_after (nrmse, heldout_nrmse, ...),
+// base_parameters, candidates, signatures, records, conclusion, seconds.
+nlohmann::json DiagnosisToJson(const Diagnosis& diagnosis);
+
+}  // namespace strokelab

@@ -1,0 +1,88 @@
+// The fit's model side, shared by the fit (fit.cc) and the diagnosis (diagnose*.cc): a model's
+// periodic steady state at a record's estimated drive, its harmonics in the record's response units,
+// and what the record's sampling makes of them.
+#pragma once
+
+#include <complex>
+#include <optional>
+#include <vector>
+
+#include "strokelab/identify/campaign.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/identify/fit.h"
+#include "strokelab/model/model.h"
+
+namespace strokelab::internal {
+
+// A periodic orbit to start the next shooting from.
+struct Anchor {
+  State start;
+  int period = 1;  // 0: aperiodic
+};
+
+struct ModelOrbit {
+  Anchor anchor;
+  bool stable = true;
+  double contacts_per_period = 0.0;
+  std::vector<std::complex<double>> harmonics;  // response units, relative to the drive phase
+};
+
+// How hard SolveOrbit looks for the steady state.
+enum class OrbitSearch {
+  // For the cost function, at a bounded price: Newton on the anchor's period from the anchor; if it
+  // fails (or the anchor is aperiodic), a fixed number of plain periods from the anchor and the
+  // harmonics from there, a bounded stand-in that keeps the evaluation defined where the model has no
+  // periodic orbit near the anchor.
+  kNearby,
+  // For anchors: Newton, and the attractor (SolveAttractor: long plain iteration, period search)
+  // when Newton fails or finds an unstable orbit.
+  kAttractor,
+  // For branch choice: the attractor whose basin holds the anchor (SettledAttractor), which may differ
+  // from the one kAttractor's early Newton finds where attractors coexist.
+  kSettled,
+};
+
+// C_h of the response of `kind` from C_h of x at harmonic h of omega [rad/s] (f = m_p x'').
+std::complex<double> ResponseHarmonic(std::complex<double> x_h, int h, double omega, ResponseKind kind,
+                                      double mass_kg);
+
+// The steady state of `model` at the record's drive, from `anchor`; nullopt when its harmonics are
+// not finite. Throws NumericalError when an engine fails.
+std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAnalysis& record, const Anchor& anchor,
+                                     ResponseKind kind, int orders, OrbitSearch search);
+
+// The orbit's response harmonics by strokelab::SampledOrbitHarmonics (steady_state.h), in the
+// record's response units: a defect between a smooth model and its piecewise-linear stand-in taken
+// this way on both sides leaves out the sampling's own error.
+std::vector<std::complex<double>> SampledOrbitHarmonics(const ActuatorModel& model, const RecordAnalysis& record,
+                                                        const Anchor& anchor, ResponseKind kind, int orders);
+
+// sum_h |C_h - model_h|^2 and sum_h |C_h|^2 over the record's usable harmonics.
+double MismatchSquared(const RecordAnalysis& record, const std::vector<std::complex<double>>& model);
+double PowerOf(const RecordAnalysis& record);
+
+// Moves `anchor` to the orbit SolveOrbit (kAttractor) finds from it for `model`; keeps it when none
+// is found or an engine fails.
+void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind, int orders,
+                Anchor* anchor);
+
+// The stable orbit that matches the record best among the attractors reached (kAttractor and kSettled)
+// from the clipped linear start, from rest, from half the linear start and from the stops (a record
+// where attractors coexist may sit on any of them).
+std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const RecordAnalysis& record,
+                                            ResponseKind kind, int orders);
+
+// The model's response on the record's own sample grid over its analysis window (samples
+// window.begin .. window.end of a record of window.end samples; earlier samples are the orbit too),
+// in response units, from a period-1 orbit (the exact engine; CVODE for models that are not
+// piecewise linear). Empty for orbits of another period.
+std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
+                                      ResponseKind kind);
+
+// What the record's sampling and least-squares fit make of the model's response, less the orbit's
+// continuous-time harmonics (see fit.cc). Zero for orbits of period other than 1 and for models that
+// are not piecewise linear.
+std::vector<std::complex<double>> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a,
+                                                     const ModelOrbit& orbit, ResponseKind kind, int orders);
+
+}  // namespace strokelab::internal

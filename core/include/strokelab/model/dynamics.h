@@ -1,0 +1,47 @@
+// The right-hand side of the equation of motion in model.h, shared by every engine.
+//
+//   m_p x'' = g u(t) - k_p x - k2 x^2 - k3 x^3 - c_p x' - F_c tanh(x'/v_s) + F_lower - F_upper
+//
+// Paper Eq. 2 (continuous form, paper-notes) plus the extra terms of model.h.
+#pragma once
+
+#include "strokelab/model/model.h"
+
+namespace strokelab {
+
+// v_in(t) = V sin(w t + phi): the stepped-sine drive of the paper, section 3.
+struct SineDrive {
+  double amplitude_v = 0.0;   // V [V]
+  double frequency_hz = 0.0;  // f [Hz], w = 2 pi f
+  double phase_rad = 0.0;     // phi [rad]
+
+  double AngularFrequency() const;           // [rad/s]
+  double Voltage(double time_s) const;       // unclipped v_in(t) [V]
+};
+void Validate(const SineDrive& drive);  // throws InputError naming amplitude_v / frequency_hz / phase_rad
+
+// Which stops currently push on the mass. A stop pushes while the penetration is positive and the
+// contact force (stiffness plus damping) is positive: the clamp that keeps a damped stop from pulling.
+struct ContactMode {
+  bool lower = false;
+  bool upper = false;
+  bool operator==(const ContactMode&) const = default;
+  bool Any() const { return lower || upper; }
+};
+
+// Drive voltage after the amplifier limit [V].
+double ClippedVoltage(const ActuatorModel& model, double voltage_v);
+
+// Contact force magnitude of one stop before the clamp [N]: k_s p^n + c_s p', with p the
+// penetration [m] (positive inside the stop) and p' its rate [m/s]. Continuous in p through p = 0
+// (a signed power for the Hertzian law), so that its zero is a clean switching surface.
+double StopForceUnclamped(const ActuatorModel& model, double penetration_m, double penetration_rate_m_per_s);
+
+// The mode a state is in, judged from the state alone (used where no mode is tracked: ode3).
+ContactMode ModeFromState(const ActuatorModel& model, double x_m, double v_m_per_s);
+
+// m_p x'' [N]: the blocked force f (paper-notes) for a given contact mode and drive voltage.
+double BlockedForce(const ActuatorModel& model, double drive_voltage_v, double x_m, double v_m_per_s,
+                    ContactMode mode);
+
+}  // namespace strokelab

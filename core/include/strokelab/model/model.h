@@ -1,0 +1,93 @@
+// The actuator model: a proof mass on a suspension, driven by a coil, stopped by end stops.
+//
+// Paper Eq. 2 in its continuous form (see shared/docs/paper-notes.md: as printed, Eq. 2 makes the
+// suspension force jump by k_p*d at contact; here the suspension keeps acting, k_p x, and the stop
+// adds k_s (x - d)), extended by composable force terms:
+//
+//   m_p x'' = g u(t) - [k_p x + k2 x^2 + k3 x^3 + c_p x'] - F_friction(x') + F_stops(x, x')
+//
+//   u(t)        drive voltage, clipped to +-amplifier_limit_v (the amplifier's limit)
+//   F_stops     each stop pushes with k_s p^n + c_s p' when the penetration p > 0, clamped at zero so
+//               that the stop only pushes (n = 1 linear, paper Eq. 2; n = 3/2 Hertzian)
+//   F_friction  F_c tanh(x' / v_s): dry friction, smoothed
+//
+// Output is the blocked force f = m_p x'' (paper-notes), the displacement x (positive away from the
+// lower stop) and the velocity x'.
+//
+// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator" (the paper in
+// shared/paper/), Table 2 for the `paper` preset.
+#pragma once
+
+#include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "strokelab/base/errors.h"
+
+namespace strokelab {
+
+enum class ContactLaw {
+  kLinear,     // F = k_s p          [k_s in N/m]      paper Eq. 2
+  kHertzian,   // F = k_s p^(3/2)    [k_s in N/m^1.5]  Hertz contact of curved bodies
+};
+
+struct ActuatorModel {
+  double mass_kg = 0.032;                       // m_p [kg]
+  double damping_n_s_per_m = 1.3;               // c_p [N s/m], includes back-EMF
+  double stiffness_n_per_m = 124.0;             // k_p [N/m]
+  double quadratic_stiffness_n_per_m2 = 0.0;    // k2 [N/m^2], asymmetric suspension
+  double cubic_stiffness_n_per_m3 = 0.0;        // k3 [N/m^3], > 0 hardening, < 0 softening
+  double gain_n_per_v = 0.3;                    // g [N/V], amplifier x coil
+  double lower_stop_m = -1e-3;                  // d [m]; -inf: no lower stop
+  double upper_stop_m = kNoUpperStop;           // [m]; +inf: no upper stop
+  double contact_stiffness = 1.3e6;             // k_s [N/m] (linear) or [N/m^1.5] (Hertzian)
+  double contact_damping_n_s_per_m = 0.0;       // c_s [N s/m]
+  ContactLaw contact_law = ContactLaw::kLinear;
+  double friction_force_n = 0.0;                // F_c [N], Coulomb level
+  double friction_velocity_m_per_s = 1e-3;      // v_s [m/s], tanh smoothing width
+  double amplifier_limit_v = kNoLimit;          // [V] on the drive before the gain; +inf: none
+
+  static constexpr double kNoLimit = std::numeric_limits<double>::infinity();
+  static constexpr double kNoUpperStop = std::numeric_limits<double>::infinity();
+  static constexpr double kNoLowerStop = -std::numeric_limits<double>::infinity();
+
+  bool HasLowerStop() const { return lower_stop_m > kNoLowerStop; }
+  bool HasUpperStop() const { return upper_stop_m < kNoUpperStop; }
+  bool HasAmplifierLimit() const { return amplifier_limit_v < kNoLimit; }
+
+  // True when every region between switching surfaces is a linear ODE with sinusoidal or constant
+  // forcing, which is what the closed-form engine needs.
+  bool IsPiecewiseLinear() const;
+  // Why the model is not piecewise linear (empty when it is).
+  std::string NonlinearTerms() const;
+};
+
+// Paper Table 2 with the one-sided stop at d = -1 mm.
+ActuatorModel PaperModel();
+
+// Named presets: "paper" (Table 2), "linear" (Table 2 without stops).
+std::vector<std::string> PresetNames();
+ActuatorModel PresetModel(std::string_view name);  // throws InputError on an unknown name
+
+// Checks physical sense; throws InputError naming the first offending field.
+void Validate(const ActuatorModel& model);
+
+// One scalar model parameter, addressable by a short key (`--set k3=4e7`) and a JSON name.
+struct ParameterInfo {
+  const char* key;        // short key, as in the paper: m_p, c_p, k_p, k2, k3, g, d, ...
+  const char* json_name;  // field name in model JSON files and job specs
+  const char* unit;
+  const char* description;
+  double ActuatorModel::*field;
+};
+const std::vector<ParameterInfo>& Parameters();
+// Finds a parameter by short key or JSON name; throws InputError listing the valid keys.
+const ParameterInfo& FindParameter(std::string_view key_or_name);
+// Applies "key=value"; throws InputError naming the key or value that is wrong.
+void ApplyOverride(ActuatorModel* model, std::string_view assignment);
+
+ContactLaw ParseContactLaw(std::string_view text);  // "linear" | "hertzian"
+const char* ToString(ContactLaw law);
+
+}  // namespace strokelab

@@ -1,0 +1,316 @@
+// The diagnosis (diagnose.h): split, base fit, signatures, candidate fits, choice.
+#include "strokelab/diagnose/diagnose.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "diagnose_internal.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/base/parallel_for.h"
+#include "strokelab/steady/steady_state.h"
+
+namespace strokelab {
+namespace {
+
+using internal::EffectContext;
+using internal::ExtendedFitOptions;
+using internal::ExtendedFitResult;
+using internal::ExtendedProblem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kAkaikePerParameter = 2.0;  // AIC: 2 per parameter on the fit records
+
+std::string Format(double value, int digits = 4) {
+  std::ostringstream out;
+  out.precision(digits);
+  out << value;
+  return out.str();
+}
+
+// Every record matched by `model` (its piecewise-linear stand-in `surrogate` finds the branch).
+std::vector<RecordMatch> MatchAll(const ActuatorModel& model, const ActuatorModel& surrogate,
+                                  std::span<const RecordAnalysis> analyses, const std::vector<bool>& heldout,
+                                  ResponseKind kind, int orders) {
+  std::vector<RecordMatch> matches(analyses.size());
+  ParallelFor(analyses.size(), [&](size_t i) {
+    const RecordAnalysis& a = analyses[i];
+    RecordMatch& m = matches[i];
+    m.name = a.name;
+    m.frequency_hz = a.drive.frequency_hz;
+    m.amplitude_v = a.drive.amplitude_v;
+    m.heldout = heldout[i];
+    m.clear = a.clear;
+    m.measured = a.harmonics;
+    m.nrmse = m.chi2 = kInf;
+    std::optional<internal::Prediction> p;
+    try {
+      p = internal::Predict(model, surrogate, a, kind, orders);
+    } catch (const std::exception&) {
+    }
+    if (!p) return;
+    m.model = p->harmonics;
+    const double mismatch = internal::MismatchSquared(a, p->harmonics);
+    m.power = internal::PowerOf(a);
+    m.nrmse = std::sqrt(mismatch / m.power);
+    m.chi2 = mismatch / (a.harmonic_se * a.harmonic_se);
+    m.model_period = p->orbit.anchor.period;
+    m.model_contacts_per_period = p->orbit.contacts_per_period;
+  });
+  return matches;
+}
+
+FitFigures Figures(const std::vector<RecordMatch>& matches, size_t parameters) {
+  FitFigures f;
+  double mismatch = 0, power = 0, mismatch_ho = 0, power_ho = 0;
+  size_t residuals = 0;
+  for (const RecordMatch& m : matches) {
+    const double p = m.power;
+    const double mis = m.nrmse * m.nrmse * p;
+    mismatch += mis;
+    power += p;
+    if (m.heldout) {
+      mismatch_ho += mis, power_ho += p;
+      f.heldout_chi2 += m.chi2;
+    } else {
+      f.chi2 += m.chi2;
+      residuals += 2 * m.measured.size();
+    }
+  }
+  f.nrmse = std::sqrt(mismatch / power);
+  f.heldout_nrmse = power_ho > 0 ? std::sqrt(mismatch_ho / power_ho) : kNaN;
+  f.residual_variance = residuals > parameters ? f.chi2 / static_cast<double>(residuals - parameters) : kNaN;
+  return f;
+}
+
+EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> analyses) {
+  EffectContext c;
+  const ActuatorModel& m = base.model;
+  c.stop_distance_m = LengthScaleM(m);
+  c.min_amplitude_v = kInf;
+  std::vector<double> penetrations;
+  for (const RecordAnalysis& a : analyses) {
+    c.min_amplitude_v = std::min(c.min_amplitude_v, a.drive.amplitude_v);
+    c.max_amplitude_v = std::max(c.max_amplitude_v, a.drive.amplitude_v);
+    try {
+      const PeriodMap map(m, a.drive.frequency_hz, a.drive.amplitude_v);
+      const SteadyState s = SolveAttractor(map, map.ClippedLinearStart());
+      c.max_displacement_m = std::max(c.max_displacement_m, s.figures.max_displacement_m);
+      if (m.HasLowerStop() && s.figures.min_displacement_m < m.lower_stop_m)
+        penetrations.push_back(m.lower_stop_m - s.figures.min_displacement_m);
+    } catch (const std::exception&) {
+    }
+  }
+  c.contacts = !penetrations.empty() || !base.contact.records.empty();
+  if (!penetrations.empty()) {
+    std::nth_element(penetrations.begin(), penetrations.begin() + penetrations.size() / 2, penetrations.end());
+    c.penetration_m = penetrations[penetrations.size() / 2];
+  } else {
+    c.penetration_m = 1e-2 * c.stop_distance_m;
+  }
+  return c;
+}
+
+std::string Label(const std::vector<Effect>& effects) {
+  std::string label;
+  for (Effect e : effects) label += (label.empty() ? "" : "+") + std::string(Info(e).id);
+  return label;
+}
+
+struct Split {
+  std::vector<bool> heldout;            // per analysis
+  std::vector<RecordAnalysis> fit;      // the fit records' analyses
+  std::vector<const RecordAnalysis*> fit_pointers;
+};
+
+// Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
+CandidateFit FitCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
+                          const EffectContext& context, const Split& split, std::span<const RecordAnalysis> analyses,
+                          ResponseKind kind, const FitFigures& base_figures, double seconds_left) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  CandidateFit c;
+  c.effects = effects;
+  c.label = Label(effects);
+  const int orders = options.fit.harmonic_orders;
+  int best_variant = 0;
+  const int variants = internal::StartVariants(effects);
+  if (variants > 1) {
+    double best = kInf;
+    for (int v = 0; v < variants; ++v) {
+      const ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, v);
+      const double chi2 = internal::Chi2At(split.fit_pointers, kind, problem,
+                                           std::vector<double>(problem.parameters.size(), 1.0), orders);
+      if (chi2 < best) best = chi2, best_variant = v;
+    }
+  }
+  const ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, best_variant);
+  ExtendedFitOptions fit_options;
+  fit_options.orders = orders;
+  fit_options.max_passes = options.max_passes;
+  fit_options.max_seconds = std::max(1.0, seconds_left);
+  ExtendedFitResult r;
+  try {
+    r = internal::FitExtended(split.fit_pointers, kind, problem, fit_options);
+  } catch (const std::exception& e) {
+    c.note = std::string("fit failed: ") + e.what();
+    return c;
+  }
+  c.fitted = true;
+  c.converged = r.converged;
+  c.passes = r.passes;
+  if (!r.converged) c.note = r.report;
+  c.model = r.model;
+  c.parameters = r.parameters;
+  c.effect_parameters = internal::EffectParameters(effects, r.parameters);
+  const std::vector<RecordMatch> matches =
+      MatchAll(r.model, problem.Surrogate(r.model), analyses, split.heldout, kind, orders);
+  c.figures = Figures(matches, problem.parameters.size());
+  const double variance = std::max(1.0, c.figures.residual_variance);
+  c.heldout_gain = (base_figures.heldout_chi2 - c.figures.heldout_chi2) / variance;
+  c.fit_gain = (base_figures.chi2 - c.figures.chi2) / variance;
+  c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return c;
+}
+
+bool BeatsNoise(const CandidateFit& c, size_t extra_parameters, double min_heldout_gain) {
+  return c.fitted && std::isfinite(c.heldout_gain) && c.heldout_gain > min_heldout_gain &&
+         c.fit_gain > kAkaikePerParameter * static_cast<double>(extra_parameters);
+}
+
+}  // namespace
+
+bool DiagnoseOptions::IsValid(std::string* error) const {
+  std::string message;
+  if (!fit.IsValid(&message)) {
+  } else if (heldout_every < 2) {
+    message = "heldout_every: must be >= 2, got " + std::to_string(heldout_every);
+  } else if (!std::isfinite(min_heldout_gain) || min_heldout_gain < 0) {
+    message = "min_heldout_gain: must be a finite number >= 0";
+  } else if (max_passes < 1) {
+    message = "max_passes: must be >= 1, got " + std::to_string(max_passes);
+  } else if (!(max_seconds > 0)) {
+    message = "max_seconds: must be > 0";
+  }
+  if (!message.empty() && error != nullptr) *error = message;
+  return message.empty();
+}
+
+Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) {
+    const size_t colon = error.find(": ");
+    throw InputError(error.substr(0, colon), error.substr(colon + 2));
+  }
+  const auto clock_start = std::chrono::steady_clock::now();
+  auto seconds_left = [&] {
+    return options.max_seconds -
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  };
+  const ResponseKind kind = campaign.response;
+  const int orders = options.fit.harmonic_orders;
+  auto progress = [&](const std::string& stage) {
+    if (options.progress) options.progress(Format(options.max_seconds - seconds_left(), 3) + " s: " + stage);
+  };
+  Diagnosis d;
+  std::vector<std::string> warnings;
+  progress("analysing " + std::to_string(campaign.records.size()) + " records");
+  const std::vector<RecordAnalysis> analyses = AnalyseCampaign(campaign, options.fit, &warnings);
+
+  // 1. The split: every n-th record held out, the last of each block of n.
+  Split split;
+  split.heldout.assign(analyses.size(), false);
+  for (size_t i = 0; i < analyses.size(); ++i) {
+    if (i % options.heldout_every == static_cast<size_t>(options.heldout_every - 1)) {
+      split.heldout[i] = true;
+      d.heldout.push_back(i);
+    } else {
+      split.fit.push_back(analyses[i]);
+    }
+  }
+  for (const RecordAnalysis& a : split.fit) split.fit_pointers.push_back(&a);
+  if (d.heldout.empty()) throw InputError("records", "too few records to hold any out (heldout_every " +
+                                                         std::to_string(options.heldout_every) + ")");
+
+  // 2. The base fit on the fit records, evaluated on all.
+  progress("base fit on " + std::to_string(split.fit.size()) + " records, " + std::to_string(d.heldout.size()) +
+           " held out");
+  d.base = FitAnalysed(split.fit, kind, campaign.absolute_scale, options.fit);
+  d.base.warnings.insert(d.base.warnings.begin(), warnings.begin(), warnings.end());
+  const EffectContext context = Context(d.base, split.fit);
+  const ExtendedProblem base_problem = internal::BuildProblem(d.base.model, options.fit.model, {}, context, 0);
+  d.before = MatchAll(d.base.model, d.base.model, analyses, split.heldout, kind, orders);
+  d.fit_before = Figures(d.before, base_problem.parameters.size());
+
+  // 3. Signatures.
+  d.signatures = internal::MeasureSignatures(campaign, analyses, d.before, d.base.model, kind, options.fit);
+
+  // 4. Single effects, then the best pair.
+  for (const EffectInfo& info : EffectLibrary()) {
+    if (!internal::Applicable(info.effect, options.fit.model, context)) continue;
+    if (seconds_left() <= 0) {
+      CandidateFit skipped;
+      skipped.effects = {info.effect};
+      skipped.label = info.id;
+      skipped.note = "skipped: the diagnosis's time limit of " + Format(options.max_seconds) + " s was reached";
+      d.candidates.push_back(skipped);
+      continue;
+    }
+    progress("candidate " + std::string(info.id));
+    d.candidates.push_back(FitCandidate({info.effect}, d.base.model, options, context, split, analyses, kind,
+                                        d.fit_before, seconds_left()));
+  }
+  auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
+    const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
+    return ga > gb;
+  };
+  std::stable_sort(d.candidates.begin(), d.candidates.end(), by_gain);
+  std::vector<size_t> accepted;
+  for (size_t i = 0; i < d.candidates.size(); ++i) {
+    const size_t extra = d.candidates[i].effect_parameters.size();
+    if (BeatsNoise(d.candidates[i], std::max<size_t>(1, extra), options.min_heldout_gain)) accepted.push_back(i);
+  }
+  if (!accepted.empty()) d.chosen = static_cast<int>(accepted[0]);
+  if (options.pairs && accepted.size() >= 2 && seconds_left() > 0) {
+    const CandidateFit& first = d.candidates[accepted[0]];
+    const CandidateFit& second = d.candidates[accepted[1]];
+    progress("pair " + first.label + "+" + second.label);
+    CandidateFit pair = FitCandidate({first.effects[0], second.effects[0]}, first.model, options, context, split,
+                                     analyses, kind, d.fit_before, seconds_left());
+    // The pair must beat the best single as the single beat the base.
+    const double variance = std::max(1.0, pair.figures.residual_variance);
+    const double gain_over_first = (first.figures.heldout_chi2 - pair.figures.heldout_chi2) / variance;
+    const double fit_gain_over_first = (first.figures.chi2 - pair.figures.chi2) / variance;
+    const bool better = pair.fitted && gain_over_first > options.min_heldout_gain &&
+                        fit_gain_over_first > kAkaikePerParameter;
+    pair.note += (pair.note.empty() ? "" : "; ") + std::string("held-out gain over ") + first.label + ": " +
+                 Format(gain_over_first);
+    d.candidates.push_back(pair);
+    if (better) d.chosen = static_cast<int>(d.candidates.size() - 1);
+  }
+
+  // 5. The answer.
+  if (d.chosen >= 0) {
+    const CandidateFit& c = d.candidates[d.chosen];
+    d.missing_physics = c.effects;
+    const ExtendedProblem problem = internal::BuildProblem(c.model, options.fit.model, c.effects, context, 0);
+    d.after = MatchAll(c.model, problem.Surrogate(c.model), analyses, split.heldout, kind, orders);
+    d.fit_after = c.figures;
+    std::ostringstream text;
+    text << "missing physics: " << c.label << " (held-out chi-square down by " << Format(c.heldout_gain)
+         << " residual variances; normalised RMS error " << Format(d.fit_before.nrmse) << " -> "
+         << Format(d.fit_after.nrmse) << ", held out " << Format(d.fit_before.heldout_nrmse) << " -> "
+         << Format(d.fit_after.heldout_nrmse) << ")";
+    d.conclusion = text.str();
+  } else {
+    d.after = d.before;
+    d.fit_after = d.fit_before;
+    d.conclusion = "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
+                   Format(options.min_heldout_gain) + " residual variances";
+  }
+  d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return d;
+}
+
+}  // namespace strokelab

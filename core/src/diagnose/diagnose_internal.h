@@ -1,0 +1,41 @@
+// The diagnosis's parts (diagnose.h), shared by diagnose.cc, effects.cc, diagnose_signatures.cc.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "strokelab/identify/extended_fit.h"
+#include "strokelab/identify/campaign.h"
+#include "strokelab/diagnose/diagnose.h"
+
+namespace strokelab::internal {
+
+// What the base fit tells about the campaign's scales, for the effects' start values.
+struct EffectContext {
+  double stop_distance_m = 1e-3;  // |d| (or the model's length scale without a stop)
+  double max_displacement_m = 0;  // largest x of the base model's orbits over the fit records
+  double penetration_m = 0;       // typical (median) stop penetration of the contacting orbits
+  double min_amplitude_v = 0, max_amplitude_v = 0;  // drive amplitudes of the campaign
+  bool contacts = false;          // some record reaches the stop
+};
+
+// The refinement problem of the base parameters (from `start`) extended by `effects`. Effect
+// parameters that `start` already carries (a pair built on a fitted single) start from its values.
+// `variant` picks one of the effect's start values (0 .. StartVariants - 1) for effects whose
+// response is flat at some starts (a stop or a clipping level out of reach).
+ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std::span<const Effect> effects,
+                             const EffectContext& context, int variant);
+int StartVariants(std::span<const Effect> effects);
+
+// Whether the effect can show in this campaign at all (contact effects need contacts and a stop).
+bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context);
+
+// The effect's own parameters among the fitted ones.
+std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all);
+
+// Evidence from the base model's matches (before) and the records.
+Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAnalysis> analyses,
+                             const std::vector<RecordMatch>& before, const ActuatorModel& base, ResponseKind kind,
+                             const FitOptions& options);
+
+}  // namespace strokelab::internal

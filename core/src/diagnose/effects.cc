@@ -1,0 +1,217 @@
+// The library of candidate effects (diagnose.h) and the refinement problems they make.
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "diagnose_internal.h"
+#include "strokelab/base/errors.h"
+
+namespace strokelab {
+
+const std::vector<EffectInfo>& EffectLibrary() {
+  static const std::vector<EffectInfo> library = {
+      {Effect::kCubicStiffness, "cubic_stiffness", "k3",
+       "odd harmonics (mostly the 3rd) in records clear of the stop, growing with the displacement "
+       "amplitude, and a resonance that moves with amplitude (up: hardening, down: softening): a "
+       "restoring force k3 x^3 stiffens or softens the suspension as the stroke grows"},
+      {Effect::kQuadraticStiffness, "quadratic_stiffness", "k2",
+       "even harmonics (mostly the 2nd) and a DC shift in records clear of the stop: k2 x^2 pushes the "
+       "same way on both half-strokes, so the response is no longer symmetric"},
+      {Effect::kHertzianContact, "hertzian_contact", "k_s",
+       "contact times that shorten as impacts get harder (k_s p^(3/2): the stop stiffens with "
+       "penetration, dT ~ v^(-1/5)); a linear stop gives one contact time at every amplitude (paper Eq. 5)"},
+      {Effect::kContactDamping, "contact_damping", "c_s",
+       "mismatch concentrated in the time windows around impacts and in the high harmonics of contacting "
+       "records, weaker rebounds (restitution below one) and skewed spikes: c_s p' dissipates while in contact"},
+      {Effect::kSecondStop, "second_stop", "d_upper",
+       "impact spikes of the opposite sign at the largest strokes, and a mismatch only in the records "
+       "whose other half-stroke is long: the mass reaches a stop on the other side"},
+      {Effect::kDryFriction, "dry_friction", "friction_n",
+       "extra damping and odd harmonics that are largest, relative to the response, at the smallest "
+       "amplitudes: a Coulomb force F_c tanh(x' / v_s) does not grow with the stroke"},
+      {Effect::kAmplifierSaturation, "amplifier_saturation", "amplifier_limit_v",
+       "odd harmonics and a first harmonic that falls short in proportion at the largest drive amplitudes "
+       "at every frequency, clear of the stop or not: the drive is clipped before the coil (the voltage "
+       "channel, measured before the amplifier, stays sinusoidal)"},
+  };
+  return library;
+}
+
+const EffectInfo& Info(Effect effect) {
+  for (const EffectInfo& info : EffectLibrary())
+    if (info.effect == effect) return info;
+  throw InputError("effect", "unknown effect");
+}
+
+Effect ParseEffect(std::string_view id) {
+  std::string known;
+  for (const EffectInfo& info : EffectLibrary()) {
+    if (id == info.id) return info.effect;
+    known += (known.empty() ? "" : ", ") + std::string(info.id);
+  }
+  throw InputError("effect", "unknown effect '" + std::string(id) + "' (known: " + known + ")");
+}
+
+namespace internal {
+namespace {
+
+constexpr double kBaseRange = 2.0;      // base parameters: theta within a factor 2 of the base fit
+constexpr double kContactRange = 30.0;  // contact stiffness and damping: a factor 30
+// Start values of the effects whose response is flat where they do not act, as fractions of the
+// campaign's scale (largest stroke, largest drive): the best of them (by chi-square) starts the fit.
+constexpr double kStopStarts[] = {0.95, 0.85, 0.75, 0.65};
+constexpr double kClipStarts[] = {0.95, 0.85, 0.75, 0.6};
+
+FreeParameter LogParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
+                           double range, bool smooth = false) {
+  FreeParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.field = field;
+  p.log_scale = true;
+  p.start = start;
+  p.theta_min = 1.0 - std::log(range);
+  p.theta_max = 1.0 + std::log(range);
+  p.smooth = smooth;
+  return p;
+}
+
+// value = start + scale (theta - 1), theta in [1 + low, 1 + high].
+FreeParameter LinearParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
+                              double scale, double low, double high) {
+  FreeParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.field = field;
+  p.log_scale = false;
+  p.start = start;
+  p.scale = scale;
+  p.theta_min = 1.0 + low;
+  p.theta_max = 1.0 + high;
+  p.smooth = true;
+  p.max_step = 1.0;
+  return p;
+}
+
+bool Has(std::span<const Effect> effects, Effect e) { return std::find(effects.begin(), effects.end(), e) != effects.end(); }
+
+}  // namespace
+
+int StartVariants(std::span<const Effect> effects) {
+  int variants = 1;
+  for (Effect e : effects) {
+    if (e == Effect::kSecondStop) variants = std::max<int>(variants, std::size(kStopStarts));
+    if (e == Effect::kAmplifierSaturation) variants = std::max<int>(variants, std::size(kClipStarts));
+  }
+  return variants;
+}
+
+bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context) {
+  switch (effect) {
+    case Effect::kHertzianContact:
+    case Effect::kContactDamping:
+    case Effect::kSecondStop:
+      return kind == FitModelKind::kPaper && context.contacts;
+    default:
+      return true;
+  }
+}
+
+ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std::span<const Effect> effects,
+                             const EffectContext& context, int variant) {
+  ExtendedProblem problem;
+  problem.base = start;
+  std::vector<FreeParameter>& p = problem.parameters;
+  const double k = start.stiffness_n_per_m, d = context.stop_distance_m;
+  p.push_back(LogParameter("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, k, kBaseRange));
+  p.push_back(LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, start.damping_n_s_per_m, kBaseRange));
+  p.push_back(LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, start.gain_n_per_v, kBaseRange));
+  const bool stop = kind == FitModelKind::kPaper && (start.HasLowerStop() || start.HasUpperStop());
+  if (stop) {
+    if (start.HasLowerStop())
+      p.push_back(LogParameter("d", "m", &ActuatorModel::lower_stop_m, start.lower_stop_m, kBaseRange));
+    const bool hertz = Has(effects, Effect::kHertzianContact);
+    if (hertz) {
+      // Hertzian k_s [N/m^1.5] with the linear stop's force at the typical penetration p:
+      // k_s,H p^(3/2) = k_s p.
+      problem.base.contact_law = ContactLaw::kHertzian;
+      problem.surrogate_contact_stiffness = start.contact_law == ContactLaw::kLinear ? start.contact_stiffness
+                                                                                     : start.contact_stiffness * std::sqrt(context.penetration_m);
+      const double hertz_start = start.contact_law == ContactLaw::kHertzian
+                                     ? start.contact_stiffness
+                                     : start.contact_stiffness / std::sqrt(std::max(context.penetration_m, 1e-9));
+      FreeParameter hertz_ks = LogParameter("k_s", "N/m^1.5", &ActuatorModel::contact_stiffness, hertz_start, kContactRange, true);
+      hertz_ks.max_step = 0.5;  // a factor 1.6 per pass
+      p.push_back(hertz_ks);
+    } else if (!Has(effects, Effect::kCubicStiffness) && !Has(effects, Effect::kQuadraticStiffness) &&
+               !Has(effects, Effect::kDryFriction)) {
+      p.push_back(LogParameter("k_s", "N/m", &ActuatorModel::contact_stiffness, start.contact_stiffness, kContactRange));
+    }
+    // With a smooth suspension term k_s stays at the base fit's value: the impacts' contact times fix
+    // it, the term does not act in contact, and left free it drifts between the defect-correction
+    // passes (their Jacobian is the surrogate's), which slows them several times.
+    if (start.contact_damping_n_s_per_m > 0 || Has(effects, Effect::kContactDamping)) {
+      // Linear in c_s from 2 % of the contact's critical damping 2 sqrt(k_s m_p), down to 0 (no
+      // damping is the null a log scale could not reach), up to 3 times critical.
+      const double critical = 2.0 * std::sqrt(problem.surrogate_contact_stiffness > 0 ? problem.surrogate_contact_stiffness
+                                                                                      : start.contact_stiffness) *
+                              std::sqrt(start.mass_kg);
+      const double c0 = start.contact_damping_n_s_per_m > 0 ? start.contact_damping_n_s_per_m : 0.02 * critical;
+      const double scale = 0.1 * critical;
+      FreeParameter cs = LinearParameter("c_s", "N s/m", &ActuatorModel::contact_damping_n_s_per_m, c0, scale,
+                                         -c0 / scale, (3.0 * critical - c0) / scale);
+      cs.smooth = false;  // piecewise linear
+      p.push_back(cs);
+    }
+  }
+  for (Effect e : effects) {
+    switch (e) {
+      case Effect::kCubicStiffness:
+        // Scale: a tenth of the k3 whose force at |d| equals the suspension's, k3 d^3 = k_p d.
+        p.push_back(LinearParameter("k3", "N/m^3", &ActuatorModel::cubic_stiffness_n_per_m3,
+                                    start.cubic_stiffness_n_per_m3, 0.1 * k / (d * d), -10.0, 10.0));
+        break;
+      case Effect::kQuadraticStiffness:
+        // Scale: a tenth of the k2 whose force at |d| equals the suspension's.
+        p.push_back(LinearParameter("k2", "N/m^2", &ActuatorModel::quadratic_stiffness_n_per_m2,
+                                    start.quadratic_stiffness_n_per_m2, 0.1 * k / d, -10.0, 10.0));
+        break;
+      case Effect::kDryFriction: {
+        // Scale: 10 % of the smallest drive force; F_c >= 0.
+        const double scale = 0.1 * std::abs(start.gain_n_per_v) * context.min_amplitude_v;
+        const double f0 = start.friction_force_n;
+        p.push_back(LinearParameter("friction_n", "N", &ActuatorModel::friction_force_n, f0, scale, -f0 / scale, 20.0));
+        break;
+      }
+      case Effect::kSecondStop: {
+        const double u0 = start.HasUpperStop() ? start.upper_stop_m
+                                               : kStopStarts[variant % std::size(kStopStarts)] * context.max_displacement_m;
+        p.push_back(LogParameter("d_upper", "m", &ActuatorModel::upper_stop_m, u0, kBaseRange));
+        break;
+      }
+      case Effect::kAmplifierSaturation: {
+        const double v0 = start.HasAmplifierLimit() ? start.amplifier_limit_v
+                                                    : kClipStarts[variant % std::size(kClipStarts)] * context.max_amplitude_v;
+        p.push_back(LogParameter("amplifier_limit_v", "V", &ActuatorModel::amplifier_limit_v, v0, kBaseRange));
+        break;
+      }
+      case Effect::kHertzianContact:
+      case Effect::kContactDamping:
+        break;  // above, with the stop's parameters
+    }
+  }
+  return problem;
+}
+
+std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all) {
+  std::vector<FitParameter> out;
+  for (Effect e : effects) {
+    const std::string key = Info(e).parameter;
+    for (const FitParameter& p : all)
+      if (p.name == key) out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace internal
+}  // namespace strokelab

@@ -1,0 +1,213 @@
+// The fit's model side (fit_orbit.h): steady states at a record's drive and their harmonics.
+#include "strokelab/identify/fit_orbit.h"
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numbers>
+
+#include "strokelab/signal/harmonic_fit.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/engines/pwl_system.h"
+#include "strokelab/steady/steady_state.h"
+
+namespace strokelab::internal {
+namespace {
+
+using Complex = std::complex<double>;
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr int kSettlePeriods = 64;     // plain periods when Newton fails inside the cost function
+constexpr int kAperiodicPeriods = 16;  // periods over which an aperiodic response is averaged
+
+}  // namespace
+
+Complex ResponseHarmonic(Complex x_h, int h, double omega, ResponseKind kind, double mass_kg) {
+  const double w = h * omega;
+  switch (kind) {
+    case ResponseKind::kForce:
+      return -mass_kg * w * w * x_h;  // f = m_p x'' (paper-notes)
+    case ResponseKind::kAcceleration:
+      return -w * w * x_h;
+    case ResponseKind::kVelocity:
+      return Complex(0.0, w) * x_h;
+    case ResponseKind::kDisplacement:
+      return x_h;
+  }
+  return x_h;
+}
+
+// The steady state of `model` at the record's drive, from `anchor`.
+std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAnalysis& record, const Anchor& anchor,
+                                     ResponseKind kind, int orders, OrbitSearch search) {
+  const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
+  std::optional<SteadyState> s;
+  if (search == OrbitSearch::kSettled) {
+    s = SettledAttractor(map, anchor.start);
+    if (!s) return std::nullopt;
+  } else if (anchor.period > 0) {
+    s = Shoot(map, anchor.start, anchor.period);
+  }
+  if (search == OrbitSearch::kAttractor && (!s || !s->stable)) s = SolveAttractor(map, s ? s->start : anchor.start);
+  if (!s) {
+    State y = anchor.start;
+    for (int i = 0; i < kSettlePeriods; ++i) y = map.Apply(y);
+    s.emplace();
+    s->start = y;
+    s->period = anchor.period;
+    s->stable = false;
+    s->figures = map.Trace(y, std::max(anchor.period, 1));
+  }
+  const int periods = s->period > 0 ? s->period : kAperiodicPeriods;
+  const std::vector<Complex> x = OrbitHarmonics(map, s->start, periods, orders);
+  ModelOrbit orbit;
+  orbit.anchor = Anchor{s->start, s->period};
+  orbit.stable = s->stable;
+  orbit.contacts_per_period = s->ContactsPerPeriod();
+  const double omega = kTwoPi * record.drive.frequency_hz;
+  orbit.harmonics.resize(orders);
+  for (int h = 1; h <= orders; ++h) {
+    orbit.harmonics[h - 1] = ResponseHarmonic(x[h - 1], h, omega, kind, model.mass_kg);
+    if (!std::isfinite(orbit.harmonics[h - 1].real()) || !std::isfinite(orbit.harmonics[h - 1].imag()))
+      return std::nullopt;
+  }
+  return orbit;
+}
+
+double MismatchSquared(const RecordAnalysis& record, const std::vector<Complex>& model) {
+  double sum = 0.0;
+  for (size_t h = 0; h < record.harmonics.size(); ++h)
+    if (record.usable.empty() || record.usable[h]) sum += std::norm(record.harmonics[h] - model[h]);
+  return sum;
+}
+
+double PowerOf(const RecordAnalysis& record) {
+  double sum = 0.0;
+  for (size_t h = 0; h < record.harmonics.size(); ++h)
+    if (record.usable.empty() || record.usable[h]) sum += std::norm(record.harmonics[h]);
+  return sum;
+}
+
+std::vector<Complex> SampledOrbitHarmonics(const ActuatorModel& model, const RecordAnalysis& record,
+                                           const Anchor& anchor, ResponseKind kind, int orders) {
+  const double f = record.drive.frequency_hz;
+  const int periods = anchor.period > 0 ? anchor.period : kAperiodicPeriods;
+  const PeriodMap map(model, f, record.drive.amplitude_v);
+  const std::vector<Complex> x = strokelab::SampledOrbitHarmonics(map, anchor.start, periods, orders);
+  std::vector<Complex> out(orders);
+  for (int h = 1; h <= orders; ++h) out[h - 1] = ResponseHarmonic(x[h - 1], h, kTwoPi * f, kind, model.mass_kg);
+  return out;
+}
+
+void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind, int orders,
+                Anchor* anchor) {
+  try {
+    if (std::optional<ModelOrbit> orbit = SolveOrbit(model, record, *anchor, kind, orders, OrbitSearch::kAttractor))
+      *anchor = orbit->anchor;
+  } catch (const std::exception&) {
+    // keep the old anchor
+  }
+}
+
+std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind,
+                                            int orders) {
+  const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
+  const State linear = map.ClippedLinearStart();
+  std::optional<ModelOrbit> best;
+  double best_mismatch = std::numeric_limits<double>::infinity();
+  std::vector<State> starts = {linear, State{0.0, 0.0}, State{0.5 * linear.x_m, 0.5 * linear.v_m_per_s}};
+  // At a stop, moving into it at the linear response's peak speed: the contacting branch of a
+  // bistable record, which none of the starts above may reach (the record may have got there by a
+  // transient the model's start does not repeat).
+  const double omega = 2.0 * std::numbers::pi * record.drive.frequency_hz;
+  const double speed = std::hypot(omega * linear.x_m, linear.v_m_per_s);
+  if (model.HasLowerStop()) starts.push_back(State{model.lower_stop_m, -speed});
+  if (model.HasUpperStop()) starts.push_back(State{model.upper_stop_m, speed});
+  for (const State start : starts) {
+    for (const OrbitSearch search : {OrbitSearch::kAttractor, OrbitSearch::kSettled}) {
+      std::optional<ModelOrbit> orbit;
+      try {
+        orbit = SolveOrbit(model, record, Anchor{start, 0}, kind, orders, search);
+      } catch (const NumericalError&) {
+        continue;
+      }
+      if (!orbit) continue;
+      const double mismatch = MismatchSquared(record, orbit->harmonics);
+      if (mismatch < best_mismatch) best = std::move(orbit), best_mismatch = mismatch;
+    }
+  }
+  return best;
+}
+
+// What the record's sampling and least-squares fit make of the model's response, less the orbit's
+// continuous-time harmonics. The impacts have harmonics far above N and up to the sample rate; on the
+// record's grid (a period is not a whole number of samples) they alias and leak into C_1..C_N by a
+// few 1e-5 of the spike's harmonics, which is comparable with the noise's standard error and would
+// bias the fit by several standard errors. The model's orbit is sampled on the record's own grid
+// (the exact engine from the orbit's state at drive phase phi) and analysed as the record was. Zero
+// for orbits of period other than 1 (which of their periods the record starts in is unknown) and for
+// models that are not piecewise linear.
+std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
+                                      ResponseKind kind) {
+  if (orbit.anchor.period != 1) return {};
+  const double f = a.drive.frequency_hz, period_s = 1.0 / f;
+  double phase_time_s = a.drive.phase_rad / (kTwoPi * f);  // model time at which the drive phase is phi
+  if (phase_time_s < 0) phase_time_s += period_s;
+  // The orbit's state at drive phase phi: the record's first sample.
+  State y = orbit.anchor.start;
+  if (model.IsPiecewiseLinear()) {
+    const PiecewiseLinearSystem system(model, SineDrive{a.drive.amplitude_v, f, 0.0});
+    double t = 0.0;
+    PwlMode mode = system.InitialMode(0.0, y);
+    system.Advance(&t, &y, &mode, phase_time_s, [](const SwitchEvent&) {});
+  } else if (phase_time_s > 0) {
+    SimulationOptions to_phase;
+    to_phase.duration_s = phase_time_s;
+    to_phase.sample_rate_hz = 1.0 / phase_time_s;
+    to_phase.initial = y;
+    to_phase.record_velocity = false;
+    y = MakeCvodeEngine()->Simulate(model, SineDrive{a.drive.amplitude_v, f, 0.0}, to_phase).final_state;
+  }
+  SimulationOptions sim;
+  sim.duration_s = static_cast<double>(a.window.end) / a.sample_rate_hz;
+  sim.sample_rate_hz = a.sample_rate_hz;
+  sim.initial = y;
+  sim.record_velocity = kind == ResponseKind::kVelocity;
+  const std::unique_ptr<Engine> engine = model.IsPiecewiseLinear() ? MakeExactEngine() : MakeCvodeEngine();
+  const Record r = engine->Simulate(model, SineDrive{a.drive.amplitude_v, f, a.drive.phase_rad}, sim);
+  std::vector<double> signal;
+  switch (kind) {
+    case ResponseKind::kForce:
+      signal = r.force_n;
+      break;
+    case ResponseKind::kAcceleration:
+      signal = r.force_n;
+      for (double& v : signal) v /= model.mass_kg;
+      break;
+    case ResponseKind::kVelocity:
+      signal = r.velocity_m_per_s;
+      break;
+    case ResponseKind::kDisplacement:
+      signal = r.displacement_m;
+      break;
+  }
+  return signal;
+}
+
+// The impacts have harmonics far above N and up to the sample rate; on the record's grid (a period is
+// not a whole number of samples) they alias and leak into C_1..C_N by a few 1e-5 of the spike's
+// harmonics, which is comparable with the noise's standard error and would bias the fit by several
+// standard errors. The model's orbit is sampled on the record's own grid (the exact engine from the
+// orbit's state at drive phase phi) and analysed as the record was.
+std::vector<Complex> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
+                                        ResponseKind kind, int orders) {
+  std::vector<Complex> correction(orders, 0.0);
+  if (orbit.anchor.period != 1 || !model.IsPiecewiseLinear()) return correction;
+  const std::vector<double> signal = OrbitOnRecordGrid(model, a, orbit, kind);
+  const double f = a.drive.frequency_hz;
+  const HarmonicFit fit = FitHarmonics(signal, a.sample_rate_hz, f, a.window, orders);
+  for (int h = 1; h <= orders; ++h)
+    correction[h - 1] = fit.amplitudes[h - 1] * std::polar(1.0, -h * a.drive.phase_rad) - orbit.harmonics[h - 1];
+  return correction;
+}
+
+}  // namespace strokelab::internal

@@ -1,0 +1,154 @@
+#include "strokelab/model/model.h"
+
+#include "strokelab/base/parse.h"
+
+#include <charconv>
+#include <cmath>
+#include <sstream>
+
+namespace strokelab {
+namespace {
+
+std::string FormatDouble(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
+void RequireFinite(double value, const char* field) {
+  if (!std::isfinite(value)) throw InputError(field, "must be a finite number, got " + FormatDouble(value));
+}
+
+void RequirePositive(double value, const char* field) {
+  RequireFinite(value, field);
+  if (value <= 0) throw InputError(field, "must be > 0, got " + FormatDouble(value));
+}
+
+void RequireNonNegative(double value, const char* field) {
+  RequireFinite(value, field);
+  if (value < 0) throw InputError(field, "must be >= 0, got " + FormatDouble(value));
+}
+
+}  // namespace
+
+bool ActuatorModel::IsPiecewiseLinear() const { return NonlinearTerms().empty(); }
+
+std::string ActuatorModel::NonlinearTerms() const {
+  std::string terms;
+  auto add = [&](const char* term) { terms += terms.empty() ? term : std::string(", ") + term; };
+  if (quadratic_stiffness_n_per_m2 != 0) add("k2 (quadratic stiffness)");
+  if (cubic_stiffness_n_per_m3 != 0) add("k3 (cubic stiffness)");
+  if (contact_law == ContactLaw::kHertzian && (HasLowerStop() || HasUpperStop())) add("Hertzian contact");
+  if (friction_force_n != 0) add("friction_n (dry friction)");
+  return terms;
+}
+
+ActuatorModel PaperModel() { return ActuatorModel{}; }
+
+std::vector<std::string> PresetNames() { return {"paper", "linear"}; }
+
+ActuatorModel PresetModel(std::string_view name) {
+  if (name == "paper") return PaperModel();
+  if (name == "linear") {
+    ActuatorModel model = PaperModel();
+    model.lower_stop_m = ActuatorModel::kNoLowerStop;
+    return model;
+  }
+  throw InputError("model", "unknown model preset '" + std::string(name) + "' (known: paper, linear)");
+}
+
+void Validate(const ActuatorModel& m) {
+  RequirePositive(m.mass_kg, "m_p");
+  RequireNonNegative(m.damping_n_s_per_m, "c_p");
+  RequirePositive(m.stiffness_n_per_m, "k_p");
+  RequireFinite(m.quadratic_stiffness_n_per_m2, "k2");
+  RequireFinite(m.cubic_stiffness_n_per_m3, "k3");
+  RequireFinite(m.gain_n_per_v, "g");
+  if (std::isnan(m.lower_stop_m) || m.lower_stop_m == ActuatorModel::kNoLimit)
+    throw InputError("d", "must be a finite position <= 0 or -inf (no stop), got " + FormatDouble(m.lower_stop_m));
+  if (m.lower_stop_m > 0)
+    throw InputError("d", "the lower stop must lie at or below the rest position (<= 0), got " +
+                              FormatDouble(m.lower_stop_m));
+  if (std::isnan(m.upper_stop_m) || m.upper_stop_m == ActuatorModel::kNoLowerStop)
+    throw InputError("d_upper", "must be a finite position >= 0 or +inf (no stop), got " + FormatDouble(m.upper_stop_m));
+  if (m.upper_stop_m < 0)
+    throw InputError("d_upper", "the upper stop must lie at or above the rest position (>= 0), got " +
+                                    FormatDouble(m.upper_stop_m));
+  if (m.HasLowerStop() && m.HasUpperStop() && m.upper_stop_m <= m.lower_stop_m)
+    throw InputError("d_upper", "must lie above the lower stop d");
+  if (m.HasLowerStop() || m.HasUpperStop()) RequirePositive(m.contact_stiffness, "k_s");
+  RequireNonNegative(m.contact_damping_n_s_per_m, "c_s");
+  RequireNonNegative(m.friction_force_n, "friction_n");
+  RequirePositive(m.friction_velocity_m_per_s, "friction_velocity");
+  if (std::isnan(m.amplifier_limit_v) || m.amplifier_limit_v <= 0)
+    throw InputError("amplifier_limit_v", "must be > 0 or +inf (no limit), got " + FormatDouble(m.amplifier_limit_v));
+}
+
+const std::vector<ParameterInfo>& Parameters() {
+  static const std::vector<ParameterInfo> table = {
+      {"m_p", "mass_kg", "kg", "proof mass", &ActuatorModel::mass_kg},
+      {"c_p", "damping_n_s_per_m", "N s/m", "suspension damping (with back-EMF)", &ActuatorModel::damping_n_s_per_m},
+      {"k_p", "stiffness_n_per_m", "N/m", "suspension stiffness", &ActuatorModel::stiffness_n_per_m},
+      {"k2", "quadratic_stiffness_n_per_m2", "N/m^2", "quadratic (asymmetric) suspension stiffness",
+       &ActuatorModel::quadratic_stiffness_n_per_m2},
+      {"k3", "cubic_stiffness_n_per_m3", "N/m^3", "cubic suspension stiffness (>0 hardening)",
+       &ActuatorModel::cubic_stiffness_n_per_m3},
+      {"g", "gain_n_per_v", "N/V", "force per drive volt (amplifier x coil)", &ActuatorModel::gain_n_per_v},
+      {"d", "lower_stop_m", "m", "lower end stop position (-inf: none)", &ActuatorModel::lower_stop_m},
+      {"d_upper", "upper_stop_m", "m", "upper end stop position (+inf: none)", &ActuatorModel::upper_stop_m},
+      {"k_s", "contact_stiffness", "N/m or N/m^1.5", "end-stop contact stiffness", &ActuatorModel::contact_stiffness},
+      {"c_s", "contact_damping_n_s_per_m", "N s/m", "end-stop contact damping (only pushes)",
+       &ActuatorModel::contact_damping_n_s_per_m},
+      {"friction_n", "friction_force_n", "N", "dry friction level", &ActuatorModel::friction_force_n},
+      {"friction_velocity", "friction_velocity_m_per_s", "m/s", "friction smoothing velocity",
+       &ActuatorModel::friction_velocity_m_per_s},
+      {"amplifier_limit_v", "amplifier_limit_v", "V", "drive clipping level (+inf: none)",
+       &ActuatorModel::amplifier_limit_v},
+  };
+  return table;
+}
+
+const ParameterInfo& FindParameter(std::string_view key) {
+  for (const ParameterInfo& info : Parameters())
+    if (key == info.key || key == info.json_name) return info;
+  std::string known;
+  for (const ParameterInfo& info : Parameters()) known += std::string(known.empty() ? "" : ", ") + info.key;
+  throw InputError(std::string(key), "unknown model parameter (known: " + known + ", contact_law)");
+}
+
+double ParseNumber(std::string_view text, const std::string& field) {
+  std::string s(text);
+  if (s == "inf" || s == "+inf") return std::numeric_limits<double>::infinity();
+  if (s == "-inf") return -std::numeric_limits<double>::infinity();
+  double value = 0;
+  const char* end = s.data() + s.size();
+  auto [ptr, ec] = std::from_chars(s.data(), end, value);
+  if (ec != std::errc() || ptr != end || s.empty())
+    throw InputError(field, "expected a number, got '" + s + "'");
+  if (std::isnan(value)) throw InputError(field, "must not be NaN");
+  return value;
+}
+
+void ApplyOverride(ActuatorModel* model, std::string_view assignment) {
+  const size_t eq = assignment.find('=');
+  if (eq == std::string_view::npos)
+    throw InputError("--set", "expected key=value, got '" + std::string(assignment) + "'");
+  const std::string_view key = assignment.substr(0, eq);
+  const std::string_view value = assignment.substr(eq + 1);
+  if (key == "contact_law") {
+    model->contact_law = ParseContactLaw(value);
+    return;
+  }
+  const ParameterInfo& info = FindParameter(key);
+  model->*info.field = ParseNumber(value, info.key);
+}
+
+ContactLaw ParseContactLaw(std::string_view text) {
+  if (text == "linear") return ContactLaw::kLinear;
+  if (text == "hertzian" || text == "hertz") return ContactLaw::kHertzian;
+  throw InputError("contact_law", "expected 'linear' or 'hertzian', got '" + std::string(text) + "'");
+}
+
+const char* ToString(ContactLaw law) { return law == ContactLaw::kLinear ? "linear" : "hertzian"; }
+
+}  // namespace strokelab

@@ -1,0 +1,556 @@
+#include "strokelab/steady/continuation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace strokelab {
+namespace {
+
+struct Vec3 {
+  double x = 0, v = 0, p = 0;
+  Vec3 operator+(const Vec3& o) const { return {x + o.x, v + o.v, p + o.p}; }
+  Vec3 operator-(const Vec3& o) const { return {x - o.x, v - o.v, p - o.p}; }
+  Vec3 operator*(double s) const { return {x * s, v * s, p * s}; }
+  double Dot(const Vec3& o) const { return x * o.x + v * o.v + p * o.p; }
+  double Norm() const { return std::sqrt(Dot(*this)); }
+};
+
+// G(u) and its Jacobian at one point, with the orbit's figures.
+struct Evaluation {
+  double g[2];
+  double jacobian[2][3];
+  OrbitFigures figures;
+  double Residual() const { return std::hypot(g[0], g[1]); }
+  // The null vector of the 2x3 Jacobian: the cross product of its rows, normalised.
+  Vec3 Tangent() const {
+    const double* a = jacobian[0];
+    const double* b = jacobian[1];
+    Vec3 t{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    return t * (1.0 / t.Norm());
+  }
+};
+
+// Solves the 3x3 system A d = r by Cramer's rule (well-conditioned here: the arclength row is the
+// tangent, orthogonal to the Jacobian's rows' span complement).
+bool Solve3(const double a[3][3], const double r[3], double d[3]) {
+  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+                     a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  if (!(std::abs(det) > 0.0) || !std::isfinite(det)) return false;
+  for (int col = 0; col < 3; ++col) {
+    double m[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) m[i][j] = j == col ? r[i] : a[i][j];
+    d[col] = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+              m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])) / det;
+  }
+  return true;
+}
+
+// Signed distance of an orbit from the stops: negative when it reaches into one [m].
+double StopClearanceM(const ActuatorModel& model, const OrbitFigures& f) {
+  double clearance = INFINITY;
+  if (model.HasLowerStop()) clearance = std::min(clearance, f.min_displacement_m - model.lower_stop_m);
+  if (model.HasUpperStop()) clearance = std::min(clearance, model.upper_stop_m - f.max_displacement_m);
+  return clearance;
+}
+
+class BranchProblem {
+ public:
+  BranchProblem(const ActuatorModel& model, ContinuationParameter which, double fixed_value, double p_ref)
+      : model_(model), which_(which), fixed_(fixed_value), p_ref_(p_ref) {
+    length_m_ = LengthScaleM(model);
+    const double f_ref = which == ContinuationParameter::kFrequencyHz ? p_ref : fixed_value;
+    speed_m_per_s_ = length_m_ * 2.0 * std::numbers::pi * f_ref;
+  }
+
+  PeriodMap MapAt(double p) const {
+    return which_ == ContinuationParameter::kFrequencyHz ? PeriodMap(model_, p, fixed_) : PeriodMap(model_, fixed_, p);
+  }
+  Vec3 ToScaled(double p, State y) const { return {y.x_m / length_m_, y.v_m_per_s / speed_m_per_s_, p / p_ref_}; }
+  State StateOf(const Vec3& u) const { return {u.x * length_m_, u.v * speed_m_per_s_}; }
+  double ParameterOf(const Vec3& u) const { return u.p * p_ref_; }
+
+  // with_figures = false: only G and its Jacobian (PeriodMap::Linearize), for Newton steps.
+  Evaluation Evaluate(const Vec3& u, bool with_figures = true) const {
+    const double p = ParameterOf(u);
+    const State y = StateOf(u);
+    Evaluation e;
+    const PeriodMap map = MapAt(p);
+    e.figures = with_figures ? map.Trace(y) : map.Linearize(y);
+    const Matrix2& m = e.figures.monodromy;
+    e.g[0] = (e.figures.end.x_m - y.x_m) / length_m_;
+    e.g[1] = (e.figures.end.v_m_per_s - y.v_m_per_s) / speed_m_per_s_;
+    e.jacobian[0][0] = m.a - 1.0;
+    e.jacobian[0][1] = m.b * speed_m_per_s_ / length_m_;
+    e.jacobian[1][0] = m.c * length_m_ / speed_m_per_s_;
+    e.jacobian[1][1] = m.d - 1.0;
+    // dG/dp by a forward difference: the map's dependence on the parameter is smooth away from
+    // grazing, and one extra pass is cheaper than the variational equations in p.
+    const double dp = 1e-7;
+    const State shifted = MapAt((u.p + dp) * p_ref_).Apply(y);
+    e.jacobian[0][2] = (shifted.x_m - e.figures.end.x_m) / length_m_ / dp;
+    e.jacobian[1][2] = (shifted.v_m_per_s - e.figures.end.v_m_per_s) / speed_m_per_s_ / dp;
+    return e;
+  }
+
+  struct Corrected {
+    Vec3 u;
+    Evaluation evaluation;
+    int iterations;
+  };
+  // Newton on [G(u); t . (u - u_pred)] = 0.
+  std::optional<Corrected> Correct(const Vec3& predicted, const Vec3& tangent, const ContinuationOptions& o) const {
+    Vec3 u = predicted;
+    for (int iteration = 0; iteration <= o.max_corrector_iterations; ++iteration) {
+      // Newton may wander out of the physical range (a frequency <= 0): treat that as a failure.
+      const double p = ParameterOf(u);
+      if (!std::isfinite(p) || !std::isfinite(u.x) || !std::isfinite(u.v) || p <= 0.0) return std::nullopt;
+      // Newton's iterates only linearize (2-3 of them per point on a 200 x 200 sweep); the orbit it
+      // lands on is traced once more for its figures.
+      Evaluation e = Evaluate(u, false);
+      if (!std::isfinite(e.Residual())) return std::nullopt;
+      const double constraint = tangent.Dot(u - predicted);
+      if (e.Residual() < o.tolerance && std::abs(constraint) < 1e-9) {
+        e.figures = MapAt(ParameterOf(u)).Trace(StateOf(u));
+        return Corrected{u, e, iteration};
+      }
+      const double a[3][3] = {{e.jacobian[0][0], e.jacobian[0][1], e.jacobian[0][2]},
+                              {e.jacobian[1][0], e.jacobian[1][1], e.jacobian[1][2]},
+                              {tangent.x, tangent.v, tangent.p}};
+      const double r[3] = {-e.g[0], -e.g[1], -constraint};
+      double d[3];
+      if (!Solve3(a, r, d)) return std::nullopt;
+      u = u + Vec3{d[0], d[1], d[2]};
+    }
+    return std::nullopt;
+  }
+
+  BranchPoint MakePoint(const Vec3& u, const Evaluation& e, const Vec3& tangent, double arclength) const {
+    BranchPoint point;
+    point.parameter = ParameterOf(u);
+    point.start = StateOf(u);
+    point.figures = e.figures;
+    point.multipliers = e.figures.monodromy.Eigenvalues();
+    point.stable = point.MaxMultiplier() < 1.0;
+    point.dparameter_ds = tangent.p;
+    point.arclength = arclength;
+    return point;
+  }
+
+  const ActuatorModel& model() const { return model_; }
+  double p_ref() const { return p_ref_; }
+
+ private:
+  const ActuatorModel& model_;
+  ContinuationParameter which_;
+  double fixed_, p_ref_;
+  double length_m_, speed_m_per_s_;
+};
+
+// A point on the branch between two accepted points, at arclength s from `from` along its tangent.
+struct SegmentProbe {
+  const BranchProblem& problem;
+  Vec3 from, tangent;
+  const ContinuationOptions& options;
+  std::optional<BranchProblem::Corrected> At(double s) const {
+    return problem.Correct(from + tangent * s, tangent, options);
+  }
+};
+
+// Locates where `phi` (evaluated on corrected points) changes sign between s = 0 and s = s_end by
+// the Illinois variant of regula falsi (bisection where a corrector fails), to 1e-10 relative in the
+// parameter. Returns the corrected point found last on the far side of the sign change.
+template <class Phi>
+std::optional<BranchProblem::Corrected> LocateOnSegment(const SegmentProbe& probe, double s_end, double phi_at_0,
+                                                        double phi_at_end, Phi&& phi) {
+  double lo = 0.0, hi = s_end, f_lo = phi_at_0, f_hi = phi_at_end;
+  std::optional<BranchProblem::Corrected> best;
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    double s = (f_hi != f_lo) ? lo - f_lo * (hi - lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
+    if (!(s > std::min(lo, hi) && s < std::max(lo, hi))) s = 0.5 * (lo + hi);
+    const auto c = probe.At(s);
+    if (!c) {
+      // No point on the branch there: shrink toward the near end by bisection.
+      hi = 0.5 * (lo + hi);
+      continue;
+    }
+    const double f = phi(*c);
+    if ((f > 0) == (f_lo > 0)) {
+      lo = s;
+      f_lo = f;
+      f_hi *= 0.5;  // Illinois: halve the retained end's value so that both ends move
+    } else {
+      hi = s;
+      f_hi = f;
+      f_lo *= 0.5;
+      best = c;
+    }
+    if (std::abs(hi - lo) * std::abs(probe.tangent.p) <= 1e-10 * std::abs(probe.from.p) || f == 0.0) break;
+  }
+  if (!best) best = probe.At(hi);
+  return best;
+}
+
+bool PeriodDoublingLike(const BranchPoint& unstable) {
+  for (const auto& mu : unstable.multipliers)
+    if (mu.real() < -1.0 && std::abs(mu.imag()) < 1e-9) return true;
+  return false;
+}
+
+// Where continuation stalls next to a grazing point: the grazing point itself and the first orbit
+// past it on the other leg (the one with the other contact state), tried in the direction of
+// travel first (a smooth passage) and then back (a corner).
+struct GrazingRestart {
+  BranchPoint graze, point;
+  Vec3 u, tangent;
+};
+
+std::optional<GrazingRestart> RestartPastGrazing(const ActuatorModel& model, ContinuationParameter which,
+                                                 double fixed_value, const BranchProblem& problem,
+                                                 const BranchPoint& last, const Vec3& travel) {
+  const std::optional<BranchPoint> graze = LocateGrazing(model, which, fixed_value, last);
+  if (!graze) return std::nullopt;
+  const double direction = travel.p >= 0 ? 1.0 : -1.0;
+  const Vec3 at_graze = problem.ToScaled(graze->parameter, graze->start);
+  for (double sign : {direction, -direction}) {
+    for (double offset : {1e-6, 1e-5, 1e-4}) {
+      const double p = graze->parameter * (1.0 + sign * offset);
+      const std::optional<BranchPoint> orbit = SolveAt(model, which, fixed_value, p, graze->start);
+      if (!orbit || orbit->contacting() == last.contacting()) continue;
+      GrazingRestart restart;
+      restart.graze = *graze;
+      restart.u = problem.ToScaled(p, orbit->start);
+      const Evaluation e = problem.Evaluate(restart.u);
+      restart.tangent = e.Tangent();
+      if (restart.tangent.Dot(restart.u - at_graze) < 0) restart.tangent = restart.tangent * -1.0;
+      restart.point = problem.MakePoint(restart.u, e, restart.tangent, 0.0);
+      return restart;
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+double BranchPoint::MaxMultiplier()
+
+ const { return std::max(std::abs(multipliers[0]), std::abs(multipliers[1])); }
+
+const char* ToString(BranchEvent::Kind kind) {
+  switch (kind) {
+    case BranchEvent::Kind::kFold: return "fold";
+    case BranchEvent::Kind::kGrazing: return "grazing";
+    case BranchEvent::Kind::kStabilityChange: return "stability-change";
+  }
+  return "?";
+}
+
+std::optional<BranchPoint> SolveAt(const ActuatorModel& model, ContinuationParameter which, double fixed_value,
+                                   double p, State guess, const ShootingOptions& options) {
+  const PeriodMap map = which == ContinuationParameter::kFrequencyHz ? PeriodMap(model, p, fixed_value)
+                                                                     : PeriodMap(model, fixed_value, p);
+  const std::optional<SteadyState> orbit = Shoot(map, guess, 1, options);
+  if (!orbit) return std::nullopt;
+  BranchPoint point;
+  point.parameter = p;
+  point.start = orbit->start;
+  point.figures = orbit->figures;
+  point.multipliers = orbit->multipliers;
+  point.stable = orbit->stable;
+  return point;
+}
+
+ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter which, double fixed_value, double p0,
+                               State start, double p_min, double p_max, bool increasing,
+                               const ContinuationOptions& options, const std::atomic<bool>* cancel) {
+  ContinuedBranch branch;
+  branch.parameter = which;
+  branch.fixed_value = fixed_value;
+  const BranchProblem problem(model, which, fixed_value, p0);
+
+  Vec3 u = problem.ToScaled(p0, start);
+  Evaluation e = problem.Evaluate(u);
+  Vec3 t = e.Tangent();
+  if ((t.p > 0) != increasing) t = t * -1.0;
+  double arclength = 0.0;
+  branch.points.push_back(problem.MakePoint(u, e, t, arclength));
+
+  double h = options.initial_step;
+  bool restarted_here = false;
+  while (static_cast<int>(branch.points.size()) < options.max_points) {
+    if (cancel && cancel->load()) {
+      branch.stopped_because = "cancelled";
+      return branch;
+    }
+    const std::optional<BranchProblem::Corrected> c = problem.Correct(u + t * h, t, options);
+    const BranchPoint& last = branch.points.back();
+    // Reject a corrector that failed or wandered far from the predictor (a jump to another branch).
+    bool accepted = c && (c->u - u).Norm() <= 3.0 * h;
+    Vec3 t_new;
+    std::optional<BranchPoint> graze;
+    if (accepted) {
+      // Orient the new tangent along the secant: at a grazing corner the branch can turn by more
+      // than a right angle, where "same direction as the old tangent" would send it back.
+      t_new = c->evaluation.Tangent();
+      if (t_new.Dot(c->u - u) < 0) t_new = t_new * -1.0;
+      const bool contact_change = last.contacting() != (c->evaluation.figures.contacts > 0);
+      if (!contact_change) {
+        // A sharp turn of the tangent: a fold taken in too long a stride; look closer (down to a
+        // stride of 1e-3, below which a turn is a non-smooth kink, e.g. a second impact grazing).
+        if (t_new.Dot(t) < 0.9 && h > 1e-3) accepted = false;
+      } else {
+        // Across a grazing point the step must pass near it; otherwise it skipped a stretch of
+        // branch (a fold and its unstable side) and landed on another leg.
+        const BranchPoint noncontacting_side =
+            last.contacting() ? problem.MakePoint(c->u, c->evaluation, t_new, 0.0) : last;
+        graze = LocateGrazing(model, which, fixed_value, noncontacting_side);
+        if (graze) {
+          const Vec3 g = problem.ToScaled(graze->parameter, graze->start);
+          const double detour = (g - u).Norm() + (c->u - g).Norm();
+          if (detour > 2.0 * (c->u - u).Norm() + 1e-9 && h > 1e-3) accepted = false;
+          // Nor may the grazing point lie farther from either end than the ends from each other:
+          // such a step leapt over a fold (and the unstable stretch after it) onto the other leg.
+          const double chord = (c->u - u).Norm();
+          if (((g - u).Norm() > chord || (c->u - g).Norm() > chord) && h > 1e-3) accepted = false;
+        }
+      }
+    }
+    if (!accepted) {
+      h *= 0.5;
+      if (h < options.min_step) {
+        // Newton can lose its footing next to a grazing point, where the map is not smooth:
+        // restart on the other side of it.
+        if (!restarted_here) {
+          if (auto restart = RestartPastGrazing(model, which, fixed_value, problem, last, t)) {
+            restarted_here = true;
+            branch.events.push_back({BranchEvent::Kind::kGrazing, branch.points.size() - 1, restart->graze, false});
+            restart->point.arclength = arclength + (restart->u - u).Norm();
+            arclength = restart->point.arclength;
+            branch.points.push_back(restart->point);
+            u = restart->u;
+            t = restart->tangent;
+            h = options.initial_step;
+            continue;
+          }
+        }
+        branch.stopped_because = "corrector failed at p = " + std::to_string(problem.ParameterOf(u));
+        return branch;
+      }
+      continue;
+    }
+    restarted_here = false;
+    const double step = (c->u - u).Norm();
+    BranchPoint next = problem.MakePoint(c->u, c->evaluation, t_new, arclength + step);
+    const BranchPoint previous = branch.points.back();
+
+    if (options.locate_events) {
+      const SegmentProbe probe{problem, u, t, options};
+      const double s_end = t.Dot(c->u - u);
+      auto add_event = [&](BranchEvent::Kind kind, double phi0, double phi1, auto phi) {
+        const auto located = LocateOnSegment(probe, s_end, phi0, phi1, phi);
+        if (!located) return;
+        BranchEvent event{kind, branch.points.size() - 1, {}, false};
+        Vec3 tangent = located->evaluation.Tangent();
+        if (tangent.Dot(t) < 0) tangent = tangent * -1.0;
+        event.point = problem.MakePoint(located->u, located->evaluation, tangent, arclength + (located->u - u).Norm());
+        if (kind == BranchEvent::Kind::kStabilityChange)
+          event.period_doubling = PeriodDoublingLike(previous.stable ? next : previous);
+        branch.events.push_back(event);
+      };
+      if (graze) {
+        // A grazing point explains any turn or change of stability in this segment (a corner).
+        branch.events.push_back({BranchEvent::Kind::kGrazing, branch.points.size() - 1, *graze, false});
+        if (previous.stable != next.stable)
+          branch.events.push_back({BranchEvent::Kind::kStabilityChange, branch.points.size() - 1, *graze, false});
+        // Travel away from the grazing point along the leg just reached.
+        const Vec3 from_corner = c->u - problem.ToScaled(graze->parameter, graze->start);
+        if (t_new.Dot(from_corner) < 0) t_new = t_new * -1.0;
+        next.dparameter_ds = t_new.p;
+      } else {
+        const bool fold = (previous.dparameter_ds > 0) != (next.dparameter_ds > 0);
+        if (fold) {
+          add_event(BranchEvent::Kind::kFold, previous.dparameter_ds, next.dparameter_ds,
+                    [&](const BranchProblem::Corrected& k) {
+                      Vec3 tk = k.evaluation.Tangent();
+                      if (tk.Dot(t) < 0) tk = tk * -1.0;
+                      return tk.p;
+                    });
+        }
+        if (previous.stable != next.stable) {
+          const bool doubling = PeriodDoublingLike(previous.stable ? next : previous);
+          if (fold && !doubling && !branch.events.empty() && branch.events.back().kind == BranchEvent::Kind::kFold &&
+              branch.events.back().after + 1 == branch.points.size()) {
+            // A multiplier through +1 at a fold: the same point.
+            BranchEvent event = branch.events.back();
+            event.kind = BranchEvent::Kind::kStabilityChange;
+            branch.events.push_back(event);
+          } else {
+            add_event(BranchEvent::Kind::kStabilityChange, previous.MaxMultiplier() - 1.0, next.MaxMultiplier() - 1.0,
+                      [&](const BranchProblem::Corrected& k) {
+                        const auto mu = k.evaluation.figures.monodromy.Eigenvalues();
+                        return std::max(std::abs(mu[0]), std::abs(mu[1])) - 1.0;
+                      });
+          }
+        }
+      }
+    }
+    if (options.stop_at_first_event) {
+      // Terminal: a fold or grazing point, or a loss of stability not through period doubling.
+      for (const BranchEvent& e : branch.events) {
+        if (e.after + 1 != branch.points.size()) continue;
+        const bool lost = e.kind == BranchEvent::Kind::kStabilityChange && !e.period_doubling && previous.stable;
+        if (e.kind == BranchEvent::Kind::kStabilityChange && !lost) continue;
+        branch.points.push_back(next);
+        branch.stopped_because = std::string("event: ") + ToString(e.kind);
+        return branch;
+      }
+    }
+    branch.points.push_back(next);
+    arclength += step;
+    u = c->u;
+    t = t_new;
+    h = c->iterations <= 3 ? std::min(options.max_step, h * 1.5) : (c->iterations > 5 ? h * 0.6 : h);
+    const double p = next.parameter;
+    if (p > p_max || p < p_min) {
+      branch.stopped_because = "range";
+      return branch;
+    }
+  }
+  branch.stopped_because = "max_points";
+  return branch;
+}
+
+// The grazing point of the non-contacting family next to `noncontacting`: where the orbit of the
+// model without stops first touches a stop. That family is smooth in the parameter, so the
+// clearance is located by secant steps and Illinois regula falsi to 1e-12 relative.
+std::optional<BranchPoint> LocateGrazing(const ActuatorModel& model, ContinuationParameter which, double fixed_value,
+                                         const BranchPoint& noncontacting) {
+  ActuatorModel free_model = model;
+  free_model.lower_stop_m = ActuatorModel::kNoLowerStop;
+  free_model.upper_stop_m = ActuatorModel::kNoUpperStop;
+  State guess = noncontacting.start;
+  auto clearance = [&](double p) -> std::optional<double> {
+    if (!(p > 0.0)) return std::nullopt;
+    const std::optional<BranchPoint> orbit = SolveAt(free_model, which, fixed_value, p, guess);
+    if (!orbit) return std::nullopt;
+    guess = orbit->start;
+    return StopClearanceM(model, orbit->figures);
+  };
+  const double p0 = noncontacting.parameter;
+  const std::optional<double> c0 = clearance(p0);
+  const double dp = 1e-6 * p0;
+  const std::optional<double> c1 = clearance(p0 + dp);
+  if (!c0 || !c1 || *c1 == *c0) return std::nullopt;
+  // Secant steps toward the root until the clearance changes sign (from either side: the free
+  // orbit may already reach into the stop at p0).
+  const bool positive = *c0 > 0.0;
+  double pa = p0, ca = *c0, slope = (*c1 - *c0) / dp, pb = p0, cb = ca;
+  for (int i = 0; i < 40 && (cb > 0.0) == positive; ++i) {
+    pb = pa - 1.5 * ca / slope;
+    const std::optional<double> c = clearance(pb);
+    if (!c) return std::nullopt;
+    cb = *c;
+    if ((cb > 0.0) == positive) {
+      slope = (cb - ca) / (pb - pa);
+      pa = pb;
+      ca = cb;
+    }
+  }
+  if ((cb > 0.0) == positive) return std::nullopt;
+  for (int i = 0; i < 200 && std::abs(pb - pa) > 1e-12 * std::abs(pa); ++i) {
+    const double pm = pa - ca * (pb - pa) / (cb - ca);
+    const double mid = (pm > std::min(pa, pb) && pm < std::max(pa, pb)) ? pm : 0.5 * (pa + pb);
+    const std::optional<double> c = clearance(mid);
+    if (!c) return std::nullopt;
+    if ((*c > 0.0) == (ca > 0.0)) {
+      pa = mid;
+      ca = *c;
+      cb *= 0.5;
+    } else {
+      pb = mid;
+      cb = *c;
+      ca *= 0.5;
+    }
+  }
+  std::optional<BranchPoint> point = SolveAt(free_model, which, fixed_value, 0.5 * (pa + pb), guess);
+  if (point && noncontacting.figures.contacts == 0) point->stable = noncontacting.stable;
+  return point;
+}
+
+namespace {
+
+// The branch's points in order along it, with its grazing points put in between: at a grazing
+// corner one step cuts across from one leg to the other, and the stretches of both legs that the
+// chord skips lie on either side of the grazing point.
+// (Pointers into the branch: SolutionsAt runs once per grid value, and copying the branch each time
+// was 7 % of a sweep.)
+struct CornerPoint {
+  const BranchPoint* point;
+  bool graze;
+  double arclength;  // a grazing point's is that of the step it interrupts
+};
+std::vector<CornerPoint> WithGrazingCorners(const ContinuedBranch& branch) {
+  std::vector<CornerPoint> points;
+  points.reserve(branch.points.size() + branch.events.size());
+  size_t next_event = 0;
+  for (size_t k = 0; k < branch.points.size(); ++k) {
+    points.push_back({&branch.points[k], false, branch.points[k].arclength});
+    for (; next_event < branch.events.size() && branch.events[next_event].after <= k; ++next_event) {
+      const BranchEvent& e = branch.events[next_event];
+      if (e.after == k && e.kind == BranchEvent::Kind::kGrazing && k + 1 < branch.points.size())
+        points.push_back({&e.point, true, branch.points[k].arclength});
+    }
+  }
+  return points;
+}
+
+}  // namespace
+
+std::vector<BranchPoint> SolutionsAt(const ActuatorModel& model, const ContinuedBranch& branch, double p) {
+  std::vector<BranchPoint> solutions;
+  const std::vector<CornerPoint> corners = WithGrazingCorners(branch);
+  for (size_t k = 0; k + 1 < corners.size(); ++k) {
+    const BranchPoint* pts[2] = {corners[k].point, corners[k + 1].point};
+    const double a = pts[0]->parameter - p, b = pts[1]->parameter - p;
+    // Half-open crossings, so that a grid value equal to a branch point counts once.
+    if (!((a <= 0 && b > 0) || (a >= 0 && b < 0))) continue;
+    // Next to a corner, the orbit found must be on this stretch's side of it: that of its end other
+    // than the grazing point (a grazing orbit just touches; its figures are the free model's).
+    const bool corner = corners[k].graze || corners[k + 1].graze;
+    const bool contacting = (corners[k].graze ? pts[1] : pts[0])->contacting();
+    const double w = a == b ? 0.0 : a / (a - b);
+    const State guess{pts[0]->start.x_m + w * (pts[1]->start.x_m - pts[0]->start.x_m),
+                      pts[0]->start.v_m_per_s + w * (pts[1]->start.v_m_per_s - pts[0]->start.v_m_per_s)};
+    std::optional<BranchPoint> s = SolveAt(model, branch.parameter, branch.fixed_value, p, guess);
+    // Newton must land on this stretch of the branch, not on another branch at the same p.
+    const double span = std::hypot(pts[1]->start.x_m - pts[0]->start.x_m,
+                                   (pts[1]->start.v_m_per_s - pts[0]->start.v_m_per_s) /
+                                       (2 * std::numbers::pi * std::max(1.0, p)));
+    const double miss = s ? std::hypot(s->start.x_m - guess.x_m,
+                                       (s->start.v_m_per_s - guess.v_m_per_s) / (2 * std::numbers::pi * std::max(1.0, p)))
+                          : INFINITY;
+    if (!s || miss > 2.0 * span + 1e-9 * LengthScaleM(model) || (corner && s->contacting() != contacting)) {
+      // Fall back on the arclength: bisection for the parameter value along the segment.
+      const BranchProblem problem(model, branch.parameter, branch.fixed_value, pts[0]->parameter);
+      const ContinuationOptions options;
+      const Vec3 u0 = problem.ToScaled(pts[0]->parameter, pts[0]->start);
+      const Vec3 u1 = problem.ToScaled(pts[1]->parameter, pts[1]->start);
+      const Vec3 direction = (u1 - u0) * (1.0 / (u1 - u0).Norm());
+      const SegmentProbe probe{problem, u0, direction, options};
+      const auto located = LocateOnSegment(probe, (u1 - u0).Norm(), a, b, [&](const BranchProblem::Corrected& c) {
+        return problem.ParameterOf(c.u) - p;
+      });
+      if (!located) continue;
+      s = SolveAt(model, branch.parameter, branch.fixed_value, p, problem.StateOf(located->u));
+      if (!s || (corner && s->contacting() != contacting)) continue;
+    }
+    s->arclength = corners[k].arclength + w * (corners[k + 1].arclength - corners[k].arclength);
+    s->dparameter_ds = pts[0]->dparameter_ds;
+    solutions.push_back(*s);
+  }
+  return solutions;
+}
+
+}  // namespace strokelab

@@ -1,0 +1,444 @@
+#include "strokelab/steady/steady_state.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "strokelab/base/errors.h"
+#include "strokelab/engines/pwl_system.h"
+#include "strokelab/signal/signal.h"
+
+namespace strokelab {
+namespace {
+
+using Complex = std::complex<double>;
+constexpr Complex kJ(0.0, 1.0);
+
+// (e^{mu tau} - 1) / mu, and its limit tau; a series where mu tau is small avoids cancellation.
+Complex ExpIntegral(Complex mu, double tau) {
+  const Complex z = mu * tau;
+  if (std::abs(z) < 1e-4) return tau * (1.0 + z / 2.0 + z * z / 6.0);
+  return (std::exp(z) - 1.0) / mu;
+}
+
+// int_0^tau s e^{mu s} ds.
+Complex ExpIntegralLinear(Complex mu, double tau) {
+  const Complex z = mu * tau;
+  if (std::abs(z) < 1e-4) return tau * tau * (0.5 + z / 3.0 + z * z / 8.0);
+  return (std::exp(z) * (z - 1.0) + 1.0) / (mu * mu);
+}
+
+// int_{t0}^{t0+tau} x(t) e^{-jhwt} dt for x in one linear region from the state y0 at t0, in closed
+// form: the homogeneous part is a sum of (complex) exponentials, the particular part sinusoids.
+// omega is the drive's angular frequency, h = harmonic >= 1 the order of the harmonic wanted.
+Complex SegmentIntegral(const LinearRegion& r, double t0, State y0, double tau, double omega, double phase,
+                        int harmonic = 1) {
+  const State p0 = r.ParticularAt(t0);
+  const double zx = y0.x_m - p0.x_m, zv = y0.v_m_per_s - p0.v_m_per_s;
+  const double a = r.decay_rate(), b2 = r.beta_squared();
+  const double drive_omega = omega;
+  omega = harmonic * drive_omega;                       // h w: the harmonic's angular frequency
+  const Complex rotate = std::exp(-kJ * (omega * t0));  // e^{-jhw t0}
+  Complex homogeneous;
+  const double omega0_sq = r.stiffness() / r.mass_kg();
+  if (std::abs(b2) < 1e-12 * omega0_sq) {
+    // Critically damped: e^{-a s} (zx + (a zx + zv) s).
+    const Complex mu = -a - kJ * omega;
+    homogeneous = zx * ExpIntegral(mu, tau) + (a * zx + zv) * ExpIntegralLinear(mu, tau);
+  } else if (b2 > 0) {
+    // Underdamped: Re[A e^{lambda s}], lambda = -a + jb, A = zx - j (a zx + zv) / b.
+    const double b = std::sqrt(b2);
+    const Complex amplitude(zx, -(a * zx + zv) / b);
+    homogeneous = 0.5 * (amplitude * ExpIntegral(Complex(-a, b) - kJ * omega, tau) +
+                         std::conj(amplitude) * ExpIntegral(Complex(-a, -b) - kJ * omega, tau));
+  } else {
+    // Overdamped: two real exponentials e^{(-a +- beta) s}.
+    const double beta = std::sqrt(-b2), q = (a * zx + zv) / beta;
+    homogeneous = 0.5 * ((zx + q) * ExpIntegral(-a + beta - kJ * omega, tau) +
+                         (zx - q) * ExpIntegral(-a - beta - kJ * omega, tau));
+  }
+  // ps sin(theta) + pc cos(theta) = e^{j theta} (pc - j ps)/2 + e^{-j theta} (pc + j ps)/2, theta = w t + phase;
+  // times e^{-jhwt}: e^{j phase} e^{j (1-h) w t} and e^{-j phase} e^{-j (1+h) w t} (tau alone for h = 1).
+  const double beat = (1 - harmonic) * drive_omega;  // (1 - h) w [rad/s]
+  const Complex positive_integral =
+      harmonic == 1 ? Complex(tau) : std::exp(kJ * (beat * t0)) * ExpIntegral(kJ * beat, tau);
+  const Complex positive = std::exp(kJ * phase) * Complex(r.pc(), -r.ps()) * 0.5 * positive_integral;
+  const Complex negative = std::exp(-kJ * phase) * Complex(r.pc(), r.ps()) * 0.5 * std::exp(-kJ * (drive_omega * t0)) *
+                           ExpIntegral(-(1.0 + harmonic) * kJ * drive_omega, tau);
+  const Complex offset = r.offset_m() * ExpIntegral(-kJ * omega, tau);
+  return rotate * (homogeneous + offset + negative) + positive;
+}
+
+Matrix2 ToMatrix(const Transition& t) { return {t.xx, t.xv, t.vx, t.vv}; }
+
+// Saltation matrix at a switch from region `before` to `after` across surface s (header formula).
+Matrix2 Saltation(const LinearRegion& before, const LinearRegion& after, const Surface& s, double t, State y,
+                  double omega, double phase) {
+  const double f_before = before.Force(y, t) / before.mass_kg();
+  const double f_after = after.Force(y, t) / after.mass_kg();
+  const double jump = f_after - f_before;  // only the acceleration can jump; x' is continuous
+  if (jump == 0.0) return {};
+  const double h_t = s.delta * omega * std::cos(omega * t + phase);
+  const double denominator = s.alpha * y.v_m_per_s + s.beta * f_before + h_t;
+  if (!(std::abs(denominator) > 0.0)) return {};  // a grazing switch: the map is not differentiable there
+  // S = I + (0, jump)^T (alpha, beta) / denominator.
+  return {1.0, 0.0, jump * s.alpha / denominator, 1.0 + jump * s.beta / denominator};
+}
+
+double ScaledNorm(State r, double length_m, double velocity_m_per_s) {
+  const double x = r.x_m / length_m, v = r.v_m_per_s / velocity_m_per_s;
+  return std::sqrt(x * x + v * v);  // scaled to order one: hypot's care for overflow costs for nothing
+}
+
+State Minus(State a, State b) { return {a.x_m - b.x_m, a.v_m_per_s - b.v_m_per_s}; }
+
+}  // namespace
+
+std::array<std::complex<double>, 2> Matrix2::Eigenvalues() const {
+  const double trace = a + d, det = a * d - b * c;
+  const Complex root = std::sqrt(Complex(trace * trace / 4.0 - det, 0.0));
+  return {trace / 2.0 + root, trace / 2.0 - root};
+}
+
+double LengthScaleM(const ActuatorModel& model) {
+  if (model.HasLowerStop() && model.lower_stop_m != 0.0) return std::abs(model.lower_stop_m);
+  if (model.HasUpperStop() && model.upper_stop_m != 0.0) return std::abs(model.upper_stop_m);
+  return 1e-3;
+}
+
+// The closed-form path for piecewise-linear models, CVODE with finite differences otherwise.
+struct PeriodMap::Impl {
+  ActuatorModel model;
+  SineDrive drive;
+  std::optional<PiecewiseLinearSystem> system;
+  std::unique_ptr<Engine> cvode;
+
+  OrbitFigures TraceClosedForm(State y0, int periods, bool with_figures) const;
+  OrbitFigures TraceCvode(State y0, int periods) const;
+  State ApplyCvode(State y0, int periods) const;
+};
+
+PeriodMap::PeriodMap(const ActuatorModel& model, double frequency_hz, double amplitude_v)
+    : impl_(std::make_unique<Impl>()), frequency_hz_(frequency_hz), amplitude_v_(amplitude_v) {
+  Validate(model);
+  impl_->model = model;
+  impl_->drive = SineDrive{amplitude_v, frequency_hz, 0.0};
+  Validate(impl_->drive);
+  if (model.IsPiecewiseLinear()) {
+    impl_->system.emplace(model, impl_->drive);
+  } else {
+    impl_->cvode = MakeCvodeEngine();
+  }
+}
+
+PeriodMap::~PeriodMap() = default;
+PeriodMap::PeriodMap(PeriodMap&&) noexcept = default;
+
+const ActuatorModel& PeriodMap::model() const { return impl_->model; }
+
+State PeriodMap::Apply(State y) const {
+  if (!impl_->system) return impl_->ApplyCvode(y, 1);
+  double t = 0.0;
+  PwlMode mode = impl_->system->InitialMode(0.0, y);
+  impl_->system->Advance(&t, &y, &mode, period_s(), [](const SwitchEvent&) {});
+  return y;
+}
+
+OrbitFigures PeriodMap::Trace(State y, int periods) const {
+  return impl_->system ? impl_->TraceClosedForm(y, periods, true) : impl_->TraceCvode(y, periods);
+}
+
+OrbitFigures PeriodMap::Linearize(State y, int periods) const {
+  // (CVODE's figures come from the samples its Jacobian needs anyway.)
+  return impl_->system ? impl_->TraceClosedForm(y, periods, false) : impl_->TraceCvode(y, periods);
+}
+
+OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_figures) const {
+  const PiecewiseLinearSystem& sys = *system;
+  const double omega = drive.AngularFrequency(), phase = drive.phase_rad;
+  const double t_end = periods / drive.frequency_hz;
+  OrbitFigures figures;
+  figures.min_displacement_m = figures.max_displacement_m = y0.x_m;
+  Complex integral = 0.0;
+  std::vector<std::pair<double, State>> extrema;
+
+  double segment_t = 0.0;
+  State segment_y = y0;
+  PwlMode segment_mode = sys.InitialMode(0.0, y0);
+  auto note = [&](const LinearRegion& region, double t, State y) {
+    figures.min_displacement_m = std::min(figures.min_displacement_m, y.x_m);
+    figures.max_displacement_m = std::max(figures.max_displacement_m, y.x_m);
+    figures.peak_force_n = std::max(figures.peak_force_n, std::abs(region.Force(y, t)));
+  };
+  auto close_segment = [&](double t_close) {
+    const LinearRegion& region = sys.Region(segment_mode);
+    const double tau = t_close - segment_t;
+    figures.monodromy = ToMatrix(region.Propagator(tau)) * figures.monodromy;
+    if (!with_figures) return;
+    integral += SegmentIntegral(region, segment_t, segment_y, tau, omega, phase);
+    extrema.clear();
+    sys.AppendExtrema(segment_mode, segment_t, segment_y, tau, &extrema);
+    note(region, segment_t, segment_y);
+    for (const auto& [t, y] : extrema) note(region, t, y);
+  };
+
+  double t = 0.0;
+  State y = y0;
+  PwlMode mode = segment_mode;
+  sys.Advance(&t, &y, &mode, t_end, [&](const SwitchEvent& e) {
+    close_segment(e.time_s);
+    figures.monodromy =
+        Saltation(sys.Region(e.before), sys.Region(e.after), e.surface, e.time_s, e.state, omega, phase) *
+        figures.monodromy;
+    if ((!e.before.contact.lower && e.after.contact.lower) || (!e.before.contact.upper && e.after.contact.upper))
+      ++figures.contacts;
+    segment_t = e.time_s;
+    segment_y = e.state;
+    segment_mode = e.after;
+  });
+  close_segment(t_end);
+  figures.end = y;
+  if (!with_figures) {
+    figures.min_displacement_m = figures.max_displacement_m = figures.peak_force_n = NAN;  // not computed
+    return figures;
+  }
+  note(sys.Region(mode), t_end, y);
+  figures.x1 = 2.0 * integral / t_end;
+  return figures;
+}
+
+State PeriodMap::Impl::ApplyCvode(State y0, int periods) const {
+  SimulationOptions options;
+  options.duration_s = periods / drive.frequency_hz;
+  options.sample_rate_hz = 64 * drive.frequency_hz;
+  options.initial = y0;
+  options.record_velocity = false;
+  return cvode->Simulate(model, drive, options).final_state;
+}
+
+OrbitFigures PeriodMap::Impl::TraceCvode(State y0, int periods) const {
+  // 2048 samples per period resolve x (smooth) for its first harmonic by least squares; contacts
+  // and extrema from the samples and the engine's located contacts.
+  SimulationOptions options;
+  options.duration_s = periods / drive.frequency_hz;
+  options.sample_rate_hz = 2048 * drive.frequency_hz;
+  options.initial = y0;
+  const Record record = cvode->Simulate(model, drive, options);
+  OrbitFigures figures;
+  figures.end = record.final_state;
+  const auto [lo, hi] = std::minmax_element(record.displacement_m.begin(), record.displacement_m.end());
+  figures.min_displacement_m = std::min(*lo, figures.end.x_m);
+  figures.max_displacement_m = std::max(*hi, figures.end.x_m);
+  for (double f : record.force_n) figures.peak_force_n = std::max(figures.peak_force_n, std::abs(f));
+  for (const ContactInterval& c : record.contacts)
+    if (c.start_s > 0.0) ++figures.contacts;
+  const SampleWindow window{0, record.size(), static_cast<double>(periods)};
+  figures.x1 = FirstHarmonic(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window);
+  // Jacobian by central differences on each state component.
+  const double h_x = 1e-7 * LengthScaleM(model), h_v = h_x * drive.AngularFrequency();
+  const State xp = ApplyCvode({y0.x_m + h_x, y0.v_m_per_s}, periods);
+  const State xm = ApplyCvode({y0.x_m - h_x, y0.v_m_per_s}, periods);
+  const State vp = ApplyCvode({y0.x_m, y0.v_m_per_s + h_v}, periods);
+  const State vm = ApplyCvode({y0.x_m, y0.v_m_per_s - h_v}, periods);
+  figures.monodromy = {(xp.x_m - xm.x_m) / (2 * h_x), (vp.x_m - vm.x_m) / (2 * h_v),
+                       (xp.v_m_per_s - xm.v_m_per_s) / (2 * h_x), (vp.v_m_per_s - vm.v_m_per_s) / (2 * h_v)};
+  return figures;
+}
+
+State PeriodMap::ClippedLinearStart() const {
+  const ActuatorModel& m = impl_->model;
+  const double omega = impl_->drive.AngularFrequency();
+  const LinearRegion free(m.mass_kg, m.damping_n_s_per_m, m.stiffness_n_per_m, m.gain_n_per_v * amplitude_v_, 0.0,
+                          omega, 0.0);
+  State y = free.ParticularAt(0.0);
+  if (m.HasLowerStop()) y.x_m = std::max(y.x_m, m.lower_stop_m);
+  if (m.HasUpperStop()) y.x_m = std::min(y.x_m, m.upper_stop_m);
+  return y;
+}
+
+std::vector<std::complex<double>> SampledOrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
+  constexpr double kSamplesPerPeriod = 2048;  // resolve x (smooth) for its harmonics by least squares
+  const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
+  SimulationOptions options;
+  options.duration_s = period / drive.frequency_hz;
+  options.sample_rate_hz = kSamplesPerPeriod * drive.frequency_hz;
+  options.initial = start;
+  options.record_velocity = false;
+  const Record record = MakeCvodeEngine()->Simulate(map.model(), drive, options);
+  const SampleWindow window{0, record.size(), static_cast<double>(period)};
+  return HarmonicAmplitudes(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window, orders);
+}
+
+std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
+  if (period < 1) throw InputError("period", "must be >= 1 (got " + std::to_string(period) + ")");
+  if (orders < 1) throw InputError("orders", "must be >= 1 (got " + std::to_string(orders) + ")");
+  const ActuatorModel& model = map.model();
+  const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
+  const double t_end = period / drive.frequency_hz;
+  if (!model.IsPiecewiseLinear()) return SampledOrbitHarmonics(map, start, period, orders);
+  // The same segments as PeriodMap's closed-form trace, each integrated at every harmonic.
+  const PiecewiseLinearSystem sys(model, drive);
+  const double omega = drive.AngularFrequency();
+  std::vector<Complex> integral(orders, 0.0);
+  double segment_t = 0.0;
+  State segment_y = start;
+  PwlMode segment_mode = sys.InitialMode(0.0, start);
+  auto close_segment = [&](double t_close) {
+    const LinearRegion& region = sys.Region(segment_mode);
+    for (int h = 1; h <= orders; ++h)
+      integral[h - 1] += SegmentIntegral(region, segment_t, segment_y, t_close - segment_t, omega, 0.0, h);
+  };
+  double t = 0.0;
+  State y = start;
+  PwlMode mode = segment_mode;
+  sys.Advance(&t, &y, &mode, t_end, [&](const SwitchEvent& e) {
+    close_segment(e.time_s);
+    segment_t = e.time_s;
+    segment_y = e.state;
+    segment_mode = e.after;
+  });
+  close_segment(t_end);
+  for (Complex& c : integral) c *= 2.0 / t_end;
+  return integral;
+}
+
+double SteadyState::MaxMultiplier() const { return std::max(std::abs(multipliers[0]), std::abs(multipliers[1])); }
+
+std::complex<double> SteadyState::Frf(const PeriodMap& map) const {
+  // C_1(f) = -m w^2 C_1(x); C_1(v_in) = V e^{-j pi/2} for v_in = V sin(w t).
+  const double omega = 2.0 * std::numbers::pi * map.frequency_hz();
+  const Complex force_c1 = -map.model().mass_kg * omega * omega * figures.x1;
+  if (map.amplitude_v() == 0.0) return 0.0;
+  return force_c1 / Complex(0.0, -map.amplitude_v());
+}
+
+double SteadyState::ContactsPerPeriod() const {
+  const int periods = period > 0 ? period : 16;
+  return static_cast<double>(figures.contacts) / periods;
+}
+
+std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, const ShootingOptions& options) {
+  const double length = LengthScaleM(map.model());
+  const double speed = length * 2.0 * std::numbers::pi * map.frequency_hz();
+  auto apply = [&](State y) {
+    for (int k = 0; k < period; ++k) y = map.Apply(y);
+    return y;
+  };
+  State y = guess;
+  double best = INFINITY;
+  int stalled = 0;
+  // The guess is rarely the orbit (the continuation's guesses need one Newton step): its pass only
+  // linearizes, and a guess that is the orbit after all is traced again for its figures.
+  OrbitFigures figures = map.Linearize(y, period);
+  bool figures_traced = false;
+  for (int iteration = 0; iteration < options.max_newton_iterations; ++iteration) {
+    const State residual = Minus(figures.end, y);
+    const double error = ScaledNorm(residual, length, speed);
+    if (!std::isfinite(error)) return std::nullopt;
+    if (error < options.tolerance) {
+      SteadyState s;
+      s.start = y;
+      s.period = period;
+      s.figures = figures_traced ? figures : map.Trace(y, period);
+      s.multipliers = figures.monodromy.Eigenvalues();
+      s.stable = s.MaxMultiplier() < 1.0;
+      s.newton_iterations = iteration;
+      return s;
+    }
+    // Stalled Newton (cycling, build-notes): give up and let the caller fall back.
+    if (error < 0.5 * best) {
+      best = error;
+      stalled = 0;
+    } else if (++stalled > 6) {
+      return std::nullopt;
+    }
+    // Solve (M - I) step = -residual.
+    const Matrix2& m = figures.monodromy;
+    const double a = m.a - 1.0, b = m.b, c = m.c, d = m.d - 1.0;
+    const double det = a * d - b * c;
+    if (!(std::abs(det) > 0.0)) return std::nullopt;
+    State step{(-d * residual.x_m + b * residual.v_m_per_s) / det, (c * residual.x_m - a * residual.v_m_per_s) / det};
+    // Damped step: halve until the residual falls. The full step is traced, not only applied: it
+    // is nearly always taken, and its trace is then the next iteration's (one map per iteration).
+    const State full{y.x_m + step.x_m, y.v_m_per_s + step.v_m_per_s};
+    OrbitFigures full_figures = map.Trace(full, period);
+    if (ScaledNorm(Minus(full_figures.end, full), length, speed) < error) {
+      y = full;
+      figures = full_figures;
+      figures_traced = true;
+      continue;
+    }
+    double lambda = 0.5;
+    for (int halving = 1; halving < 8; ++halving) {
+      const State trial{y.x_m + lambda * step.x_m, y.v_m_per_s + lambda * step.v_m_per_s};
+      const double trial_error = ScaledNorm(Minus(apply(trial), trial), length, speed);
+      if (trial_error < error || halving == 7) {
+        y = trial;
+        break;
+      }
+      lambda *= 0.5;
+    }
+    figures = map.Trace(y, period);
+    figures_traced = true;
+  }
+  return std::nullopt;
+}
+
+namespace {
+
+// The smallest p <= max_period with P^p(y) = y to within `tolerance` (scaled), from a point on an
+// attractor; 0 if none.
+int DetectPeriod(const PeriodMap& map, State y, int max_period, double tolerance) {
+  const double length = LengthScaleM(map.model());
+  const double speed = length * 2.0 * std::numbers::pi * map.frequency_hz();
+  State z = y;
+  for (int p = 1; p <= max_period; ++p) {
+    z = map.Apply(z);
+    if (ScaledNorm(Minus(z, y), length, speed) < tolerance) return p;
+  }
+  return 0;
+}
+
+// The stable periodic orbit the settled motion from `y` follows, if its period is at most max_period.
+std::optional<SteadyState> PeriodicOrbitOfSettled(const PeriodMap& map, State y, const ShootingOptions& options) {
+  for (double tolerance : {1e-8, 1e-5}) {
+    const int p = DetectPeriod(map, y, options.max_period, tolerance);
+    if (p == 0) continue;
+    // Newton may land on a divisor's orbit: keep the true period.
+    if (std::optional<SteadyState> orbit = Shoot(map, y, p, options); orbit && orbit->stable) return orbit;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOptions& options) {
+  State y = guess;
+  for (int i = 0; i < options.plain_iterations; ++i) y = map.Apply(y);
+  const std::optional<SteadyState> period1 = Shoot(map, y, 1, options);
+  if (period1 && period1->stable) return *period1;
+
+  // Period-1 unstable or not found: settle on the attractor by plain iteration, starting next to
+  // the unstable orbit (plain iteration from exactly on it would stay there for a while).
+  y = period1 ? State{period1->start.x_m + 1e-6 * LengthScaleM(map.model()), period1->start.v_m_per_s} : y;
+  for (int i = 0; i < options.settle_periods; ++i) y = map.Apply(y);
+  if (std::optional<SteadyState> orbit = PeriodicOrbitOfSettled(map, y, options)) return *orbit;
+  // No period found: aperiodic. Figures over max_period periods of the settled motion.
+  SteadyState s;
+  s.start = y;
+  s.period = 0;
+  s.figures = map.Trace(y, options.max_period);
+  s.multipliers = s.figures.monodromy.Eigenvalues();
+  s.stable = true;  // it is the attractor; its multipliers describe a finite stretch only
+  return s;
+}
+
+std::optional<SteadyState> SettledAttractor(const PeriodMap& map, State guess, const ShootingOptions& options) {
+  for (int i = 0; i < options.settle_periods; ++i) guess = map.Apply(guess);
+  return PeriodicOrbitOfSettled(map, guess, options);
+}
+
+}  // namespace strokelab

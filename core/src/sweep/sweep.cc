@@ -1,0 +1,316 @@
+// The sweep engine: rows (one amplitude, continuation in frequency) give the steady states at the
+// grid points and the jump intervals; columns (one frequency, root-finding and continuation in
+// amplitude) give the saturation threshold. Rows and columns are independent units of work, run on
+// a pool of threads and written into slots by index, so results do not depend on the thread count.
+#include "strokelab/sweep/sweep.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <mutex>
+#include <numbers>
+#include <thread>
+
+#include "strokelab/steady/continuation.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/steady/steady_state.h"
+
+namespace strokelab {
+namespace {
+
+constexpr double kRangeMargin = 0.02;  // continuation runs 2 % past the grid on each side
+
+SweepPoint MakeSweepPoint(const ActuatorModel& model, double f_hz, double amplitude_v, Branch branch, bool stable,
+                          int period, const OrbitFigures& figures, double max_multiplier) {
+  SweepPoint p;
+  p.frequency_hz = f_hz;
+  p.amplitude_v = amplitude_v;
+  p.branch = branch;
+  p.stable = stable;
+  p.period = period;
+  const double omega = 2.0 * std::numbers::pi * f_hz;
+  // C_1(f) = -m w^2 C_1(x) (steady_state.h); H = C_1(f) / C_1(v_in), C_1(v_in) = -j V.
+  const std::complex<double> force_c1 = -model.mass_kg * omega * omega * figures.x1;
+  p.h = amplitude_v > 0 ? force_c1 / std::complex<double>(0.0, -amplitude_v) : 0.0;
+  p.first_harmonic_force_n = std::abs(force_c1);
+  p.first_harmonic_phase_rad = std::arg(p.h);
+  p.min_displacement_m = figures.min_displacement_m;
+  p.max_displacement_m = figures.max_displacement_m;
+  p.peak_force_n = figures.peak_force_n;
+  p.contacts_per_period = static_cast<double>(figures.contacts) / (period > 0 ? period : 16);
+  p.max_multiplier = max_multiplier;
+  return p;
+}
+
+SweepPoint FromBranchPoint(const ActuatorModel& model, double amplitude_v, const BranchPoint& b, Branch branch) {
+  return MakeSweepPoint(model, b.parameter, amplitude_v, branch, b.stable, 1, b.figures, b.MaxMultiplier());
+}
+
+SweepPoint FromAttractor(const ActuatorModel& model, double f_hz, double amplitude_v, const SteadyState& s,
+                         Branch branch) {
+  return MakeSweepPoint(model, f_hz, amplitude_v, branch, s.stable, s.period, s.figures, s.MaxMultiplier());
+}
+
+// What bounds a stable stretch of a branch where it ends between points[k] and points[k + 1].
+struct Boundary {
+  double frequency_hz;
+  std::string kind;
+};
+
+Boundary BoundaryInSegment(const ContinuedBranch& branch, size_t k) {
+  const BranchEvent* fold = nullptr;
+  const BranchEvent* graze = nullptr;
+  const BranchEvent* stability = nullptr;
+  // A grazing corner is sometimes seen as a fold in one segment and as grazing in the next, a
+  // hair apart: look at the neighbouring segments too and let grazing win where they coincide.
+  for (const BranchEvent& e : branch.events) {
+    if (e.kind == BranchEvent::Kind::kGrazing && e.after + 1 >= k && e.after <= k + 1) {
+      const double p = branch.points[k].parameter;
+      if (e.after == k || std::abs(e.point.parameter - p) < 1e-3 * p) graze = &e;
+    }
+  }
+  for (const BranchEvent& e : branch.events) {
+    if (e.after != k) continue;
+    if (e.kind == BranchEvent::Kind::kFold) fold = &e;
+    if (e.kind == BranchEvent::Kind::kStabilityChange) stability = &e;
+  }
+  if (graze) return {graze->point.parameter, "grazing"};
+  if (stability && stability->period_doubling) return {stability->point.parameter, "period-doubling"};
+  if (fold) return {fold->point.parameter, "fold"};
+  if (stability) return {stability->point.parameter, "fold"};
+  return {0.5 * (branch.points[k].parameter + branch.points[k + 1].parameter), "unlocated"};
+}
+
+// Frequency intervals where two stable stretches of the branch overlap.
+std::vector<JumpInterval> JumpIntervals(const ContinuedBranch& branch, double amplitude_v, double f_lo, double f_hi) {
+  struct Run {
+    Boundary lo, hi;
+  };
+  std::vector<Run> runs;
+  const auto& pts = branch.points;
+  for (size_t i = 0; i < pts.size();) {
+    if (!pts[i].stable) {
+      ++i;
+      continue;
+    }
+    size_t j = i;
+    while (j + 1 < pts.size() && pts[j + 1].stable) ++j;
+    Boundary a = i == 0 ? Boundary{pts[0].parameter, "grid"} : BoundaryInSegment(branch, i - 1);
+    Boundary b = j + 1 == pts.size() ? Boundary{pts[j].parameter, "grid"} : BoundaryInSegment(branch, j);
+    if (a.frequency_hz > b.frequency_hz) std::swap(a, b);
+    if (a.frequency_hz < f_lo) a = {f_lo, "grid"};
+    if (b.frequency_hz > f_hi) b = {f_hi, "grid"};
+    if (b.frequency_hz > a.frequency_hz) runs.push_back({a, b});
+    i = j + 1;
+  }
+  std::vector<JumpInterval> jumps;
+  for (size_t a = 0; a < runs.size(); ++a) {
+    for (size_t b = a + 1; b < runs.size(); ++b) {
+      const Boundary& lo = runs[a].lo.frequency_hz > runs[b].lo.frequency_hz ? runs[a].lo : runs[b].lo;
+      const Boundary& hi = runs[a].hi.frequency_hz < runs[b].hi.frequency_hz ? runs[a].hi : runs[b].hi;
+      if (hi.frequency_hz - lo.frequency_hz > 1e-9 * lo.frequency_hz)
+        jumps.push_back({amplitude_v, lo.frequency_hz, hi.frequency_hz, lo.kind, hi.kind});
+    }
+  }
+  std::sort(jumps.begin(), jumps.end(),
+            [](const JumpInterval& x, const JumpInterval& y) { return x.bistable_from_hz < y.bistable_from_hz; });
+  return jumps;
+}
+
+// Runs `count` indexed tasks on `threads` threads; the first exception stops the rest and is rethrown.
+template <class Task>
+void ParallelFor(size_t count, int threads, const std::atomic<bool>* cancel, Task&& task) {
+  std::atomic<size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto worker = [&] {
+    for (size_t i; !failed.load() && (i = next.fetch_add(1)) < count;) {
+      try {
+        if (cancel && cancel->load()) throw Cancelled();
+        task(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        failed = true;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+void ValidateAxis(const GridAxis& axis, const std::string& name, double lowest) {
+  if (!std::isfinite(axis.from) || axis.from < lowest)
+    throw InputError(name + ".from", "must be a finite number >= " + std::to_string(lowest));
+  if (!std::isfinite(axis.to) || axis.to < axis.from) throw InputError(name + ".to", "must be >= " + name + ".from");
+  if (axis.points < 1 || axis.points > 100000) throw InputError(name + ".points", "must be between 1 and 100000");
+  if (axis.points > 1 && axis.to == axis.from) throw InputError(name + ".to", "must be > from when points > 1");
+  if (axis.geometric && axis.from <= 0) throw InputError(name + ".from", "must be > 0 on a geometric grid");
+}
+
+}  // namespace
+
+// The steady states of one amplitude at every grid frequency, by continuation in frequency.
+SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
+                   const std::atomic<bool>* cancel) {
+  SweepRowResult row;
+  const double f_lo = grid_hz.front(), f_hi = grid_hz.back();
+  const PeriodMap first(model, f_lo, amplitude_v);
+  std::optional<SteadyState> start = Shoot(first, first.ClippedLinearStart(), 1);
+  if (!start) start = Shoot(first, SolveAttractor(first, first.ClippedLinearStart()).start, 1);
+  std::optional<ContinuedBranch> branch;
+  if (start) {
+    branch = ContinueBranch(model, ContinuationParameter::kFrequencyHz, amplitude_v, f_lo, start->start,
+                            f_lo * (1 - kRangeMargin), f_hi * (1 + kRangeMargin), true, {}, cancel);
+    row.jumps = JumpIntervals(*branch, amplitude_v, f_lo, f_hi);
+  }
+  for (double f : grid_hz) {
+    if (cancel && cancel->load()) throw Cancelled();
+    const PeriodMap map(model, f, amplitude_v);
+    std::vector<BranchPoint> solutions;
+    if (branch) solutions = SolutionsAt(model, *branch, f);
+    std::vector<const BranchPoint*> stable;
+    for (const BranchPoint& s : solutions)
+      if (s.stable) stable.push_back(&s);
+    if (stable.empty()) {
+      // No stable period-1 orbit (period doubling, chaos, or a branch that could not be followed):
+      // the attractor reached from the least unstable orbit (or the linear start) is the response.
+      State guess = map.ClippedLinearStart();
+      double least = INFINITY;
+      for (const BranchPoint& s : solutions)
+        if (s.MaxMultiplier() < least) least = s.MaxMultiplier(), guess = s.start;
+      const SteadyState attractor = SolveAttractor(map, guess);
+      row.points.push_back(FromAttractor(model, f, amplitude_v, attractor, Branch::kUp));
+      row.points.push_back(FromAttractor(model, f, amplitude_v, attractor, Branch::kDown));
+    } else {
+      // Along the branch from low frequency: the up-sweep stays on the first stable orbit it
+      // meets, the down-sweep (coming from high frequency) on the last.
+      row.points.push_back(FromBranchPoint(model, amplitude_v, *stable.front(), Branch::kUp));
+      row.points.push_back(FromBranchPoint(model, amplitude_v, *stable.back(), Branch::kDown));
+    }
+    for (const BranchPoint& s : solutions)
+      if (!s.stable) row.points.push_back(FromBranchPoint(model, amplitude_v, s, Branch::kUnstable));
+  }
+  return row;
+}
+
+// The saturation threshold at one frequency: the grazing amplitude of the non-contacting response,
+// and the lowest amplitude down to which the contacting response stays a stable attractor
+// (continuation in amplitude from well above grazing, to a fold or to grazing).
+SaturationThreshold SweepColumn(const ActuatorModel& model, double f_hz, const std::atomic<bool>* cancel) {
+  SaturationThreshold t{f_hz, NAN, NAN};
+  if (!model.HasLowerStop() && !model.HasUpperStop()) return t;
+  const double v_probe = 1e-3;
+  BranchPoint quiet;
+  quiet.parameter = v_probe;
+  {
+    ActuatorModel free_model = model;
+    free_model.lower_stop_m = ActuatorModel::kNoLowerStop;
+    free_model.upper_stop_m = ActuatorModel::kNoUpperStop;
+    const PeriodMap map(free_model, f_hz, v_probe);
+    const std::optional<BranchPoint> q =
+        SolveAt(free_model, ContinuationParameter::kAmplitudeV, f_hz, v_probe, map.ClippedLinearStart());
+    if (!q) return t;
+    quiet = *q;
+  }
+  const std::optional<BranchPoint> graze = LocateGrazing(model, ContinuationParameter::kAmplitudeV, f_hz, quiet);
+  if (!graze) return t;
+  t.grazing_amplitude_v = graze->parameter;
+  if (cancel && cancel->load()) throw Cancelled();
+
+  // Start on the contacting response well above grazing, where no other response exists.
+  const double v_start = 1.3 * t.grazing_amplitude_v;
+  const PeriodMap map(model, f_hz, v_start);
+  // Any period-1 orbit there will do to start the continuation (stable or not); the attractor
+  // search (hundreds of periods where the response is period-doubled) only if shooting fails.
+  std::optional<SteadyState> orbit = Shoot(map, map.ClippedLinearStart(), 1);
+  if (!orbit) orbit = Shoot(map, SolveAttractor(map, map.ClippedLinearStart()).start, 1);
+  if (!orbit) return t;
+  ContinuationOptions options;
+  options.stop_at_first_event = true;
+  const ContinuedBranch branch =
+      ContinueBranch(model, ContinuationParameter::kAmplitudeV, f_hz, v_start, orbit->start,
+                     0.05 * t.grazing_amplitude_v, 2.0 * v_start, false, options, cancel);
+  // The contacting response lasts down to the first fold, grazing, or loss of stability other than
+  // period doubling (past period doubling a stable period-2 contacting response takes over).
+  t.lowest_contact_amplitude_v = branch.points.back().parameter;
+  for (const BranchEvent& e : branch.events) {
+    if (e.kind == BranchEvent::Kind::kStabilityChange && e.period_doubling) continue;
+    if (e.kind == BranchEvent::Kind::kStabilityChange && e.point.stable) continue;  // regained
+    t.lowest_contact_amplitude_v = e.point.parameter;
+    break;
+  }
+  return t;
+}
+
+std::vector<double> GridAxis::Values() const {
+  std::vector<double> values(points);
+  for (int i = 0; i < points; ++i) {
+    const double s = points == 1 ? 0.0 : static_cast<double>(i) / (points - 1);
+    values[i] = geometric ? from * std::pow(to / from, s) : from + (to - from) * s;
+  }
+  if (points > 1) values.back() = to;
+  return values;
+}
+
+void SweepSpec::Validate() const {
+  strokelab::Validate(model);
+  ValidateAxis(frequency_hz, "frequency_hz", 1e-3);
+  ValidateAxis(amplitude_v, "amplitude_v", 1e-6);
+  if (static_cast<double>(frequency_hz.points) * amplitude_v.points > 4e6)
+    throw InputError("grid", "frequency points x amplitude points must not exceed 4,000,000");
+  if (threads < 1 || threads > 256) throw InputError("threads", "must be between 1 and 256");
+}
+
+const char* ToString(Branch branch) {
+  switch (branch) {
+    case Branch::kUp: return "up";
+    case Branch::kDown: return "down";
+    case Branch::kUnstable: return "unstable";
+  }
+  return "?";
+}
+
+SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const SweepProgress&)>& progress,
+                     const std::atomic<bool>* cancel) {
+  spec.Validate();
+  const auto start = std::chrono::steady_clock::now();
+  SweepResult result;
+  result.frequency_hz = spec.frequency_hz.Values();
+  result.amplitude_v = spec.amplitude_v.Values();
+  const size_t rows = result.amplitude_v.size();
+  const size_t columns = spec.thresholds ? result.frequency_hz.size() : 0;
+  std::vector<SweepRowResult> row_results(rows);
+  result.saturation_threshold.resize(columns);
+
+  std::mutex progress_mutex;
+  std::atomic<size_t> done{0};
+  const size_t total = rows + columns;
+  ParallelFor(total, spec.threads, cancel, [&](size_t i) {
+    if (i < rows) {
+      row_results[i] = SweepRow(spec.model, result.amplitude_v[i], result.frequency_hz, cancel);
+    } else {
+      result.saturation_threshold[i - rows] = SweepColumn(spec.model, result.frequency_hz[i - rows], cancel);
+    }
+    const size_t finished = ++done;
+    if (progress) {
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      progress({finished, total});
+    }
+  });
+  if (cancel && cancel->load()) throw Cancelled();
+  for (SweepRowResult& r : row_results) {
+    result.points.insert(result.points.end(), r.points.begin(), r.points.end());
+    result.jump.insert(result.jump.end(), r.jumps.begin(), r.jumps.end());
+  }
+  result.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.points_per_second = static_cast<double>(rows * result.frequency_hz.size()) / result.wall_time_s;
+  return result;
+}
+
+}  // namespace strokelab

@@ -1,0 +1,77 @@
+// Synthetic campaigns with known truth (`strokelab synth`): a model simulated as the test rig would
+// record it, with sensor noise, a DC offset, mains hum and parameters perturbed from their nominal
+// values, so that fitting and diagnosis can be tested on campaigns whose truth only the test knows.
+//
+// Each record is one stepped-sine step (amplitudes outer, frequencies inner: record k is amplitude
+// k / F, frequency k % F), simulated from rest for settle_s + duration_s with the drive
+// v_in = V sin(2 pi f t) starting at t = 0; the last duration_s are kept and re-timed from 0. The
+// channels, in sensor volts as written:
+//
+//   voltage   v_in(t) + N(0, voltage_noise_rms_v^2)         (measured before the amplifier: unclipped)
+//   response  s_true r(t) + offset_v + hum_v sin(2 pi hum_hz t + phi_k) + N(0, noise_rms_v^2)
+//
+// with r the model's response in physical units (force: blocked force f = m_p x'' [N];
+// acceleration: x'' [m/s^2]; velocity: x' [m/s]; displacement: x [m]), phi_k a random hum phase per
+// record and s_true the sensitivity the sensor really has (the written one unless perturbed). The
+// manifest says nothing of the truth; Synthesis::truth does (written as truth.json).
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "strokelab/identify/campaign.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/model.h"
+#include "strokelab/data/recordings.h"
+
+namespace strokelab {
+
+struct SynthOptions {
+  std::vector<double> frequencies_hz = {6, 7, 8, 9, 11, 13};  // drive frequencies [Hz] (inner loop)
+  std::vector<double> amplitudes_v = {0.1, 0.3, 0.4, 0.5};    // drive amplitudes [V] (outer loop)
+  double duration_s = 1.0;                                    // kept length of each record [s]
+  double settle_s = 10.0;                                     // simulated from rest before the kept part [s]
+  double sample_rate_hz = 51200.0;                            // fs [Hz]
+  ResponseKind response = ResponseKind::kForce;
+  double sensitivity = 0.0;          // written to the manifest [V per N, m/s^2, m/s or m]; 0: DefaultSensitivity
+  bool nominal = false;              // the manifest calls the sensitivity nominal (absolute_scale false)
+  double noise_rms_v = 0.0;          // Gaussian noise on the response channel [sensor V rms]
+  double voltage_noise_rms_v = 0.0;  // Gaussian noise on the voltage channel [V rms]
+  double offset_v = 0.0;             // DC offset on the response channel [sensor V]
+  double hum_v = 0.0;                // mains hum amplitude on the response channel [sensor V]
+  double hum_hz = 50.0;              // mains frequency [Hz]
+  // Relative perturbations (key, r): the value used is nominal * (1 + r u), u uniform in [-1, 1]
+  // drawn from the seed, in the order given. Keys: model parameter keys or JSON names (model.h), or
+  // "sensitivity" (the sensor's true sensitivity departs from the written one). r in [0, 1)
+  // [dimensionless]. A zero or infinite parameter stays so.
+  std::vector<std::pair<std::string, double>> perturb;
+  std::uint64_t seed = 1;
+  std::optional<Method> method;  // none: exact for piecewise-linear models, cvode otherwise
+  std::string actuator = "inertial actuator, test rig";
+  int threads = 0;  // records simulated side by side; 0: one thread per core
+};
+// Throws InputError naming the offending field (frequencies_hz, amplitudes_v, duration_s, settle_s,
+// sample_rate_hz, sensitivity, noise_rms_v, voltage_noise_rms_v, offset_v, hum_v, hum_hz, perturb, threads).
+void Validate(const SynthOptions& options);
+
+struct Synthesis {
+  Campaign campaign;    // response in physical units of the written sensitivity (WriteCampaign's inverse)
+  WriteOptions write;   // the written sensitivity
+  ActuatorModel model;  // the model actually simulated (after perturbation)
+  Method method = Method::kExact;
+  nlohmann::json truth;  // truth.json: model, nominal model, perturbations, sensitivities, noise, seed
+};
+
+// Results depend on the options and the seed only, not on the thread count.
+Synthesis Synthesize(const ActuatorModel& model, const SynthOptions& options);
+
+// WriteCampaign(synthesis.campaign, dir, synthesis.write) and the truth as JSON at `truth_path`
+// (empty: dir / "truth.json").
+void WriteSynthesis(const Synthesis& synthesis, const std::filesystem::path& dir,
+                    const std::filesystem::path& truth_path = {});
+
+}  // namespace strokelab

@@ -1,0 +1,265 @@
+// Synthetic campaigns (strokelab/synth.h).
+#include "strokelab/data/synth.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <fstream>
+#include <numbers>
+#include <random>
+#include <set>
+#include <thread>
+
+#include "strokelab/model/dynamics.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/model/model_json.h"
+
+namespace strokelab {
+namespace {
+
+std::string Num(double value) {
+  char buffer[40];
+  std::snprintf(buffer, sizeof buffer, "%.9g", value);
+  return buffer;
+}
+
+// Random numbers fixed by the seed and a stream index on every platform: mt19937_64 and seed_seq
+// are specified by the standard; the uniform and normal transforms are done here (the standard
+// library's distributions are implementation-defined).
+class Random {
+ public:
+  Random(std::uint64_t seed, std::uint64_t stream) {
+    std::seed_seq sequence{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
+                           static_cast<std::uint32_t>(stream), static_cast<std::uint32_t>(stream >> 32)};
+    engine_.seed(sequence);
+  }
+  // Uniform in [0, 1).
+  double Uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }
+  // Standard normal (Box-Muller, both values used).
+  double Normal() {
+    if (has_spare_) {
+      has_spare_ = false;
+      return spare_;
+    }
+    const double u1 = 1.0 - Uniform();  // (0, 1]
+    const double u2 = Uniform();
+    const double radius = std::sqrt(-2.0 * std::log(u1));
+    spare_ = radius * std::sin(2.0 * std::numbers::pi * u2);
+    has_spare_ = true;
+    return radius * std::cos(2.0 * std::numbers::pi * u2);
+  }
+
+ private:
+  std::mt19937_64 engine_;
+  bool has_spare_ = false;
+  double spare_ = 0.0;
+};
+
+void RequireFinite(double value, const char* field, bool positive, bool allow_zero = true) {
+  if (!std::isfinite(value) || (positive && (value < 0 || (!allow_zero && value == 0))))
+    throw InputError(field, std::string("must be a finite number") + (positive ? (allow_zero ? " >= 0" : " > 0") : "") +
+                                ", got " + Num(value));
+}
+
+double ResponseSample(const Record& record, const ActuatorModel& model, ResponseKind kind, size_t n) {
+  switch (kind) {
+    case ResponseKind::kForce: return record.force_n[n];
+    case ResponseKind::kAcceleration: return record.force_n[n] / model.mass_kg;
+    case ResponseKind::kVelocity: return record.velocity_m_per_s[n];
+    case ResponseKind::kDisplacement: return record.displacement_m[n];
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+void Validate(const SynthOptions& o) {
+  RequireFinite(o.sample_rate_hz, "sample_rate_hz", true, false);
+  const double nyquist_hz = 0.5 * o.sample_rate_hz;
+  if (o.frequencies_hz.empty()) throw InputError("frequencies_hz", "needs at least one frequency");
+  for (double f : o.frequencies_hz) {
+    RequireFinite(f, "frequencies_hz", true, false);
+    if (f >= nyquist_hz)
+      throw InputError("frequencies_hz", Num(f) + " Hz is not below the Nyquist frequency " + Num(nyquist_hz) + " Hz");
+  }
+  if (o.amplitudes_v.empty()) throw InputError("amplitudes_v", "needs at least one amplitude");
+  for (double a : o.amplitudes_v) RequireFinite(a, "amplitudes_v", true);
+  RequireFinite(o.duration_s, "duration_s", true, false);
+  if (std::llround(o.duration_s * o.sample_rate_hz) < 2)
+    throw InputError("duration_s", "a record must hold at least 2 samples");
+  RequireFinite(o.settle_s, "settle_s", true);
+  RequireFinite(o.sensitivity, "sensitivity", false);
+  RequireFinite(o.noise_rms_v, "noise_rms_v", true);
+  RequireFinite(o.voltage_noise_rms_v, "voltage_noise_rms_v", true);
+  RequireFinite(o.offset_v, "offset_v", false);
+  RequireFinite(o.hum_v, "hum_v", true);
+  RequireFinite(o.hum_hz, "hum_hz", true, false);
+  std::set<std::string> keys;
+  for (const auto& [key, relative] : o.perturb) {
+    std::string name = key;
+    if (key != "sensitivity") {
+      try {
+        name = FindParameter(key).key;
+      } catch (const InputError& e) {
+        throw InputError("perturb", "'" + key + "': " + e.bare_message() + " or sensitivity");
+      }
+    }
+    if (!keys.insert(name).second) throw InputError("perturb", "'" + key + "' is perturbed twice");
+    if (!std::isfinite(relative) || relative < 0 || relative >= 1)
+      throw InputError("perturb", "'" + key + "': the relative perturbation must be in [0, 1), got " + Num(relative));
+  }
+  if (o.threads < 0) throw InputError("threads", "must be >= 0");
+}
+
+Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& options) {
+  Validate(options);
+  Validate(nominal_model);
+  Synthesis out;
+  const double written_sensitivity =
+      options.sensitivity != 0 ? options.sensitivity : DefaultSensitivity(options.response);
+  double true_sensitivity = written_sensitivity;
+
+  // Perturbations, drawn in the order given from stream 0.
+  Random parameter_random(options.seed, 0);
+  out.model = nominal_model;
+  nlohmann::json perturbations = nlohmann::json::array();
+  for (const auto& [key, relative] : options.perturb) {
+    const double u = 2.0 * parameter_random.Uniform() - 1.0;
+    const double factor = 1.0 + relative * u;
+    double nominal = 0.0, actual = 0.0;
+    std::string name = key;
+    if (key == "sensitivity") {
+      nominal = written_sensitivity;
+      true_sensitivity = actual = written_sensitivity * factor;
+    } else {
+      const ParameterInfo& info = FindParameter(key);
+      name = info.key;
+      nominal = nominal_model.*(info.field);
+      actual = std::isfinite(nominal) ? nominal * factor : nominal;
+      out.model.*(info.field) = actual;
+    }
+    perturbations.push_back({{"key", name},
+                             {"relative_half_width", relative},
+                             {"factor", factor},
+                             {"nominal", std::isfinite(nominal) ? nlohmann::json(nominal) : nlohmann::json(nullptr)},
+                             {"actual", std::isfinite(actual) ? nlohmann::json(actual) : nlohmann::json(nullptr)}});
+  }
+  try {
+    Validate(out.model);
+  } catch (const InputError& e) {
+    throw InputError("perturb", "the perturbed model is not valid: " + std::string(e.what()));
+  }
+  out.method = options.method ? *options.method : (out.model.IsPiecewiseLinear() ? Method::kExact : Method::kCvode);
+
+  SimulationOptions simulation;
+  simulation.duration_s = options.settle_s + options.duration_s;
+  simulation.sample_rate_hz = options.sample_rate_hz;
+  simulation.record_velocity = options.response == ResponseKind::kVelocity;
+  Validate(simulation);
+  const size_t total = simulation.SampleCount();
+  const size_t kept =
+      std::min<size_t>(total, static_cast<size_t>(std::llround(options.duration_s * options.sample_rate_hz)));
+  const size_t first = total - kept;
+
+  const size_t frequencies = options.frequencies_hz.size();
+  const size_t count = frequencies * options.amplitudes_v.size();
+  Campaign& campaign = out.campaign;
+  campaign.actuator = options.actuator;
+  campaign.response = options.response;
+  campaign.absolute_scale = !options.nominal;
+  campaign.records.resize(count);
+  std::vector<double> hum_phases(count);
+
+  std::vector<std::exception_ptr> failures(count);
+  std::atomic<size_t> next{0};
+  const auto work = [&] {
+    const auto engine = MakeEngine(out.method);
+    Record record;
+    for (size_t k = next++; k < count; k = next++) {
+      try {
+        SineDrive drive;
+        drive.frequency_hz = options.frequencies_hz[k % frequencies];
+        drive.amplitude_v = options.amplitudes_v[k / frequencies];
+        engine->Simulate(out.model, drive, simulation, &record);
+        Random random(options.seed, 1 + k);
+        const double hum_phase = 2.0 * std::numbers::pi * random.Uniform();
+        hum_phases[k] = hum_phase;
+        Recording& rec = campaign.records[k];
+        char name[32];
+        std::snprintf(name, sizeof name, "rec_%03zu.csv", k + 1);
+        rec.name = name;
+        rec.sample_rate_hz = options.sample_rate_hz;
+        rec.nominal_frequency_hz = drive.frequency_hz;
+        rec.nominal_amplitude_v = drive.amplitude_v;
+        rec.voltage_v.resize(kept);
+        rec.response.resize(kept);
+        const double hum_omega = 2.0 * std::numbers::pi * options.hum_hz;
+        for (size_t n = 0; n < kept; ++n) {
+          const double t_kept = static_cast<double>(n) / options.sample_rate_hz;
+          const double t_simulated = static_cast<double>(first + n) / options.sample_rate_hz;
+          rec.voltage_v[n] = drive.Voltage(t_simulated) + options.voltage_noise_rms_v * random.Normal();
+          const double volts = true_sensitivity * ResponseSample(record, out.model, options.response, first + n) +
+                               options.offset_v + options.hum_v * std::sin(hum_omega * t_kept + hum_phase) +
+                               options.noise_rms_v * random.Normal();
+          rec.response[n] = volts / written_sensitivity;
+        }
+      } catch (...) {
+        failures[k] = std::current_exception();
+      }
+    }
+  };
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const size_t threads = std::min<size_t>(count, options.threads > 0 ? static_cast<size_t>(options.threads) : cores);
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& thread : pool) thread.join();
+  for (const std::exception_ptr& failure : failures)
+    if (failure) std::rethrow_exception(failure);
+
+  out.write.sensitivity = written_sensitivity;
+  nlohmann::json records = nlohmann::json::array();
+  for (size_t k = 0; k < count; ++k) {
+    records.push_back({{"file", campaign.records[k].name},
+                       {"frequency_hz", campaign.records[k].nominal_frequency_hz},
+                       {"amplitude_v", campaign.records[k].nominal_amplitude_v},
+                       {"hum_phase_rad", hum_phases[k]}});
+  }
+  out.truth = {
+      {"format", "strokelab-synth-truth/1"},
+      {"model", ModelToJson(out.model)},
+      {"nominal_model", ModelToJson(nominal_model)},
+      {"perturbations", perturbations},
+      {"method", ToString(out.method)},
+      {"response", ToString(options.response)},
+      {"sensitivity_written", written_sensitivity},
+      {"sensitivity_true", true_sensitivity},
+      {"nominal_sensitivity", options.nominal},
+      {"noise_rms_v", options.noise_rms_v},
+      {"voltage_noise_rms_v", options.voltage_noise_rms_v},
+      {"offset_v", options.offset_v},
+      {"hum_v", options.hum_v},
+      {"hum_hz", options.hum_hz},
+      {"seed", options.seed},
+      {"settle_s", options.settle_s},
+      {"duration_s", options.duration_s},
+      {"sample_rate_hz", options.sample_rate_hz},
+      {"records", records},
+  };
+  return out;
+}
+
+void WriteSynthesis(const Synthesis& synthesis, const std::filesystem::path& dir,
+                    const std::filesystem::path& truth_path) {
+  WriteCampaign(synthesis.campaign, dir, synthesis.write);
+  const std::filesystem::path path = truth_path.empty() ? dir / "truth.json" : truth_path;
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot open '" + path.string() + "' for writing");
+  out << synthesis.truth.dump(2) << "\n";
+  if (!out.flush()) throw std::runtime_error("writing '" + path.string() + "' failed");
+}
+
+}  // namespace strokelab

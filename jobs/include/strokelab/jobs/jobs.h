@@ -1,0 +1,47 @@
+// The bridge between the job store and core: a job is split into tasks, and one task is run.
+//
+// A sweep becomes one task per amplitude row (continuation in frequency: steady states and jump
+// intervals) and one task per chunk of frequency columns (saturation thresholds); a simulate job is
+// one task. A fit or diagnose job is one task over a campaign on the server's disk (an upload or a
+// directory under the data root): its spec carries the campaign's canonical directory and content
+// digest (checked again when the task runs: a campaign changed since submission fails the job), and
+// its result is one row, table "fit" (FitResultToJson) or "diagnosis" (DiagnosisToJson), plus, for
+// diagnose, the HTML report's files as rows of table "report_files" ({"name", "content_type",
+// "text"}). Only the server's in-process workers run these tasks (IsCampaignKind). Task specs carry the full model, so that a task's key (a hash of its spec and the code
+// version) identifies its result whatever job it came from.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "strokelab/jobs/campaigns.h"
+#include "strokelab/jobs/task.h"
+#include "strokelab/sweep/sweep.h"
+
+namespace strokelab::jobs {
+
+// Bumped whenever a change to core alters results, so that cached results are not reused.
+inline constexpr const char* kCodeVersion = "strokelab-0.3.0";
+
+// Splits a validated job into tasks (throws InputError naming the field for semantic errors). A
+// campaign job's campaign is resolved in `campaigns` and read (a bad campaign is an InputError naming
+// its file and line).
+std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& campaigns = {});
+
+// Whether a job kind works on a campaign on the server's disk (fit, diagnose): its task is leased
+// only by in-process workers.
+bool IsCampaignKind(const std::string& kind);
+
+// Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
+std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
+
+// A sweep point as a "points" result row (the stored and served form).
+nlohmann::json SweepPointJson(const SweepPoint& point);
+
+// 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
+std::string ContentKey(const std::string& text);
+
+}  // namespace strokelab::jobs

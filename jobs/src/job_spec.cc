@@ -1,0 +1,244 @@
+#include "strokelab/jobs/job_spec.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "strokelab/engines/engine.h"
+#include "strokelab/model/model_json.h"
+#include "strokelab/jobs/json_schema.h"
+
+namespace strokelab::jobs {
+namespace {
+
+using nlohmann::json;
+
+std::string FormatNumber(double x) {
+  if (std::isfinite(x) && x == std::floor(x) && std::abs(x) < 1e15) return std::to_string(static_cast<long long>(x));
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, x);
+  return std::string(buffer, result.ptr);
+}
+
+void CheckSchema(const json& job) {
+  if (auto violation = ValidateAgainstSchema(BuiltInSchema("job"), job))
+    throw InputError(violation->pointer, violation->message);
+}
+
+// The model of a job, with errors at the key the job used: core reports a physically wrong value
+// under its JSON name ("/model/mass_kg") even when the job wrote the short key ("m_p").
+ActuatorModel ModelFromJob(const json& job) {
+  const json& model = job.at("model");
+  if (model.is_object()) {
+    for (const ParameterInfo& info : Parameters()) {
+      if (std::string(info.key) != info.json_name && model.contains(info.key) && model.contains(info.json_name))
+        throw InputError(std::string("/model/") + info.json_name,
+                         std::string("gives the same parameter as ") + info.key + " (give one of them)");
+    }
+  }
+  try {
+    return ModelFromJson(model, "/model");
+  } catch (const InputError& e) {
+    std::string field = e.field();
+    if (field.rfind("/model", 0) != 0) field = "/model";  // a preset error names "model"
+    if (model.is_object() && field.rfind("/model/", 0) == 0) {
+      const std::string key = field.substr(7);
+      for (const ParameterInfo& info : Parameters())
+        if (key == info.json_name && !model.contains(key) && model.contains(info.key))
+          field = std::string("/model/") + info.key;
+    }
+    throw InputError(field, e.bare_message());
+  }
+}
+
+// One linear or geometric axis of a validated grid: from, to, points; to >= from.
+GridAxis ReadRangeAxis(const json& axis, const std::string& pointer, bool geometric) {
+  const double from = axis.at("from").get<double>(), to = axis.at("to").get<double>();
+  const int points = static_cast<int>(axis.at("points").get<double>());
+  if (to < from) throw InputError(pointer + "/to", "must be >= from (" + FormatNumber(from) + ")");
+  if (points > 1 && to == from) throw InputError(pointer + "/to", "must be > from when points > 1");
+  return GridAxis{from, to, points, geometric};
+}
+
+// Paper Eq. 1: f_n = from x 1.02^(n-1) Hz, n = 1..points.
+GridAxis ReadEq1Axis(const json& axis, const std::string& pointer) {
+  if (axis.contains("to"))
+    throw InputError(pointer + "/to",
+                     "must be left out with spacing eq1 (the grid is from x 1.02^(n-1) for n = 1..points)");
+  const double from = axis.value("from", kEq1StartHz);
+  const int points = static_cast<int>(axis.at("points").get<double>());
+  const double last = from * std::pow(kEq1Ratio, points - 1);
+  if (!(last <= kMaxFrequencyHz)) {
+    const int max_points = 1 + static_cast<int>(std::floor(std::log(kMaxFrequencyHz / from) / std::log(kEq1Ratio)));
+    char last_text[32];
+    std::snprintf(last_text, sizeof last_text, "%.5g", last);
+    throw InputError(pointer + "/points", "with spacing eq1 the last frequency, from x 1.02^(points-1) = " +
+                                              std::string(last_text) + " Hz, must be <= " + FormatNumber(kMaxFrequencyHz) +
+                                              " Hz (at most " + std::to_string(max_points) + " points from " +
+                                              FormatNumber(from) + " Hz)");
+  }
+  return GridAxis{from, last, points, true};
+}
+
+// A core SweepSpec::Validate field ("frequency_hz.to", "grid", "m_p") as a job pointer.
+std::string PointerForSweepField(const std::string& field) {
+  if (field.rfind("frequency_hz", 0) == 0 || field.rfind("amplitude_v", 0) == 0) {
+    std::string pointer = "/grid/" + field;
+    for (char& c : pointer)
+      if (c == '.') c = '/';
+    return pointer;
+  }
+  if (field == "grid") return "/grid";
+  for (const ParameterInfo& info : Parameters())
+    if (field == info.key) return std::string("/model/") + info.json_name;
+  return "/" + field;
+}
+
+// A sweep job that passed the schema.
+SweepSpec SweepFromSchemaValidJob(const json& job) {
+  SweepSpec spec;
+  const json& grid = job.at("grid");
+  const json& frequency = grid.at("frequency_hz");
+  const std::string spacing = frequency.value("spacing", std::string("linear"));
+  spec.frequency_hz = spacing == "eq1" ? ReadEq1Axis(frequency, "/grid/frequency_hz")
+                                       : ReadRangeAxis(frequency, "/grid/frequency_hz", spacing == "geometric");
+  spec.amplitude_v = ReadRangeAxis(grid.at("amplitude_v"), "/grid/amplitude_v", false);
+  CheckGridSize(spec.frequency_hz.points, spec.amplitude_v.points);
+  spec.model = ModelFromJob(job);
+  spec.thresholds = job.value("thresholds", true);
+  spec.threads = 1;
+  try {
+    spec.Validate();  // everything above should have caught it: a safety net with the right pointer
+  } catch (const InputError& e) {
+    throw InputError(PointerForSweepField(e.field()), e.bare_message());
+  }
+  return spec;
+}
+
+// A simulate job that passed the schema; defaults as in `strokelab simulate` and jobs.cc.
+void CheckSimulateJob(const json& job) {
+  const ActuatorModel model = ModelFromJob(job);
+  SimulationOptions options;
+  options.duration_s = job.value("duration_s", options.duration_s);
+  options.sample_rate_hz = job.value("sample_rate_hz", options.sample_rate_hz);
+  const double samples = options.duration_s * options.sample_rate_hz;
+  if (samples > kMaxRecordSamples)
+    throw JobLimitError("/duration_s", "duration_s x sample_rate_hz = " + FormatNumber(samples) +
+                                           " samples exceeds the limit of " + FormatNumber(kMaxRecordSamples) +
+                                           " samples per record");
+  try {
+    Validate(options);
+  } catch (const InputError& e) {
+    throw InputError("/" + e.field(), e.bare_message());
+  }
+  const std::string method = job.value("method", std::string("exact"));
+  if (method == "exact" && !model.IsPiecewiseLinear())
+    throw InputError("/method", std::string(job.contains("method") ? "exact" : "the default method, exact,") +
+                                    " needs a piecewise-linear model; this one has " + model.NonlinearTerms() +
+                                    " (use cvode or ode3)");
+}
+
+// A FitOptions or DiagnoseOptions field ("harmonic_orders", "fit.max_clear_distortion",
+// "heldout_every") as the pointer of the job option that sets it.
+std::string PointerForOptionField(std::string field) {
+  if (field.rfind("fit.", 0) == 0) field = field.substr(4);
+  static const std::pair<const char*, const char*> kRenamed[] = {
+      {"harmonic_orders", "harmonics"}, {"max_clear_distortion", "max_distortion"}, {"mains_frequency_hz", "mains_hz"}};
+  for (const auto& [core_name, job_name] : kRenamed)
+    if (field == core_name) return std::string("/options/") + job_name;
+  return "/options/" + field;
+}
+
+// Throws InputError at the option's pointer when IsValid says no ("FIELD: message").
+template <typename Options>
+void CheckOptions(const Options& options) {
+  std::string error;
+  if (options.IsValid(&error)) return;
+  const size_t colon = error.find(": ");
+  if (colon == std::string::npos) throw InputError("/options", error);
+  throw InputError(PointerForOptionField(error.substr(0, colon)), error.substr(colon + 2));
+}
+
+// The FitOptions of a fit or diagnose job that passed the schema.
+FitOptions FitFromSchemaValidJob(const json& job) {
+  FitOptions fit;
+  fit.model = ParseFitModel(job.value("model", std::string("paper")));
+  const json options = job.value("options", json::object());
+  fit.harmonic_orders = options.value("harmonics", fit.harmonic_orders);
+  fit.mass_kg = options.value("mass_kg", fit.mass_kg);
+  fit.fit_contact_damping = options.value("fit_contact_damping", fit.fit_contact_damping);
+  fit.mains_frequency_hz = options.value("mains_hz", fit.mains_frequency_hz);
+  fit.max_clear_distortion = options.value("max_distortion", fit.max_clear_distortion);
+  fit.max_iterations = options.value("max_iterations", fit.max_iterations);
+  fit.refine = options.value("refine", fit.refine);
+  fit.max_refinement_seconds = options.value("max_refinement_seconds", fit.max_refinement_seconds);
+  return fit;
+}
+
+DiagnoseOptions DiagnoseFromSchemaValidJob(const json& job) {
+  DiagnoseOptions diagnose;
+  diagnose.fit = FitFromSchemaValidJob(job);
+  const json options = job.value("options", json::object());
+  diagnose.heldout_every = options.value("heldout_every", diagnose.heldout_every);
+  diagnose.min_heldout_gain = options.value("min_heldout_gain", diagnose.min_heldout_gain);
+  diagnose.pairs = options.value("pairs", diagnose.pairs);
+  diagnose.max_passes = options.value("max_passes", diagnose.max_passes);
+  diagnose.max_seconds = options.value("max_seconds", diagnose.max_seconds);
+  return diagnose;
+}
+
+// The checks of a fit or diagnose job after the schema.
+void CheckCampaignJob(const json& job) {
+  const json& campaign = job.at("campaign");
+  if (campaign.contains("path") == campaign.contains("id"))
+    throw InputError("/campaign", "must give exactly one of path (under the server's data root) and id (an upload)");
+  if (job.at("kind") == "fit") CheckOptions(FitFromSchemaValidJob(job));
+  else CheckOptions(DiagnoseFromSchemaValidJob(job));
+}
+
+}  // namespace
+
+void CheckGridSize(long long frequency_points, long long amplitude_points) {
+  const long long total = frequency_points * amplitude_points;
+  if (total > kMaxGridPoints)
+    throw JobLimitError("/grid", "frequency points x amplitude points = " + std::to_string(frequency_points) + " x " +
+                                     std::to_string(amplitude_points) + " = " + std::to_string(total) +
+                                     " exceeds the limit of " + std::to_string(kMaxGridPoints) +
+                                     " grid points per job");
+}
+
+void ValidateJob(const json& job) {
+  CheckSchema(job);
+  const std::string& kind = job.at("kind").get_ref<const std::string&>();
+  if (kind == "sweep") {
+    (void)SweepFromSchemaValidJob(job);
+  } else if (kind == "simulate") {
+    CheckSimulateJob(job);
+  } else if (kind == "fit" || kind == "diagnose") {
+    CheckCampaignJob(job);
+  } else {
+    // The schema's kind enum and this dispatch must list the same kinds.
+    throw std::logic_error("job kind '" + kind + "' passed the schema but has no checks in job_spec.cc");
+  }
+}
+
+SweepSpec SweepSpecFromJob(const json& job) {
+  CheckSchema(job);
+  if (job.at("kind") != "sweep") throw InputError("/kind", "must be sweep");
+  return SweepFromSchemaValidJob(job);
+}
+
+FitOptions FitOptionsFromJob(const json& job) {
+  ValidateJob(job);
+  if (job.at("kind") != "fit" && job.at("kind") != "diagnose") throw InputError("/kind", "must be fit or diagnose");
+  return FitFromSchemaValidJob(job);
+}
+
+DiagnoseOptions DiagnoseOptionsFromJob(const json& job) {
+  ValidateJob(job);
+  if (job.at("kind") != "diagnose") throw InputError("/kind", "must be diagnose");
+  return DiagnoseFromSchemaValidJob(job);
+}
+
+}  // namespace strokelab::jobs

@@ -1,0 +1,211 @@
+#include "strokelab/jobs/jobs.h"
+
+#include <algorithm>
+#include <cstdio>
+
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/report/diagnose_report.h"
+#include "strokelab/engines/engine.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/identify/fit.h"
+#include "strokelab/model/model_json.h"
+#include "strokelab/engines/record_summary.h"
+#include "strokelab/data/recordings.h"
+#include "strokelab/jobs/campaigns.h"
+#include "strokelab/jobs/job_spec.h"
+#include "strokelab/sweep/sweep.h"
+
+namespace strokelab::jobs {
+namespace {
+
+constexpr size_t kColumnsPerTask = 16;  // threshold columns take ~2 ms each: chunks of ~30 ms
+
+nlohmann::json NullIfNotFinite(double value) {
+  return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
+}
+
+}  // namespace
+
+nlohmann::json SweepPointJson(const SweepPoint& p) {
+  return {{"frequency_hz", p.frequency_hz},
+          {"amplitude_v", p.amplitude_v},
+          {"branch", ToString(p.branch)},
+          {"stable", p.stable},
+          {"period", p.period > 0 ? nlohmann::json(p.period) : nlohmann::json("aperiodic")},
+          {"first_harmonic_force_n", p.first_harmonic_force_n},
+          {"first_harmonic_phase_rad", p.first_harmonic_phase_rad},
+          {"h_re", p.h.real()},
+          {"h_im", p.h.imag()},
+          {"min_displacement_m", p.min_displacement_m},
+          {"max_displacement_m", p.max_displacement_m},
+          {"peak_force_n", p.peak_force_n},
+          {"contacts_per_period", p.contacts_per_period},
+          {"max_multiplier", p.max_multiplier}};
+}
+
+namespace {
+
+TaskSpec MakeTask(nlohmann::json spec) {
+  spec["code_version"] = kCodeVersion;
+  return {ContentKey(spec.dump()), std::move(spec)};
+}
+
+namespace fs = std::filesystem;
+
+// The report's files: one HTML page and CSV tables (diagnose_report.h).
+std::string ContentTypeOf(const std::string& name) {
+  if (name.ends_with(".html")) return "text/html; charset=utf-8";
+  if (name.ends_with(".csv")) return "text/csv; charset=utf-8";
+  if (name.ends_with(".svg")) return "image/svg+xml";
+  return "text/plain; charset=utf-8";
+}
+
+// The HTML report of a diagnosis (WriteDiagnosisReport into a scratch directory) as result rows. The
+// report's files are UTF-8 text (an HTML page, CSV tables), stored as JSON strings.
+std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis) {
+  const fs::path dir = fs::temp_directory_path() / ("strokelab-report-" + NewCampaignId());
+  std::vector<ResultRow> rows;
+  try {
+    report::WriteDiagnosisReport(diagnosis, dir);
+    for (const std::string& name : report::DiagnosisReportFiles())
+      rows.push_back({"report_files",
+                      {{"name", name}, {"content_type", ContentTypeOf(name)}, {"text", ReadFileBytes(dir / name)}}});
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove_all(dir, ignored);
+    throw;
+  }
+  fs::remove_all(dir);
+  return rows;
+}
+
+// A fit or diagnose task: the campaign is read again (and must still have the digest it was planned
+// with), then fitted or diagnosed.
+std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
+  const std::string type = task.at("type");
+  const fs::path dir = task.at("campaign_dir").get<std::string>();
+  if (CampaignDigest(dir) != task.at("campaign_digest"))
+    throw std::runtime_error("the campaign at " + dir.string() +
+                             " changed after the job was submitted; submit the job again");
+  const Campaign campaign = ReadCampaign(dir);
+  const nlohmann::json& job = task.at("job");
+  if (type == "fit") return {{"fit", FitResultToJson(FitCampaign(campaign, FitOptionsFromJob(job)))}};
+  const Diagnosis diagnosis = DiagnoseCampaign(campaign, DiagnoseOptionsFromJob(job));
+  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
+  for (ResultRow& row : DiagnosisReportRows(diagnosis)) rows.push_back(std::move(row));
+  return rows;
+}
+
+}  // namespace
+
+bool IsCampaignKind(const std::string& kind) { return kind == "fit" || kind == "diagnose"; }
+
+std::string ContentKey(const std::string& text) {
+  uint64_t hash = 1469598103934665603ull;
+  for (unsigned char c : text) {
+    hash ^= c;
+    hash *= 1099511628211ull;
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+  return hex;
+}
+
+std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& campaigns) {
+  ValidateJob(job);
+  const std::string kind = job.at("kind");
+  std::vector<TaskSpec> tasks;
+  if (kind == "sweep") {
+    const SweepSpec spec = SweepSpecFromJob(job);
+    const nlohmann::json model = ModelToJson(spec.model);
+    const std::vector<double> frequencies = spec.frequency_hz.Values();
+    for (double amplitude : spec.amplitude_v.Values())
+      tasks.push_back(MakeTask({{"type", "sweep_row"}, {"model", model}, {"amplitude_v", amplitude},
+                                {"frequencies_hz", frequencies}}));
+    if (spec.thresholds) {
+      for (size_t first = 0; first < frequencies.size(); first += kColumnsPerTask) {
+        const size_t last = std::min(frequencies.size(), first + kColumnsPerTask);
+        tasks.push_back(MakeTask({{"type", "sweep_columns"},
+                                  {"model", model},
+                                  {"frequencies_hz", std::vector<double>(frequencies.begin() + first,
+                                                                         frequencies.begin() + last)}}));
+      }
+    }
+  } else if (kind == "simulate") {
+    nlohmann::json spec = job;
+    spec.erase("name");
+    spec["type"] = "simulate";
+    spec["model"] = ModelToJson(ModelFromJson(job.at("model"), "/model"));
+    tasks.push_back(MakeTask(spec));
+  } else if (IsCampaignKind(kind)) {
+    const fs::path dir = ResolveCampaign(job.at("campaign"), campaigns);
+    const bool under_root = job.at("campaign").contains("path");
+    const std::string digest = CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path());
+    if (under_root) {  // uploads were read when they were stored
+      try {
+        (void)ReadCampaign(dir);
+      } catch (const InputError& e) {
+        throw CampaignError(e.field(), e.bare_message());
+      }
+    }
+    nlohmann::json spec_job = job;
+    spec_job.erase("name");
+    tasks.push_back(
+        MakeTask({{"type", kind}, {"job", spec_job}, {"campaign_dir", dir.string()}, {"campaign_digest", digest}}));
+  } else {
+    throw InputError("/kind", "job kind '" + kind + "' is not served yet");
+  }
+  return tasks;
+}
+
+std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel) {
+  const std::string type = task.at("type");
+  if (IsCampaignKind(type)) return RunCampaignTask(task);  // not cancellable: see service.cc
+  const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
+  std::vector<ResultRow> rows;
+  if (type == "sweep_row") {
+    const SweepRowResult row =
+        SweepRow(model, task.at("amplitude_v").get<double>(), task.at("frequencies_hz").get<std::vector<double>>(), cancel);
+    for (const SweepPoint& p : row.points) rows.push_back({"points", SweepPointJson(p)});
+    for (const JumpInterval& j : row.jumps)
+      rows.push_back({"jumps",
+                      {{"amplitude_v", j.amplitude_v},
+                       {"bistable_from_hz", j.bistable_from_hz},
+                       {"bistable_to_hz", j.bistable_to_hz},
+                       {"from_kind", j.from_kind},
+                       {"to_kind", j.to_kind}}});
+  } else if (type == "sweep_columns") {
+    for (double f : task.at("frequencies_hz").get<std::vector<double>>()) {
+      const SaturationThreshold t = SweepColumn(model, f, cancel);
+      rows.push_back({"thresholds",
+                      {{"frequency_hz", t.frequency_hz},
+                       {"grazing_amplitude_v", NullIfNotFinite(t.grazing_amplitude_v)},
+                       {"lowest_contact_amplitude_v", NullIfNotFinite(t.lowest_contact_amplitude_v)}}});
+    }
+  } else if (type == "simulate") {
+    const SineDrive drive{task.at("amplitude_v").get<double>(), task.at("frequency_hz").get<double>(), 0.0};
+    SimulationOptions options;
+    options.duration_s = task.value("duration_s", 10.0);
+    options.sample_rate_hz = task.value("sample_rate_hz", 51200.0);
+    options.record_velocity = false;
+    const Method method = ParseMethod(task.value("method", std::string("exact")));
+    const Record record = MakeEngine(method)->Simulate(model, drive, options);
+    const RecordSummary s = Summarize(record, drive);
+    rows.push_back({"records",
+                    {{"frequency_hz", drive.frequency_hz},
+                     {"amplitude_v", drive.amplitude_v},
+                     {"method", ToString(method)},
+                     {"min_displacement_m", s.min_displacement_m},
+                     {"max_displacement_m", s.max_displacement_m},
+                     {"contacts", s.contacts},
+                     {"mean_contact_ms", NullIfNotFinite(s.mean_contact_ms)},
+                     {"peak_force_n", s.peak_force_n},
+                     {"first_harmonic_force_n", s.first_harmonic_force_n},
+                     {"first_harmonic_phase_rad", s.first_harmonic_phase_rad}}});
+  } else {
+    throw InputError("type", "unknown task type '" + type + "'");
+  }
+  return rows;
+}
+
+}  // namespace strokelab::jobs

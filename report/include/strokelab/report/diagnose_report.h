@@ -1,0 +1,38 @@
+// What `strokelab diagnose` makes of a Diagnosis for people: a folder with one self-contained HTML
+// page (conclusion, fit figures, candidates, evidence, inline SVG figures; no script, no external
+// resource) and CSV tables of the numbers behind it. Pure functions of the Diagnosis, so they are
+// tested on hand-made diagnoses without fitting anything.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "strokelab/diagnose/diagnose.h"
+
+namespace strokelab::report {
+
+// The page: the conclusion (missing physics with its parameters and standard errors, or "nothing
+// missing"), nrmse before and after with the relative improvement, the base and chosen parameters,
+// the candidates (the chosen one highlighted), the evidence and hotspots, and the figures:
+//   harmonics  |C_h| and arg C_h of the worst records (by base chi-square): measured, base, chosen
+//   frf        |C_1| / V against frequency per amplitude level: measured, base, chosen
+//   residual   each record's nrmse over (frequency, amplitude), base and chosen, held-out ringed
+//   resonance  the resonance per amplitude level (Signatures::levels) with its standard error
+//   contact    mean contact time per level, and the residual near contacts against elsewhere
+//   ratios     |C_2| / |C_1| and |C_3| / |C_1| per level (records clear of the stop)
+// A figure without data is replaced by a sentence saying why. Non-finite numbers show as "-".
+std::string DiagnosisHtml(const Diagnosis& diagnosis);
+
+// The files WriteDiagnosisReport writes, in order.
+const std::vector<std::string>& DiagnosisReportFiles();
+
+// Writes DiagnosisReportFiles() into `dir` (created if missing):
+//   index.html      DiagnosisHtml
+//   records.csv     per record: drive, held out, clear, nrmse / chi2 / period of base and chosen model
+//   candidates.csv  per candidate: label, fitted, converged, gains, figures, effect parameters, note
+//   levels.csv      Signatures::levels
+// Non-finite numbers as empty cells. Throws std::runtime_error if a file cannot be written.
+void WriteDiagnosisReport(const Diagnosis& diagnosis, const std::filesystem::path& dir);
+
+}  // namespace strokelab::report

@@ -1,0 +1,72 @@
+// Helpers shared by the files of the diagnosis report (diagnose_report*.cc); not a public API.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/plot/svg_plot.h"
+
+namespace strokelab::report::diagnose_internal {
+
+std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+
+// "%.<digits>g" (whole numbers below 1e6 written out), or "-" for a non-finite value.
+std::string Num(double value, int digits = 4);
+
+// "1301.5 ± 8.3", "(2.35 ± 0.12)e+06": the standard error to two digits, the value to the same
+// decimal place; the value alone when the standard error is 0 or unknown; "-" when not finite.
+std::string ValueSe(double value, double standard_error);
+
+// The effect's JSON id. Kept here rather than taken from EffectLibrary() so that the report does not
+// need the diagnosis code, only its types.
+const char* EffectId(Effect effect);
+std::string EffectIds(const std::vector<Effect>& effects);  // "a + b", "-" when empty
+
+// Unit of the response's harmonics: "N", "m/s^2", "m/s", "m".
+const char* ResponseUnit(ResponseKind kind);
+
+// The records' amplitudes grouped into levels (a stepped-sine campaign drives a few amplitudes at
+// many frequencies): the level of each record, and each level's mean amplitude [V], ascending.
+struct AmplitudeLevels {
+  std::vector<size_t> level_of;    // per record
+  std::vector<double> amplitude_v;  // per level
+};
+AmplitudeLevels GroupAmplitudes(const std::vector<RecordMatch>& records);
+
+// One figure of the page: its SVG (or SVGs), or the sentence that replaces it.
+struct Figure {
+  std::string id;       // HTML anchor: "harmonics", "frf", "residual", "resonance", "contact", "ratios"
+  std::string heading;  // plain text
+  std::vector<std::string> svgs;  // empty: skipped
+  // Key shared by the SVGs: (CSS of a round swatch, text). Drawn by the page, as an SVG legend
+  // would cover the data of a small scatter plot.
+  std::vector<std::pair<std::string, std::string>> key;
+  std::string caption;  // plain text: how to read it, or why it is missing
+};
+std::vector<Figure> DiagnosisFigures(const Diagnosis& diagnosis);
+
+// The figures against drive amplitude, per Signatures::Level (diagnose_report_levels.cc).
+Figure ResonanceFigure(const Diagnosis& diagnosis);
+Figure ContactFigure(const Diagnosis& diagnosis, const char* unit);
+Figure RatiosFigure(const Diagnosis& diagnosis);
+
+// ---- plot helpers (diagnose_report_plots.cc) ----
+
+inline constexpr const char* kMeasuredColor = "#000000";
+inline constexpr const char* kBaseColor = "#D55E00";
+inline constexpr const char* kChosenColor = "#0072B2";
+
+plot::Series Line(std::string label, std::string color, bool dashed = false);
+plot::Series Dots(std::string label, std::string color, double line_width = 1.5);  // markers only
+plot::Axes MakeAxes(std::string title, std::string x_label, std::string y_label, int width_px, int height_px);
+// The data's extent on one axis (x or y; positive values only on a log axis): {lo, hi}, lo > hi if none.
+std::pair<double, double> Extent(const std::vector<plot::Series>& series, bool x_axis, bool log);
+// Axis limits `lo_pad` below and `hi_pad` above the data, in fractions of its span (of decades on a
+// log axis), so that no point sits on the frame and the legend (top right) has room above the data.
+// Leaves the limits alone (from the data) when there is none.
+void PadRange(const std::vector<plot::Series>& series, bool x_axis, bool log, double lo_pad, double hi_pad,
+              double* min, double* max);
+
+}  // namespace strokelab::report::diagnose_internal

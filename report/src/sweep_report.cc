@@ -1,0 +1,433 @@
+#include "strokelab/report/sweep_report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <optional>
+#include <stdexcept>
+
+#include "strokelab/report/csv_table.h"
+#include "strokelab/model/model_json.h"
+#include "strokelab/plot/svg_plot.h"
+
+namespace strokelab::report {
+namespace {
+
+using nlohmann::json;
+
+// The plot library's default palette, spelled out so that a series and its unstable-orbit markers
+// (and its down-branch phase line) share one colour per amplitude.
+constexpr const char* kPalette[] = {"#0072B2", "#D55E00", "#009E73", "#CC79A7",
+                                    "#E69F00", "#56B4E9", "#000000", "#7F7F7F"};
+const char* AmplitudeColor(size_t i) { return kPalette[i % std::size(kPalette)]; }
+
+std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string Format(const char* format, ...) {
+  char buffer[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buffer, sizeof buffer, format, args);
+  va_end(args);
+  return buffer;
+}
+
+json Number(double value) { return std::isfinite(value) ? json(value) : json(nullptr); }
+
+json Numbers(const std::vector<double>& values) {
+  json list = json::array();
+  for (double v : values) list.push_back(Number(v));
+  return list;
+}
+
+// "%.10g", or an empty cell for a non-finite value (the CsvTable convention).
+std::string Cell(double value) { return std::isfinite(value) ? Format("%.10g", value) : std::string(); }
+
+// A CSV table with text cells (CsvTable holds numbers only): header line, then the rows.
+void WriteTextCsv(const std::filesystem::path& path, const std::vector<std::string>& header,
+                  const std::vector<std::vector<std::string>>& rows) {
+  auto line = [](const std::vector<std::string>& cells) {
+    std::string text;
+    for (size_t i = 0; i < cells.size(); ++i) {
+      if (i) text += ",";
+      if (cells[i].find_first_of(",\"\n") == std::string::npos) {
+        text += cells[i];
+      } else {
+        text += "\"";
+        for (char c : cells[i]) text += c == '"' ? std::string("\"\"") : std::string(1, c);
+        text += "\"";
+      }
+    }
+    return text + "\n";
+  };
+  std::ofstream out(path);
+  out << line(header);
+  for (const auto& row : rows) out << line(row);
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+void WriteFile(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream out(path);
+  out << text;
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+// The index of `value` in `grid` (equal to within rounding), if it is on the grid.
+std::optional<size_t> GridIndex(const std::vector<double>& grid, double value) {
+  for (size_t i = 0; i < grid.size(); ++i) {
+    if (std::abs(grid[i] - value) <= 1e-9 * std::max(1.0, std::abs(value))) return i;
+  }
+  return std::nullopt;
+}
+
+// The result's points arranged on the grid: [amplitude index][frequency index].
+struct BranchGrid {
+  static constexpr size_t kNone = static_cast<size_t>(-1);
+  std::vector<std::vector<size_t>> up, down;  // index into result.points, or kNone
+  std::vector<std::vector<size_t>> unstable;  // per amplitude: unstable orbits (any frequency)
+
+  explicit BranchGrid(const SweepResult& r)
+      : up(r.amplitude_v.size(), std::vector<size_t>(r.frequency_hz.size(), kNone)),
+        down(up),
+        unstable(r.amplitude_v.size()) {
+    for (size_t k = 0; k < r.points.size(); ++k) {
+      const SweepPoint& p = r.points[k];
+      const auto ia = GridIndex(r.amplitude_v, p.amplitude_v);
+      const auto jf = GridIndex(r.frequency_hz, p.frequency_hz);
+      if (!ia || !jf) continue;  // off the grid: in the tables, not in the pictures
+      if (p.branch == Branch::kUnstable || !p.stable) {
+        unstable[*ia].push_back(k);
+      } else {
+        size_t& slot = (p.branch == Branch::kUp ? up : down)[*ia][*jf];
+        if (slot == kNone) slot = k;
+      }
+    }
+  }
+
+  // The steady state an up- (or down-) sweep is on at a grid point. Where only one stable
+  // response exists both sweeps follow it, so a missing branch falls back to the other one.
+  size_t On(Branch branch, size_t ia, size_t jf) const {
+    const size_t own = (branch == Branch::kUp ? up : down)[ia][jf];
+    return own != kNone ? own : (branch == Branch::kUp ? down : up)[ia][jf];
+  }
+};
+
+// "117 values, 5 .. 50 Hz, linear" (or geometric, or irregular spacing).
+std::string AxisText(const std::vector<double>& v, const char* unit) {
+  if (v.empty()) return "no values";
+  if (v.size() == 1) return Format("1 value, %.6g %s", v[0], unit);
+  bool linear = true, geometric = v.front() > 0;
+  const double step = v[1] - v[0], ratio = v[1] / v[0];
+  for (size_t i = 1; i < v.size(); ++i) {
+    linear = linear && std::abs(v[i] - v[i - 1] - step) <= 1e-9 * std::abs(v.back());
+    geometric = geometric && std::abs(v[i] / v[i - 1] - ratio) <= 1e-9 * ratio;
+  }
+  const char* spacing = linear ? "linear" : geometric ? "geometric" : "irregular";
+  std::string text = Format("%zu values, %.6g .. %.6g %s, %s", v.size(), v.front(), v.back(), unit, spacing);
+  if (geometric && !linear) text += Format(" (ratio %.6g)", ratio);
+  return text;
+}
+
+std::string VoltsOrDash(double v) { return std::isfinite(v) ? Format("%8.4f V", v) : std::string("       - "); }
+
+// Phase in degrees on (-90, 270]: paper Eq. 3 runs from 180 deg (below resonance) to 0 deg (above)
+// without wrapping there, and a response past 180 deg stays continuous.
+double PhaseDeg(double rad) {
+  double deg = rad * 180.0 / std::numbers::pi;
+  while (deg <= -90.0) deg += 360.0;
+  while (deg > 270.0) deg -= 360.0;
+  return deg;
+}
+
+plot::Series Curve(std::string label, std::string color) {
+  plot::Series s;
+  s.label = std::move(label);
+  s.color = std::move(color);
+  return s;
+}
+
+// One saturation map: SpikeFactor of one branch over the grid, with the thresholds and jumps on top.
+std::string SaturationMap(const SweepResult& r, const BranchGrid& grid, Branch branch) {
+  plot::HeatMap map;
+  map.x = r.frequency_hz;
+  map.y = r.amplitude_v;
+  map.log_z = true;
+  map.z_label = "peak force / first-harmonic force amplitude";
+  for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
+    std::vector<double> row(r.frequency_hz.size(), NAN);
+    for (size_t jf = 0; jf < r.frequency_hz.size(); ++jf) {
+      if (const size_t k = grid.On(branch, ia, jf); k != BranchGrid::kNone) row[jf] = SpikeFactor(r.points[k]);
+    }
+    map.z.push_back(std::move(row));
+  }
+  std::vector<plot::Series> overlays;
+  if (!r.saturation_threshold.empty()) {
+    plot::Series grazing = Curve("grazing amplitude", "#ff3b30");
+    plot::Series contact = Curve("lowest contacting amplitude", "#ffffff");
+    contact.dashed = true;
+    for (const SaturationThreshold& t : r.saturation_threshold) {
+      grazing.x.push_back(t.frequency_hz);
+      grazing.y.push_back(t.grazing_amplitude_v);
+      contact.x.push_back(t.frequency_hz);
+      contact.y.push_back(t.lowest_contact_amplitude_v);
+    }
+    grazing.line_width = contact.line_width = 2.0;
+    overlays.push_back(std::move(contact));
+    overlays.push_back(std::move(grazing));  // on top where the two coincide
+  }
+  if (!r.jump.empty()) {
+    // Each bistable interval as a horizontal segment at its amplitude; NaN breaks between segments.
+    plot::Series jumps = Curve("jump (bistable) interval", "#000000");
+    jumps.markers = true;
+    jumps.line_width = 2.5;
+    for (const JumpInterval& j : r.jump) {
+      jumps.x.insert(jumps.x.end(), {j.bistable_from_hz, j.bistable_to_hz, NAN});
+      jumps.y.insert(jumps.y.end(), {j.amplitude_v, j.amplitude_v, NAN});
+    }
+    overlays.push_back(std::move(jumps));
+  }
+  plot::Axes axes;
+  axes.title = std::string("Stroke saturation, ") + ToString(branch) + "-sweep branch: peak force / |C1(f)|";
+  axes.x_label = "drive frequency [Hz]";
+  axes.y_label = "drive amplitude [V]";
+  axes.log_x = true;
+  axes.width_px = 820;
+  axes.height_px = 480;
+  return plot::HeatMapPlot(map, overlays, axes);
+}
+
+// |H| (or arg H) against frequency, one line per amplitude, for one branch; unstable orbits as dots.
+std::vector<plot::Series> FrfSeries(const SweepResult& r, const BranchGrid& grid, Branch branch, bool phase,
+                                    bool with_unstable) {
+  std::vector<plot::Series> series;
+  for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
+    plot::Series s = Curve(Format("%g V", r.amplitude_v[ia]), AmplitudeColor(ia));
+    s.x = r.frequency_hz;
+    for (size_t jf = 0; jf < r.frequency_hz.size(); ++jf) {
+      const size_t k = grid.On(branch, ia, jf);
+      const double value = k == BranchGrid::kNone ? NAN
+                           : phase                ? PhaseDeg(std::arg(r.points[k].h))
+                                                  : std::abs(r.points[k].h);
+      s.y.push_back(value);
+    }
+    series.push_back(std::move(s));
+  }
+  if (!with_unstable) return series;
+  bool any = false;
+  for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
+    plot::Series dots = Curve("", AmplitudeColor(ia));
+    dots.line = false;
+    dots.markers = true;
+    dots.line_width = 1.2;
+    for (size_t k : grid.unstable[ia]) {
+      dots.x.push_back(r.points[k].frequency_hz);
+      dots.y.push_back(phase ? PhaseDeg(std::arg(r.points[k].h)) : std::abs(r.points[k].h));
+    }
+    any = any || !dots.x.empty();
+    series.push_back(std::move(dots));
+  }
+  if (any) {
+    plot::Series legend = Curve("dots: unstable orbits", "#7F7F7F");
+    legend.line = false;
+    legend.markers = true;
+    legend.line_width = 1.2;
+    series.push_back(std::move(legend));
+  }
+  return series;
+}
+
+plot::Axes FrfAxes(std::string title, std::string y_label) {
+  plot::Axes axes;
+  axes.title = std::move(title);
+  axes.x_label = "drive frequency [Hz]";
+  axes.y_label = std::move(y_label);
+  axes.log_x = true;
+  return axes;
+}
+
+}  // namespace
+
+double SpikeFactor(const SweepPoint& point) {
+  if (!(point.first_harmonic_force_n > 0) || !std::isfinite(point.peak_force_n)) return NAN;
+  return point.peak_force_n / point.first_harmonic_force_n;
+}
+
+json SweepToJson(const SweepResult& r, const ActuatorModel& model) {
+  json points = json::array();
+  for (const SweepPoint& p : r.points) {
+    points.push_back({
+        {"frequency_hz", Number(p.frequency_hz)},
+        {"amplitude_v", Number(p.amplitude_v)},
+        {"branch", ToString(p.branch)},
+        {"stable", p.stable},
+        {"period", p.period == 0 ? json("aperiodic") : json(p.period)},
+        {"first_harmonic_force_n", Number(p.first_harmonic_force_n)},
+        {"first_harmonic_phase_rad", Number(p.first_harmonic_phase_rad)},
+        {"h_re", Number(p.h.real())},
+        {"h_im", Number(p.h.imag())},
+        {"min_displacement_m", Number(p.min_displacement_m)},
+        {"max_displacement_m", Number(p.max_displacement_m)},
+        {"peak_force_n", Number(p.peak_force_n)},
+        {"contacts_per_period", Number(p.contacts_per_period)},
+        {"max_multiplier", Number(p.max_multiplier)},
+    });
+  }
+  json thresholds = json::array();
+  for (const SaturationThreshold& t : r.saturation_threshold) {
+    thresholds.push_back({{"frequency_hz", Number(t.frequency_hz)},
+                          {"grazing_amplitude_v", Number(t.grazing_amplitude_v)},
+                          {"lowest_contact_amplitude_v", Number(t.lowest_contact_amplitude_v)}});
+  }
+  json jumps = json::array();
+  for (const JumpInterval& j : r.jump) {
+    jumps.push_back({{"amplitude_v", Number(j.amplitude_v)},
+                     {"bistable_from_hz", Number(j.bistable_from_hz)},
+                     {"bistable_to_hz", Number(j.bistable_to_hz)},
+                     {"from_kind", j.from_kind},
+                     {"to_kind", j.to_kind}});
+  }
+  return {
+      {"points", std::move(points)},
+      {"saturation_threshold", std::move(thresholds)},
+      {"jump", std::move(jumps)},
+      {"grid", {{"frequency_hz", Numbers(r.frequency_hz)}, {"amplitude_v", Numbers(r.amplitude_v)}}},
+      {"model", ModelToJson(model)},
+      {"wall_time_s", Number(r.wall_time_s)},
+      {"points_per_second", Number(r.points_per_second)},
+  };
+}
+
+std::string SweepSummaryText(const SweepResult& r) {
+  std::string text = "Steady-state sweep\n";
+  text += "  frequency  " + AxisText(r.frequency_hz, "Hz") + "\n";
+  text += "  amplitude  " + AxisText(r.amplitude_v, "V") + "\n";
+  text += Format("  %zu grid points in %.3f s (%.4g grid points/s)\n", r.frequency_hz.size() * r.amplitude_v.size(),
+                 r.wall_time_s, r.points_per_second);
+
+  size_t counts[3] = {0, 0, 0}, multi_period = 0, aperiodic = 0, contacting = 0;
+  for (const SweepPoint& p : r.points) {
+    ++counts[static_cast<int>(p.branch)];
+    if (p.branch == Branch::kUnstable) continue;
+    if (p.period == 0) ++aperiodic;
+    if (p.period > 1) ++multi_period;
+    if (p.contacts_per_period > 0) ++contacting;
+  }
+  text += Format("  steady states: %zu up, %zu down, %zu unstable (up/down: %zu touching the stop, %zu with period > 1, "
+                 "%zu aperiodic)\n",
+                 counts[0], counts[1], counts[2], contacting, multi_period, aperiodic);
+
+  text += "\nSaturation threshold (drive amplitude) per frequency:\n";
+  const auto& th = r.saturation_threshold;
+  if (th.empty()) {
+    text += "  not computed\n";
+  } else {
+    text += "  frequency      grazing    lowest contacting\n";
+    size_t lowest = th.size();
+    for (size_t i = 0; i < th.size(); ++i) {
+      if (std::isfinite(th[i].grazing_amplitude_v) &&
+          (lowest == th.size() || th[i].grazing_amplitude_v < th[lowest].grazing_amplitude_v))
+        lowest = i;
+    }
+    const size_t step = std::max<size_t>(1, (th.size() + 9) / 10);
+    for (size_t i = 0; i < th.size(); ++i) {
+      if (i % step != 0 && i != th.size() - 1 && i != lowest) continue;
+      text += Format("  %8.3f Hz  %s   %s%s\n", th[i].frequency_hz, VoltsOrDash(th[i].grazing_amplitude_v).c_str(),
+                     VoltsOrDash(th[i].lowest_contact_amplitude_v).c_str(),
+                     i == lowest ? "   <- lowest grazing amplitude" : "");
+    }
+  }
+
+  text += "\nJump (bistable) intervals per amplitude:\n";
+  if (th.empty() && r.jump.empty()) {
+    text += "  not computed\n";
+  } else if (r.jump.empty()) {
+    text += "  none on the grid\n";
+  }
+  for (const JumpInterval& j : r.jump) {
+    text += Format("  %8.4f V: %.4f .. %.4f Hz (bounded by %s .. %s)\n", j.amplitude_v, j.bistable_from_hz,
+                   j.bistable_to_hz, j.from_kind.c_str(), j.to_kind.c_str());
+  }
+  return text;
+}
+
+const std::vector<std::string>& SweepFolderFiles() {
+  static const std::vector<std::string> files = {
+      "model.json",       "points.csv",    "saturation_threshold.csv", "jump.csv",
+      "saturation_map.svg", "saturation_map_down.svg", "frf_up.svg", "frf_down.svg",
+      "frf_phase.svg",    "summary.txt"};
+  return files;
+}
+
+std::string SaturationMapSvg(const SweepResult& r, Branch branch) { return SaturationMap(r, BranchGrid(r), branch); }
+
+std::string FrfMagnitudeSvg(const SweepResult& r, Branch branch) {
+  return plot::LinePlot(FrfSeries(r, BranchGrid(r), branch, false, true),
+                        FrfAxes(branch == Branch::kUp ? "First-order FRF |H|, up-sweep branch (paper Fig. 10)"
+                                                      : "First-order FRF |H|, down-sweep branch",
+                                "|H| [N/V]"));
+}
+
+void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
+
+  WriteFile(dir / "model.json", ModelToJson(model).dump(2) + "\n");
+
+  std::vector<std::vector<std::string>> rows;
+  for (const SweepPoint& p : r.points) {
+    rows.push_back({Cell(p.frequency_hz), Cell(p.amplitude_v), ToString(p.branch), p.stable ? "1" : "0",
+                    p.period == 0 ? std::string() : std::to_string(p.period), Cell(p.first_harmonic_force_n),
+                    Cell(p.first_harmonic_phase_rad), Cell(p.h.real()), Cell(p.h.imag()), Cell(p.min_displacement_m),
+                    Cell(p.max_displacement_m), Cell(p.peak_force_n), Cell(p.contacts_per_period),
+                    Cell(p.max_multiplier)});
+  }
+  WriteTextCsv(dir / "points.csv",
+               {"frequency_hz", "amplitude_v", "branch", "stable", "period", "first_harmonic_force_n",
+                "first_harmonic_phase_rad", "h_re", "h_im", "min_displacement_m", "max_displacement_m", "peak_force_n",
+                "contacts_per_period", "max_multiplier"},
+               rows);
+
+  CsvTable thresholds({"frequency_hz", "grazing_amplitude_v", "lowest_contact_amplitude_v"});
+  std::vector<double> f, graze, contact;
+  for (const SaturationThreshold& t : r.saturation_threshold) {
+    f.push_back(t.frequency_hz);
+    graze.push_back(t.grazing_amplitude_v);
+    contact.push_back(t.lowest_contact_amplitude_v);
+  }
+  thresholds.SetColumn("frequency_hz", f);
+  thresholds.SetColumn("grazing_amplitude_v", graze);
+  thresholds.SetColumn("lowest_contact_amplitude_v", contact);
+  thresholds.Write(dir / "saturation_threshold.csv");
+
+  rows.clear();
+  for (const JumpInterval& j : r.jump) {
+    rows.push_back({Cell(j.amplitude_v), Cell(j.bistable_from_hz), Cell(j.bistable_to_hz), j.from_kind, j.to_kind});
+  }
+  WriteTextCsv(dir / "jump.csv", {"amplitude_v", "bistable_from_hz", "bistable_to_hz", "from_kind", "to_kind"}, rows);
+
+  const BranchGrid grid(r);
+  WriteFile(dir / "saturation_map.svg", SaturationMap(r, grid, Branch::kUp));
+  WriteFile(dir / "saturation_map_down.svg", SaturationMap(r, grid, Branch::kDown));
+  WriteFile(dir / "frf_up.svg", FrfMagnitudeSvg(r, Branch::kUp));
+  WriteFile(dir / "frf_down.svg", FrfMagnitudeSvg(r, Branch::kDown));
+  std::vector<plot::Series> phase = FrfSeries(r, grid, Branch::kUp, true, false);
+  for (plot::Series& s : FrfSeries(r, grid, Branch::kDown, true, false)) {
+    s.label.clear();  // one legend entry per amplitude
+    s.dashed = true;
+    phase.push_back(std::move(s));
+  }
+  for (const bool down : {false, true}) {  // legend entries for the two line styles
+    plot::Series style = Curve(down ? "down branch" : "up branch", "#7F7F7F");
+    style.dashed = down;
+    phase.push_back(std::move(style));
+  }
+  WriteFile(dir / "frf_phase.svg",
+            plot::LinePlot(phase, FrfAxes("First-order FRF phase: up branch solid, down branch dashed",
+                                          "arg H [deg]")));
+  WriteFile(dir / "summary.txt", SweepSummaryText(r));
+}
+
+}  // namespace strokelab::report
