@@ -45,7 +45,10 @@ field by field, prints one line per job file, and exits with
   --baseline DIR   the baselines: one JSON file per job file, with the same name, holding the
                    job, the code version and the result rows by table
   --update         write (or overwrite) the baselines from this run; differences from an old
-                   baseline are listed, and only a job that fails to run makes it fail
+                   baseline are listed, and only a job that fails to run makes it fail, or one
+                   whose results changed while the version did not: DIR/results-ledger.txt holds
+                   one line per version and job, and a version has one result per job (bump
+                   VERSION in CMakeLists.txt when results change: tasks are cached by version)
 
 Job files are the service's job JSON (schema/job.schema.json, as for POST /v1/jobs and
 strokelab submit) with one optional extra member, "tolerances", which is removed before the job
@@ -208,7 +211,21 @@ void WriteBaseline(const JobFile& file, const json& tables) {
   fs::rename(temporary, file.baseline_path);
 }
 
-Outcome RunOne(const JobFile& file, const fs::path& baseline_dir, bool update) {
+// The results ledger of a baseline directory (regression.h): read once, appended as baselines are
+// written.
+struct Ledger {
+  std::string path;
+  std::vector<regression::LedgerEntry> entries;
+
+  void Add(const regression::LedgerEntry& entry) {
+    std::ofstream out(path, std::ios::app);
+    out << regression::FormatLedgerLine(entry);
+    if (!out.flush()) throw std::runtime_error("cannot write " + path);
+    entries.push_back(entry);
+  }
+};
+
+Outcome RunOne(const JobFile& file, const fs::path& baseline_dir, bool update, Ledger& ledger) {
   Outcome outcome;
   const std::string update_hint = "strokelab regress " + file.path + " --baseline " + baseline_dir.string() + " --update";
   if (!update && !file.baseline) {
@@ -246,7 +263,31 @@ Outcome RunOne(const JobFile& file, const fs::path& baseline_dir, bool update) {
   }
 
   if (update) {
+    const regression::LedgerEntry entry{jobs::kCodeVersion, regression::JobKey(file.job), regression::TablesKey(tables),
+                                        file.name};
+    const auto recorded = regression::FindEntry(ledger.entries, entry.code_version, entry.job_key);
+    const bool same_version_and_job = file.baseline && (*file.baseline)["code_version"] == entry.code_version &&
+                                      WithoutName((*file.baseline)["job"]) == WithoutName(file.job);
+    if (recorded && recorded->tables_key != entry.tables_key && same_version_and_job && comparison->Passed()) {
+      // Rounding-level differences (another compiler or CPU): the version's baseline stands.
+      outcome.result = "PASS";
+      outcome.rows = std::to_string(comparison->rows_compared);
+      outcome.details.push_back("kept " + file.baseline_path.string() +
+                                ": this version wrote it, and this run is within its tolerances");
+      AddDetails(outcome, notes);
+      return outcome;
+    }
+    if (recorded && recorded->tables_key != entry.tables_key) {
+      // Tasks are cached by spec and version: the old results would still be served as this code's.
+      outcome.result = "FAIL";
+      outcome.details.push_back("not written: the results changed but the version did not (" + entry.code_version +
+                                " has other results for this job in " + ledger.path +
+                                "); bump VERSION in project() of CMakeLists.txt, rebuild, and run --update again");
+      AddDetails(outcome, notes);
+      return outcome;
+    }
     WriteBaseline(file, tables);
+    if (!recorded) ledger.Add(entry);
     outcome.result = file.baseline || !file.baseline_problem.empty() ? "UPDATED" : "NEW";
     outcome.rows = std::to_string(RowCount(tables));
     outcome.details.push_back("wrote " + file.baseline_path.string() + " (" + outcome.rows +
@@ -318,11 +359,14 @@ int RunRegress(const std::vector<std::string>& argv) {
               baseline_dir.string().c_str(), jobs::kCodeVersion, update ? ", updating the baselines" : "");
   line("JOB", "RESULT", "ROWS", "TIME", "WORST");
 
+  Ledger ledger{(baseline_dir / regression::kLedgerFile).string(), {}};
+  ledger.entries = regression::ReadLedger(ledger.path);
+
   const auto start = std::chrono::steady_clock::now();
   std::vector<Outcome> outcomes;
   std::map<std::string, int> counts;
   for (const JobFile& file : files) {
-    outcomes.push_back(RunOne(file, baseline_dir, update));
+    outcomes.push_back(RunOne(file, baseline_dir, update, ledger));
     const Outcome& o = outcomes.back();
     ++counts[o.result];
     line(file.name, o.result, o.rows, o.time, o.worst);

@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <limits>
 #include <numbers>
 #include <sstream>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/jobs/jobs.h"
 
 namespace strokelab::cli::regression {
 namespace {
@@ -328,6 +330,46 @@ void CheckBaseline(const json& baseline, const std::string& file) {
   } catch (const InputError& e) {
     throw InputError(file + ": " + e.field(), e.bare_message());
   }
+}
+
+std::string JobKey(const json& job) {
+  json without_name = job;
+  if (without_name.is_object()) without_name.erase("name");
+  return jobs::ContentKey(without_name.dump());
+}
+
+std::string TablesKey(const json& tables) { return jobs::ContentKey(Normalized(tables).dump()); }
+
+std::vector<LedgerEntry> ReadLedger(const std::string& path) {
+  std::vector<LedgerEntry> ledger;
+  std::ifstream in(path);
+  if (!in) return ledger;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    LedgerEntry entry;
+    std::string extra;
+    if (!(fields >> entry.code_version >> entry.job_key >> entry.tables_key >> entry.file) || (fields >> extra))
+      throw InputError(path + ":" + std::to_string(number), "expected CODE_VERSION JOB_KEY TABLES_KEY FILE");
+    if (FindEntry(ledger, entry.code_version, entry.job_key))
+      throw InputError(path + ":" + std::to_string(number),
+                       "a second line for " + entry.code_version + " and the job of " + entry.file +
+                           " (one version has one result per job)");
+    ledger.push_back(std::move(entry));
+  }
+  return ledger;
+}
+
+std::string FormatLedgerLine(const LedgerEntry& entry) {
+  return entry.code_version + " " + entry.job_key + " " + entry.tables_key + " " + entry.file + "\n";
+}
+
+std::optional<LedgerEntry> FindEntry(const std::vector<LedgerEntry>& ledger, const std::string& code_version,
+                                     const std::string& job_key) {
+  for (const LedgerEntry& entry : ledger)
+    if (entry.code_version == code_version && entry.job_key == job_key) return entry;
+  return std::nullopt;
 }
 
 }  // namespace strokelab::cli::regression

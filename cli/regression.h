@@ -111,4 +111,31 @@ std::string FormatBaseline(const nlohmann::json& job, const std::string& code_ve
 // object); throws InputError naming `file` and the offending part.
 void CheckBaseline(const nlohmann::json& baseline, const std::string& file);
 
+// The results ledger, `results-ledger.txt` in the baseline directory (regress/README.md, "Results
+// version"): one line per baseline written, "CODE_VERSION JOB_KEY TABLES_KEY FILE". A job's results
+// may change only with the version, since the version is in every task's cache key: results written
+// under one version for one job have one TABLES_KEY.
+inline constexpr const char* kLedgerFile = "results-ledger.txt";
+
+struct LedgerEntry {
+  std::string code_version;  // "strokelab-0.3.0"
+  std::string job_key;       // JobKey of the baseline's job
+  std::string tables_key;    // TablesKey of its tables
+  std::string file;          // the baseline's file name, for the reader
+};
+
+// Digests (jobs::ContentKey) of a job without its "name" (a new name is not a new job) and of
+// result tables as written (Normalized).
+std::string JobKey(const nlohmann::json& job);
+std::string TablesKey(const nlohmann::json& tables);
+
+// The ledger's entries; none when the file does not exist. Throws InputError naming "FILE:LINE" for
+// a line that is not four fields or that repeats a version and job already listed.
+std::vector<LedgerEntry> ReadLedger(const std::string& path);
+std::string FormatLedgerLine(const LedgerEntry& entry);
+
+// The entry for this version and job, if any.
+std::optional<LedgerEntry> FindEntry(const std::vector<LedgerEntry>& ledger, const std::string& code_version,
+                                     const std::string& job_key);
+
 }  // namespace strokelab::cli::regression

@@ -19,12 +19,10 @@
 
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/task.h"
+#include "strokelab/jobs/version.h"
 #include "strokelab/sweep/sweep.h"
 
 namespace strokelab::jobs {
-
-// Bumped whenever a change to core alters results, so that cached results are not reused.
-inline constexpr const char* kCodeVersion = "strokelab-0.3.0";
 
 // Splits a validated job into tasks (throws InputError naming the field for semantic errors). A
 // campaign job's campaign is resolved in `campaigns` and read (a bad campaign is an InputError naming
