@@ -13,7 +13,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <future>
 #include <iostream>
 #include <numbers>
 #include <sstream>
@@ -22,6 +21,7 @@
 #include "strokelab/report/csv_table.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/parallel_for.h"
 #include "strokelab/model/linear_response.h"
 #include "strokelab/engines/record_summary.h"
 #include "strokelab/signal/signal.h"
@@ -234,15 +234,10 @@ std::vector<SweepPoint> UpSweep(const Study& study, double amplitude_v, const st
 // Fig. 10 (H) and Fig. 5 (H_p = -H / (m_p w^2)) for 0.1 .. 0.6 V on the Eq. 1 grid.
 void FrequencyResponses(Study& study) {
   const std::vector<double> grid_hz = PaperFrequencyGridHz();
-  std::vector<std::future<std::vector<SweepPoint>>> sweeps;
   std::vector<std::vector<SweepPoint>> results(kFrfAmplitudesV.size());
-  // Amplitudes are independent sweeps: run them `threads` at a time.
-  for (size_t first = 0; first < kFrfAmplitudesV.size(); first += study.threads) {
-    std::vector<std::future<std::vector<SweepPoint>>> batch;
-    for (size_t i = first; i < std::min(kFrfAmplitudesV.size(), first + study.threads); ++i)
-      batch.push_back(std::async(std::launch::async, UpSweep, std::cref(study), kFrfAmplitudesV[i], grid_hz));
-    for (size_t i = 0; i < batch.size(); ++i) results[first + i] = batch[i].get();
-  }
+  // Amplitudes are independent sweeps.
+  ParallelFor(kFrfAmplitudesV.size(), [&](size_t i) { results[i] = UpSweep(study, kFrfAmplitudesV[i], grid_hz); },
+              static_cast<size_t>(study.threads));
 
   CsvTable table({"frequency_hz"});
   table.SetColumn("frequency_hz", grid_hz);
@@ -332,12 +327,7 @@ void SaturationOnset(Study& study) {
     }
     return hi;
   };
-  std::vector<std::future<void>> workers;
-  for (int t = 0; t < study.threads; ++t)
-    workers.push_back(std::async(std::launch::async, [&, t] {
-      for (size_t i = t; i < grid_hz.size(); i += study.threads) from_rest[i] = bisect(i);
-    }));
-  for (auto& w : workers) w.get();
+  ParallelFor(grid_hz.size(), [&](size_t i) { from_rest[i] = bisect(i); }, static_cast<size_t>(study.threads));
 
   CsvTable table({"frequency_hz", "grazing_amplitude_v", "from_rest_contact_amplitude_v"});
   table.SetColumn("frequency_hz", grid_hz);

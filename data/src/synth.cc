@@ -2,18 +2,16 @@
 #include "strokelab/data/synth.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <exception>
 #include <fstream>
 #include <numbers>
 #include <random>
 #include <set>
-#include <thread>
 
-#include "strokelab/model/dynamics.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/parallel_for.h"
+#include "strokelab/model/dynamics.h"
 #include "strokelab/model/model_json.h"
 
 namespace strokelab {
@@ -172,52 +170,36 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   campaign.records.resize(count);
   std::vector<double> hum_phases(count);
 
-  std::vector<std::exception_ptr> failures(count);
-  std::atomic<size_t> next{0};
-  const auto work = [&] {
+  ParallelFor(count, [&](size_t k) {
     const auto engine = MakeEngine(out.method);
     Record record;
-    for (size_t k = next++; k < count; k = next++) {
-      try {
-        SineDrive drive;
-        drive.frequency_hz = options.frequencies_hz[k % frequencies];
-        drive.amplitude_v = options.amplitudes_v[k / frequencies];
-        engine->Simulate(out.model, drive, simulation, &record);
-        Random random(options.seed, 1 + k);
-        const double hum_phase = 2.0 * std::numbers::pi * random.Uniform();
-        hum_phases[k] = hum_phase;
-        Recording& rec = campaign.records[k];
-        char name[32];
-        std::snprintf(name, sizeof name, "rec_%03zu.csv", k + 1);
-        rec.name = name;
-        rec.sample_rate_hz = options.sample_rate_hz;
-        rec.nominal_frequency_hz = drive.frequency_hz;
-        rec.nominal_amplitude_v = drive.amplitude_v;
-        rec.voltage_v.resize(kept);
-        rec.response.resize(kept);
-        const double hum_omega = 2.0 * std::numbers::pi * options.hum_hz;
-        for (size_t n = 0; n < kept; ++n) {
-          const double t_kept = static_cast<double>(n) / options.sample_rate_hz;
-          const double t_simulated = static_cast<double>(first + n) / options.sample_rate_hz;
-          rec.voltage_v[n] = drive.Voltage(t_simulated) + options.voltage_noise_rms_v * random.Normal();
-          const double volts = true_sensitivity * ResponseSample(record, out.model, options.response, first + n) +
-                               options.offset_v + options.hum_v * std::sin(hum_omega * t_kept + hum_phase) +
-                               options.noise_rms_v * random.Normal();
-          rec.response[n] = volts / written_sensitivity;
-        }
-      } catch (...) {
-        failures[k] = std::current_exception();
-      }
+    SineDrive drive;
+    drive.frequency_hz = options.frequencies_hz[k % frequencies];
+    drive.amplitude_v = options.amplitudes_v[k / frequencies];
+    engine->Simulate(out.model, drive, simulation, &record);
+    Random random(options.seed, 1 + k);
+    const double hum_phase = 2.0 * std::numbers::pi * random.Uniform();
+    hum_phases[k] = hum_phase;
+    Recording& rec = campaign.records[k];
+    char name[32];
+    std::snprintf(name, sizeof name, "rec_%03zu.csv", k + 1);
+    rec.name = name;
+    rec.sample_rate_hz = options.sample_rate_hz;
+    rec.nominal_frequency_hz = drive.frequency_hz;
+    rec.nominal_amplitude_v = drive.amplitude_v;
+    rec.voltage_v.resize(kept);
+    rec.response.resize(kept);
+    const double hum_omega = 2.0 * std::numbers::pi * options.hum_hz;
+    for (size_t n = 0; n < kept; ++n) {
+      const double t_kept = static_cast<double>(n) / options.sample_rate_hz;
+      const double t_simulated = static_cast<double>(first + n) / options.sample_rate_hz;
+      rec.voltage_v[n] = drive.Voltage(t_simulated) + options.voltage_noise_rms_v * random.Normal();
+      const double volts = true_sensitivity * ResponseSample(record, out.model, options.response, first + n) +
+                           options.offset_v + options.hum_v * std::sin(hum_omega * t_kept + hum_phase) +
+                           options.noise_rms_v * random.Normal();
+      rec.response[n] = volts / written_sensitivity;
     }
-  };
-  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-  const size_t threads = std::min<size_t>(count, options.threads > 0 ? static_cast<size_t>(options.threads) : cores);
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (std::thread& thread : pool) thread.join();
-  for (const std::exception_ptr& failure : failures)
-    if (failure) std::rethrow_exception(failure);
+  }, static_cast<size_t>(options.threads));  // 0: one thread per core
 
   out.write.sensitivity = written_sensitivity;
   nlohmann::json records = nlohmann::json::array();

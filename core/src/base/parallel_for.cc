@@ -2,24 +2,29 @@
 #include "strokelab/base/parallel_for.h"
 
 #include <algorithm>
-#include <atomic>
 #include <exception>
 #include <thread>
 #include <vector>
 
+#include "strokelab/base/errors.h"
+
 namespace strokelab {
 
-void ParallelFor(size_t n, const std::function<void(size_t)>& f, size_t max_threads) {
+void ParallelFor(size_t n, const std::function<void(size_t)>& f, size_t max_threads,
+                 const std::atomic<bool>* cancel) {
   const size_t cores = std::max(1u, std::thread::hardware_concurrency());
   const size_t threads = std::min<size_t>(n, max_threads > 0 ? max_threads : cores);
   std::vector<std::exception_ptr> errors(n);
   std::atomic<size_t> next{0};
+  std::atomic<bool> failed{false};
   auto work = [&] {
-    for (size_t i = next++; i < n; i = next++) {
+    for (size_t i; !failed.load() && (i = next++) < n;) {
       try {
+        if (cancel && cancel->load()) throw Cancelled();
         f(i);
       } catch (...) {
         errors[i] = std::current_exception();
+        failed = true;
       }
     }
   };

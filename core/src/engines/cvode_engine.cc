@@ -49,6 +49,7 @@
 
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
+#include "contact_log.h"
 
 namespace strokelab {
 namespace {
@@ -335,7 +336,7 @@ class CvodeRun {
   void Run() {
     CreateSolver(options_, MaxStepS(model_, drive_), &problem_, &sundials_);
     Check(CVodeSetStopTime(sundials_.cvode, end_s_), "CVodeSetStopTime", problem_);
-    StartContacts(0.0, ContactMode{}, problem_.mode);
+    contacts_.emplace(&out_->contacts, problem_.mode);
     EmitSample(0, options_.initial.x_m, options_.initial.v_m_per_s);
     next_sample_ = 1;
 
@@ -368,8 +369,7 @@ class CvodeRun {
     // The stop time makes the last step end on t = N / fs (or a restart within rounding of it).
     out_->final_state = {NV_Ith_S(sundials_.y, 0), NV_Ith_S(sundials_.y, 1)};
     EmitRemainingSamples();
-    for (ContactInterval& contact : out_->contacts)
-      if (!contact.closed) contact.end_s = end_s_;  // still on at the record's end
+    contacts_->Finish(end_s_);
     out_->rhs_evaluations = problem_.rhs_evaluations;
   }
 
@@ -553,8 +553,7 @@ class CvodeRun {
   // Switches to new_mode at t_s, from the state in sundials_.y, recording the contacts that start
   // and end there. Returns true when t_s is the record's end (within rounding), too close to restart.
   bool SwitchAndRestart(double t_s, const ContactMode& new_mode) {
-    EndContacts(t_s, problem_.mode, new_mode);
-    StartContacts(t_s, problem_.mode, new_mode);
+    contacts_->Update(t_s, new_mode);
     problem_.mode = new_mode;
     last_root_s_ = t_s;
     if (end_s_ - t_s <= 8.0 * std::numeric_limits<double>::epsilon() * end_s_) return true;
@@ -565,30 +564,6 @@ class CvodeRun {
     Check(CVodeReInit(sundials_.cvode, t_s, sundials_.y), "CVodeReInit", problem_);
     Check(CVodeSetStopTime(sundials_.cvode, end_s_), "CVodeSetStopTime", problem_);
     return false;
-  }
-
-  void StartContacts(double t_s, const ContactMode& old_mode, const ContactMode& new_mode) {
-    if (new_mode.lower && !old_mode.lower) {
-      open_lower_ = out_->contacts.size();
-      out_->contacts.push_back({.start_s = t_s, .end_s = t_s, .upper = false, .closed = false});
-    }
-    if (new_mode.upper && !old_mode.upper) {
-      open_upper_ = out_->contacts.size();
-      out_->contacts.push_back({.start_s = t_s, .end_s = t_s, .upper = true, .closed = false});
-    }
-  }
-
-  void EndContacts(double t_s, const ContactMode& old_mode, const ContactMode& new_mode) {
-    if (old_mode.lower && !new_mode.lower) EndContact(t_s, &open_lower_);
-    if (old_mode.upper && !new_mode.upper) EndContact(t_s, &open_upper_);
-  }
-
-  void EndContact(double t_s, std::optional<size_t>* open_index) {
-    if (!open_index->has_value()) return;
-    ContactInterval& contact = out_->contacts[**open_index];
-    contact.end_s = t_s;
-    contact.closed = true;
-    open_index->reset();
   }
 
   const ActuatorModel& model_;
@@ -602,8 +577,7 @@ class CvodeRun {
   std::vector<int> root_directions_;  // CVodeGetRootInfo: +1 rising, -1 falling, 0 no root
   double last_root_s_ = 0.0;          // the last root or restart [s]: the mode is known there
   size_t next_sample_ = 0;
-  std::optional<size_t> open_lower_;  // index in out_->contacts of the contact still on, if any
-  std::optional<size_t> open_upper_;
+  std::optional<ContactLog> contacts_;  // from the start of the run
   bool polynomial_loaded_ = false;    // the coefficients below belong to the last step
   double polynomial_time_s_ = 0.0;    // t_n, the end of the last step [s]
   std::vector<double> polynomial_x_;  // y^(k)(t_n) / k! for x [m / s^k], k = 0 .. q
@@ -614,11 +588,10 @@ class CvodeEngine final : public Engine {
  public:
   Method method() const override { return Method::kCvode; }
 
-  void Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
-                Record* out) const override {
-    Validate(model);
-    Validate(drive);
-    Validate(options);
+
+ protected:
+  void Run(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
+           Record* out) const override {
     CvodeRun(model, drive, options, out).Run();
   }
 };

@@ -20,6 +20,14 @@ const char* ToString(Method method) {
   return "?";
 }
 
+void Engine::Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
+                      Record* out) const {
+  Validate(model);
+  Validate(drive);
+  Validate(options);
+  Run(model, drive, options, out);
+}
+
 size_t SimulationOptions::SampleCount() const {
   return static_cast<size_t>(std::llround(duration_s * sample_rate_hz));
 }

@@ -10,6 +10,7 @@
 
 #include "strokelab/engines/engine.h"
 #include "strokelab/engines/pwl_system.h"
+#include "contact_log.h"
 
 namespace strokelab {
 namespace {
@@ -21,40 +22,6 @@ struct FastRegion {
   Transition step;         // exp(A dt)
   Transition steps[4];     // exp(A k dt), k = 1..4, for the four-lane loop
   double ps, pc, offset, omega, stiffness, damping, sine_force, constant_force;
-};
-
-// Keeps the list of contact intervals as switches are reported.
-class ContactLog {
- public:
-  ContactLog(std::vector<ContactInterval>* out, ContactMode initial) : out_(out), mode_(initial) {
-    if (initial.lower) out_->push_back({0.0, 0.0, false, false});
-    if (initial.upper) out_->push_back({0.0, 0.0, true, false});
-  }
-  void Update(double time_s, ContactMode mode) {
-    Edge(time_s, mode_.lower, mode.lower, false);
-    Edge(time_s, mode_.upper, mode.upper, true);
-    mode_ = mode;
-  }
-  void Finish(double end_s) {
-    for (ContactInterval& c : *out_)
-      if (!c.closed) c.end_s = end_s;
-  }
-
- private:
-  void Edge(double time_s, bool was, bool is, bool upper) {
-    if (!was && is) out_->push_back({time_s, time_s, upper, false});
-    if (was && !is) {
-      for (auto it = out_->rbegin(); it != out_->rend(); ++it) {
-        if (it->upper == upper && !it->closed) {
-          it->end_s = time_s;
-          it->closed = true;
-          break;
-        }
-      }
-    }
-  }
-  std::vector<ContactInterval>* out_;
-  ContactMode mode_;
 };
 
 // The cheap per-sample test of whether a switch may lie in the step just taken. Held by value in
@@ -193,11 +160,10 @@ class ExactEngine final : public Engine {
  public:
   Method method() const override { return Method::kExact; }
 
-  void Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
-                Record* out) const override {
-    Validate(model);
-    Validate(drive);
-    Validate(options);
+
+ protected:
+  void Run(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
+           Record* out) const override {
     const PiecewiseLinearSystem system(model, drive);
     const size_t count = options.SampleCount();
     const double fs = options.sample_rate_hz, dt = 1.0 / fs;

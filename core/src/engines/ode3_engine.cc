@@ -20,6 +20,7 @@
 
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
+#include "contact_log.h"
 
 namespace strokelab {
 namespace {
@@ -88,7 +89,8 @@ class Ode3Run {
         sample_count_(options.SampleCount()),
         step_s_(1.0 / options.sample_rate_hz),
         inverse_mass_per_kg_(1.0 / model.mass_kg),
-        stage_drive_(drive, options.sample_rate_hz) {}
+        stage_drive_(drive, options.sample_rate_hz),
+        contacts_(&out->contacts, ContactMode{}) {}
 
   void Run() {
     PrepareRecord();
@@ -106,8 +108,7 @@ class Ode3Run {
                              " s (the fixed step 1/fs is unstable or the model diverges)");
     }
     out_->final_state = {x_m, v_m_per_s};
-    for (ContactInterval& contact : out_->contacts)
-      if (!contact.closed) contact.end_s = TimeS(sample_count_);  // still on at the record's end
+    contacts_.Finish(TimeS(sample_count_));
   }
 
  private:
@@ -156,27 +157,10 @@ class Ode3Run {
     if (options_.record_velocity) out_->velocity_m_per_s[n] = v_m_per_s;
     out_->force_n[n] = force_n;
     out_->in_contact[n] = mode.Any() ? 1 : 0;
-    TrackContacts(TimeS(n), mode);
-  }
-
-  // A fixed-step solver knows contacts only from its samples: a contact starts at the first sample
-  // in contact and ends at the first sample out of it, so both instants are quantised to 1/fs (a
-  // contact shorter than one step may be missed altogether).
-  void TrackContacts(double t_s, ContactMode mode) {
-    UpdateContact(t_s, mode.lower, /*upper=*/false, &open_lower_);
-    UpdateContact(t_s, mode.upper, /*upper=*/true, &open_upper_);
-  }
-
-  void UpdateContact(double t_s, bool pushing, bool upper, std::optional<size_t>* open_index) {
-    if (pushing && !open_index->has_value()) {
-      *open_index = out_->contacts.size();
-      out_->contacts.push_back({.start_s = t_s, .end_s = t_s, .upper = upper, .closed = false});
-    } else if (!pushing && open_index->has_value()) {
-      ContactInterval& contact = out_->contacts[**open_index];
-      contact.end_s = t_s;
-      contact.closed = true;
-      open_index->reset();
-    }
+    // A fixed-step solver knows contacts only from its samples: a contact starts at the first sample
+    // in contact and ends at the first sample out of it, so both instants are quantised to 1/fs (a
+    // contact shorter than one step may be missed altogether).
+    contacts_.Update(TimeS(n), mode);
   }
 
   const ActuatorModel& model_;
@@ -186,19 +170,17 @@ class Ode3Run {
   const double step_s_;               // h = 1 / fs [s]
   const double inverse_mass_per_kg_;  // 1 / m_p [1/kg]
   StageDrive stage_drive_;
-  std::optional<size_t> open_lower_;  // index in out_->contacts of the contact still on, if any
-  std::optional<size_t> open_upper_;
+  ContactLog contacts_;  // no contact before the first sample
 };
 
 class Ode3Engine final : public Engine {
  public:
   Method method() const override { return Method::kOde3; }
 
-  void Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
-                Record* out) const override {
-    Validate(model);
-    Validate(drive);
-    Validate(options);
+
+ protected:
+  void Run(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
+           Record* out) const override {
     Ode3Run(model, drive, options, out).Run();
   }
 };

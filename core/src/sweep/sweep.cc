@@ -12,8 +12,9 @@
 #include <numbers>
 #include <thread>
 
-#include "strokelab/steady/continuation.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/parallel_for.h"
+#include "strokelab/steady/continuation.h"
 #include "strokelab/steady/steady_state.h"
 
 namespace strokelab {
@@ -116,32 +117,6 @@ std::vector<JumpInterval> JumpIntervals(const ContinuedBranch& branch, double am
   std::sort(jumps.begin(), jumps.end(),
             [](const JumpInterval& x, const JumpInterval& y) { return x.bistable_from_hz < y.bistable_from_hz; });
   return jumps;
-}
-
-// Runs `count` indexed tasks on `threads` threads; the first exception stops the rest and is rethrown.
-template <class Task>
-void ParallelFor(size_t count, int threads, const std::atomic<bool>* cancel, Task&& task) {
-  std::atomic<size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  auto worker = [&] {
-    for (size_t i; !failed.load() && (i = next.fetch_add(1)) < count;) {
-      try {
-        if (cancel && cancel->load()) throw Cancelled();
-        task(i);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::current_exception();
-        failed = true;
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
 }
 
 void ValidateAxis(const GridAxis& axis, const std::string& name, double lowest) {
@@ -291,7 +266,7 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
   std::mutex progress_mutex;
   std::atomic<size_t> done{0};
   const size_t total = rows + columns;
-  ParallelFor(total, spec.threads, cancel, [&](size_t i) {
+  ParallelFor(total, [&](size_t i) {
     if (i < rows) {
       row_results[i] = SweepRow(spec.model, result.amplitude_v[i], result.frequency_hz, cancel);
     } else {
@@ -302,7 +277,7 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
       std::lock_guard<std::mutex> lock(progress_mutex);
       progress({finished, total});
     }
-  });
+  }, static_cast<size_t>(spec.threads), cancel);
   if (cancel && cancel->load()) throw Cancelled();
   for (SweepRowResult& r : row_results) {
     result.points.insert(result.points.end(), r.points.begin(), r.points.end());

@@ -28,4 +28,9 @@ class NumericalError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Work stopped because its caller asked (a cancelled job, an interrupted command).
+struct Cancelled : std::exception {
+  const char* what() const noexcept override { return "cancelled"; }
+};
+
 }  // namespace strokelab

@@ -66,15 +66,21 @@ class Engine {
  public:
   virtual ~Engine() = default;
   virtual Method method() const = 0;
-  // Fills *out (reusing its storage). Throws InputError for a model the engine cannot run,
-  // NumericalError if the solver fails.
-  virtual void Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
-                        Record* out) const = 0;
+  // Validates the model, the drive and the options (InputError naming the field), then fills *out
+  // (reusing its storage). Throws InputError for a model the engine cannot run, NumericalError if
+  // the solver fails.
+  void Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
+                Record* out) const;
   Record Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options) const {
     Record record;
     Simulate(model, drive, options, &record);
     return record;
   }
+
+ protected:
+  // The engine's own work, on validated input.
+  virtual void Run(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
+                   Record* out) const = 0;
 };
 
 std::unique_ptr<Engine> MakeEngine(Method method);

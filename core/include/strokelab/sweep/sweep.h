@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/base/errors.h"  // Cancelled
 #include "strokelab/model/model.h"
 
 namespace strokelab {
@@ -97,9 +98,5 @@ SaturationThreshold SweepColumn(const ActuatorModel& model, double frequency_hz,
 // work and the call throws Cancelled.
 SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const SweepProgress&)>& progress = {},
                      const std::atomic<bool>* cancel = nullptr);
-
-struct Cancelled : std::exception {
-  const char* what() const noexcept override { return "cancelled"; }
-};
 
 }  // namespace strokelab
