@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "strokelab/base/json_number.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/model/model_json.h"
@@ -34,8 +35,6 @@ in the last second of the record.
 )";
 
 double Finite(double value) { return std::isfinite(value) ? value : 0.0; }
-
-nlohmann::json NullIfNan(double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); }
 
 void WriteCsv(const std::string& path, const Record& record, const ActuatorModel& model, const SineDrive& drive) {
   std::ofstream out(path);
@@ -150,8 +149,8 @@ int RunSimulate(const std::vector<std::string>& argv) {
         {"min_displacement_m", summary.min_displacement_m},
         {"max_displacement_m", summary.max_displacement_m},
         {"contacts", summary.contacts},
-        {"mean_contact_ms", NullIfNan(summary.mean_contact_ms)},
-        {"contact_time_rsd", NullIfNan(summary.contact_time_rsd)},
+        {"mean_contact_ms", JsonNumber(summary.mean_contact_ms)},
+        {"contact_time_rsd", JsonNumber(summary.contact_time_rsd)},
         {"peak_force_n", summary.peak_force_n},
         {"first_harmonic_force_n", summary.first_harmonic_force_n},
         {"first_harmonic_phase_rad", summary.first_harmonic_phase_rad},

@@ -9,6 +9,7 @@
 #include <random>
 #include <set>
 
+#include "strokelab/base/json_number.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/model/dynamics.h"
@@ -141,8 +142,8 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
     perturbations.push_back({{"key", name},
                              {"relative_half_width", relative},
                              {"factor", factor},
-                             {"nominal", std::isfinite(nominal) ? nlohmann::json(nominal) : nlohmann::json(nullptr)},
-                             {"actual", std::isfinite(actual) ? nlohmann::json(actual) : nlohmann::json(nullptr)}});
+                             {"nominal", JsonNumber(nominal)},
+                             {"actual", JsonNumber(actual)}});
   }
   try {
     Validate(out.model);

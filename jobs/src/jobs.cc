@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/report/sweep_tables.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/fit.h"
@@ -19,31 +21,6 @@ namespace strokelab::jobs {
 namespace {
 
 constexpr size_t kColumnsPerTask = 16;  // threshold columns take ~2 ms each: chunks of ~30 ms
-
-nlohmann::json NullIfNotFinite(double value) {
-  return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
-}
-
-}  // namespace
-
-nlohmann::json SweepPointJson(const SweepPoint& p) {
-  return {{"frequency_hz", p.frequency_hz},
-          {"amplitude_v", p.amplitude_v},
-          {"branch", ToString(p.branch)},
-          {"stable", p.stable},
-          {"period", p.period > 0 ? nlohmann::json(p.period) : nlohmann::json("aperiodic")},
-          {"first_harmonic_force_n", p.first_harmonic_force_n},
-          {"first_harmonic_phase_rad", p.first_harmonic_phase_rad},
-          {"h_re", p.h.real()},
-          {"h_im", p.h.imag()},
-          {"min_displacement_m", p.min_displacement_m},
-          {"max_displacement_m", p.max_displacement_m},
-          {"peak_force_n", p.peak_force_n},
-          {"contacts_per_period", p.contacts_per_period},
-          {"max_multiplier", p.max_multiplier}};
-}
-
-namespace {
 
 TaskSpec MakeTask(nlohmann::json spec) {
   spec["code_version"] = kCodeVersion;
@@ -166,21 +143,11 @@ std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<boo
   if (type == "sweep_row") {
     const SweepRowResult row =
         SweepRow(model, task.at("amplitude_v").get<double>(), task.at("frequencies_hz").get<std::vector<double>>(), cancel);
-    for (const SweepPoint& p : row.points) rows.push_back({"points", SweepPointJson(p)});
-    for (const JumpInterval& j : row.jumps)
-      rows.push_back({"jumps",
-                      {{"amplitude_v", j.amplitude_v},
-                       {"bistable_from_hz", j.bistable_from_hz},
-                       {"bistable_to_hz", j.bistable_to_hz},
-                       {"from_kind", j.from_kind},
-                       {"to_kind", j.to_kind}}});
+    for (const SweepPoint& p : row.points) rows.push_back({"points", report::RowToJson(p)});
+    for (const JumpInterval& j : row.jumps) rows.push_back({"jumps", report::RowToJson(j)});
   } else if (type == "sweep_columns") {
     for (double f : task.at("frequencies_hz").get<std::vector<double>>()) {
-      const SaturationThreshold t = SweepColumn(model, f, cancel);
-      rows.push_back({"thresholds",
-                      {{"frequency_hz", t.frequency_hz},
-                       {"grazing_amplitude_v", NullIfNotFinite(t.grazing_amplitude_v)},
-                       {"lowest_contact_amplitude_v", NullIfNotFinite(t.lowest_contact_amplitude_v)}}});
+      rows.push_back({"thresholds", report::RowToJson(SweepColumn(model, f, cancel))});
     }
   } else if (type == "simulate") {
     const SineDrive drive{task.at("amplitude_v").get<double>(), task.at("frequency_hz").get<double>(), 0.0};
@@ -198,7 +165,7 @@ std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<boo
                      {"min_displacement_m", s.min_displacement_m},
                      {"max_displacement_m", s.max_displacement_m},
                      {"contacts", s.contacts},
-                     {"mean_contact_ms", NullIfNotFinite(s.mean_contact_ms)},
+                     {"mean_contact_ms", JsonNumber(s.mean_contact_ms)},
                      {"peak_force_n", s.peak_force_n},
                      {"first_harmonic_force_n", s.first_harmonic_force_n},
                      {"first_harmonic_phase_rad", s.first_harmonic_phase_rad}}});

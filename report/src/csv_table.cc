@@ -1,5 +1,7 @@
 #include "strokelab/report/csv_table.h"
 
+#include "strokelab/report/sweep_tables.h"  // CsvNumber
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -31,14 +33,10 @@ std::string CsvTable::ToString() const {
   std::string text;
   for (size_t i = 0; i < names_.size(); ++i) text += (i ? "," : "") + names_[i];
   text += "\n";
-  char cell[40];
   for (size_t r = 0; r < rows(); ++r) {
     for (size_t i = 0; i < columns_.size(); ++i) {
       if (i) text += ",";
-      if (r < columns_[i].size() && std::isfinite(columns_[i][r])) {
-        std::snprintf(cell, sizeof cell, "%.10g", columns_[i][r]);
-        text += cell;
-      }
+      if (r < columns_[i].size()) text += CsvNumber(columns_[i][r]);
     }
     text += "\n";
   }

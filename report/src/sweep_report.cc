@@ -9,9 +9,10 @@
 #include <optional>
 #include <stdexcept>
 
-#include "strokelab/report/csv_table.h"
+#include "strokelab/base/json_number.h"
 #include "strokelab/model/model_json.h"
 #include "strokelab/plot/svg_plot.h"
+#include "strokelab/report/sweep_tables.h"
 
 namespace strokelab::report {
 namespace {
@@ -34,38 +35,26 @@ std::string Format(const char* format, ...) {
   return buffer;
 }
 
-json Number(double value) { return std::isfinite(value) ? json(value) : json(nullptr); }
-
 json Numbers(const std::vector<double>& values) {
   json list = json::array();
-  for (double v : values) list.push_back(Number(v));
+  for (double v : values) list.push_back(JsonNumber(v));
   return list;
 }
 
-// "%.10g", or an empty cell for a non-finite value (the CsvTable convention).
-std::string Cell(double value) { return std::isfinite(value) ? Format("%.10g", value) : std::string(); }
+// A table's rows as a JSON array and as CSV, header first (sweep_tables.h).
+template <class Row>
+json RowsToJson(const std::vector<Row>& rows) {
+  json list = json::array();
+  for (const Row& row : rows) list.push_back(RowToJson(row));
+  return list;
+}
 
-// A CSV table with text cells (CsvTable holds numbers only): header line, then the rows.
-void WriteTextCsv(const std::filesystem::path& path, const std::vector<std::string>& header,
-                  const std::vector<std::vector<std::string>>& rows) {
-  auto line = [](const std::vector<std::string>& cells) {
-    std::string text;
-    for (size_t i = 0; i < cells.size(); ++i) {
-      if (i) text += ",";
-      if (cells[i].find_first_of(",\"\n") == std::string::npos) {
-        text += cells[i];
-      } else {
-        text += "\"";
-        for (char c : cells[i]) text += c == '"' ? std::string("\"\"") : std::string(1, c);
-        text += "\"";
-      }
-    }
-    return text + "\n";
-  };
-  std::ofstream out(path);
-  out << line(header);
-  for (const auto& row : rows) out << line(row);
-  if (!out) throw std::runtime_error("cannot write " + path.string());
+
+template <class Row>
+std::string CsvText(const std::vector<Row>& rows) {
+  std::string text = CsvHeader<Row>();
+  for (const Row& row : rows) text += CsvLine(row);
+  return text;
 }
 
 void WriteFile(const std::filesystem::path& path, const std::string& text) {
@@ -255,47 +244,15 @@ double SpikeFactor(const SweepPoint& point) {
 }
 
 json SweepToJson(const SweepResult& r, const ActuatorModel& model) {
-  json points = json::array();
-  for (const SweepPoint& p : r.points) {
-    points.push_back({
-        {"frequency_hz", Number(p.frequency_hz)},
-        {"amplitude_v", Number(p.amplitude_v)},
-        {"branch", ToString(p.branch)},
-        {"stable", p.stable},
-        {"period", p.period == 0 ? json("aperiodic") : json(p.period)},
-        {"first_harmonic_force_n", Number(p.first_harmonic_force_n)},
-        {"first_harmonic_phase_rad", Number(p.first_harmonic_phase_rad)},
-        {"h_re", Number(p.h.real())},
-        {"h_im", Number(p.h.imag())},
-        {"min_displacement_m", Number(p.min_displacement_m)},
-        {"max_displacement_m", Number(p.max_displacement_m)},
-        {"peak_force_n", Number(p.peak_force_n)},
-        {"contacts_per_period", Number(p.contacts_per_period)},
-        {"max_multiplier", Number(p.max_multiplier)},
-    });
-  }
-  json thresholds = json::array();
-  for (const SaturationThreshold& t : r.saturation_threshold) {
-    thresholds.push_back({{"frequency_hz", Number(t.frequency_hz)},
-                          {"grazing_amplitude_v", Number(t.grazing_amplitude_v)},
-                          {"lowest_contact_amplitude_v", Number(t.lowest_contact_amplitude_v)}});
-  }
-  json jumps = json::array();
-  for (const JumpInterval& j : r.jump) {
-    jumps.push_back({{"amplitude_v", Number(j.amplitude_v)},
-                     {"bistable_from_hz", Number(j.bistable_from_hz)},
-                     {"bistable_to_hz", Number(j.bistable_to_hz)},
-                     {"from_kind", j.from_kind},
-                     {"to_kind", j.to_kind}});
-  }
+  json points = RowsToJson(r.points), thresholds = RowsToJson(r.saturation_threshold), jumps = RowsToJson(r.jump);
   return {
       {"points", std::move(points)},
       {"saturation_threshold", std::move(thresholds)},
       {"jump", std::move(jumps)},
       {"grid", {{"frequency_hz", Numbers(r.frequency_hz)}, {"amplitude_v", Numbers(r.amplitude_v)}}},
       {"model", ModelToJson(model)},
-      {"wall_time_s", Number(r.wall_time_s)},
-      {"points_per_second", Number(r.points_per_second)},
+      {"wall_time_s", JsonNumber(r.wall_time_s)},
+      {"points_per_second", JsonNumber(r.points_per_second)},
   };
 }
 
@@ -376,37 +333,9 @@ void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const st
 
   WriteFile(dir / "model.json", ModelToJson(model).dump(2) + "\n");
 
-  std::vector<std::vector<std::string>> rows;
-  for (const SweepPoint& p : r.points) {
-    rows.push_back({Cell(p.frequency_hz), Cell(p.amplitude_v), ToString(p.branch), p.stable ? "1" : "0",
-                    p.period == 0 ? std::string() : std::to_string(p.period), Cell(p.first_harmonic_force_n),
-                    Cell(p.first_harmonic_phase_rad), Cell(p.h.real()), Cell(p.h.imag()), Cell(p.min_displacement_m),
-                    Cell(p.max_displacement_m), Cell(p.peak_force_n), Cell(p.contacts_per_period),
-                    Cell(p.max_multiplier)});
-  }
-  WriteTextCsv(dir / "points.csv",
-               {"frequency_hz", "amplitude_v", "branch", "stable", "period", "first_harmonic_force_n",
-                "first_harmonic_phase_rad", "h_re", "h_im", "min_displacement_m", "max_displacement_m", "peak_force_n",
-                "contacts_per_period", "max_multiplier"},
-               rows);
-
-  CsvTable thresholds({"frequency_hz", "grazing_amplitude_v", "lowest_contact_amplitude_v"});
-  std::vector<double> f, graze, contact;
-  for (const SaturationThreshold& t : r.saturation_threshold) {
-    f.push_back(t.frequency_hz);
-    graze.push_back(t.grazing_amplitude_v);
-    contact.push_back(t.lowest_contact_amplitude_v);
-  }
-  thresholds.SetColumn("frequency_hz", f);
-  thresholds.SetColumn("grazing_amplitude_v", graze);
-  thresholds.SetColumn("lowest_contact_amplitude_v", contact);
-  thresholds.Write(dir / "saturation_threshold.csv");
-
-  rows.clear();
-  for (const JumpInterval& j : r.jump) {
-    rows.push_back({Cell(j.amplitude_v), Cell(j.bistable_from_hz), Cell(j.bistable_to_hz), j.from_kind, j.to_kind});
-  }
-  WriteTextCsv(dir / "jump.csv", {"amplitude_v", "bistable_from_hz", "bistable_to_hz", "from_kind", "to_kind"}, rows);
+  WriteFile(dir / "points.csv", CsvText(r.points));
+  WriteFile(dir / "saturation_threshold.csv", CsvText(r.saturation_threshold));
+  WriteFile(dir / "jump.csv", CsvText(r.jump));
 
   const BranchGrid grid(r);
   WriteFile(dir / "saturation_map.svg", SaturationMap(r, grid, Branch::kUp));

@@ -30,6 +30,7 @@
 #include "storage_health.h"
 #include "strokelab/sweep/sweep.h"
 #include "strokelab/report/sweep_report.h"
+#include "strokelab/report/sweep_tables.h"
 #include "event_log.h"
 
 namespace strokelab::server {
@@ -239,25 +240,10 @@ int QueryLimit(const httplib::Request& req, int fallback, int maximum) {
   return static_cast<int>(limit);
 }
 
-const std::vector<std::string> kPointColumns = {
-    "frequency_hz",       "amplitude_v",        "branch",       "stable",           "period",
-    "first_harmonic_force_n", "first_harmonic_phase_rad", "h_re", "h_im",          "min_displacement_m",
-    "max_displacement_m", "peak_force_n",       "contacts_per_period", "max_multiplier"};
-
+// Stored point rows as CSV (sweep_tables.h: the columns and cells of the sweep folder's points.csv).
 std::string PointsCsv(const std::vector<json>& rows) {
-  std::string out;
-  for (size_t i = 0; i < kPointColumns.size(); ++i) out += (i ? "," : "") + kPointColumns[i];
-  out += "\n";
-  for (const json& row : rows) {
-    for (size_t i = 0; i < kPointColumns.size(); ++i) {
-      if (i) out += ",";
-      const json& v = row.value(kPointColumns[i], json(nullptr));
-      if (v.is_string()) out += v.get<std::string>();
-      else if (v.is_boolean()) out += v.get<bool>() ? "1" : "0";
-      else if (!v.is_null()) out += v.dump();
-    }
-    out += "\n";
-  }
+  std::string out = report::CsvHeader<SweepPoint>();
+  for (const json& row : rows) out += report::CsvLine(report::RowFromJson<SweepPoint>(row));
   return out;
 }
 
@@ -388,39 +374,16 @@ struct Service::Impl {
     r.amplitude_v = spec.amplitude_v.Values();
     for (int64_t cursor = 0;;) {
       const Store::Page page = store->Results(job.id, "points", {}, cursor, 10000);
-      for (const json& p : page.rows) {
-        SweepPoint s;
-        s.frequency_hz = p.at("frequency_hz");
-        s.amplitude_v = p.at("amplitude_v");
-        const std::string branch = p.at("branch");
-        s.branch = branch == "up" ? Branch::kUp : (branch == "down" ? Branch::kDown : Branch::kUnstable);
-        s.stable = p.at("stable");
-        s.period = p.at("period").is_number() ? p.at("period").get<int>() : 0;
-        s.h = {p.at("h_re").get<double>(), p.at("h_im").get<double>()};
-        s.first_harmonic_force_n = p.at("first_harmonic_force_n");
-        s.first_harmonic_phase_rad = p.at("first_harmonic_phase_rad");
-        s.min_displacement_m = p.at("min_displacement_m");
-        s.max_displacement_m = p.at("max_displacement_m");
-        s.peak_force_n = p.at("peak_force_n");
-        s.contacts_per_period = p.at("contacts_per_period");
-        s.max_multiplier = p.at("max_multiplier");
-        r.points.push_back(s);
-      }
+      for (const json& p : page.rows) r.points.push_back(report::RowFromJson<SweepPoint>(p));
       if (page.next_cursor == 0) break;
       cursor = page.next_cursor;
     }
     for (const json& t : store->Results(job.id, "thresholds", {}, 0, 1000000).rows)
-      r.saturation_threshold.push_back({t.at("frequency_hz"), t.at("grazing_amplitude_v").is_number()
-                                                                  ? t.at("grazing_amplitude_v").get<double>()
-                                                                  : NAN,
-                                        t.at("lowest_contact_amplitude_v").is_number()
-                                            ? t.at("lowest_contact_amplitude_v").get<double>()
-                                            : NAN});
+      r.saturation_threshold.push_back(report::RowFromJson<SaturationThreshold>(t));
     std::sort(r.saturation_threshold.begin(), r.saturation_threshold.end(),
               [](const auto& a, const auto& b) { return a.frequency_hz < b.frequency_hz; });
     for (const json& j : store->Results(job.id, "jumps", {}, 0, 1000000).rows)
-      r.jump.push_back({j.at("amplitude_v"), j.at("bistable_from_hz"), j.at("bistable_to_hz"), j.at("from_kind"),
-                        j.at("to_kind")});
+      r.jump.push_back(report::RowFromJson<JumpInterval>(j));
     return r;
   }
 

@@ -25,7 +25,7 @@
 #include "process/store_file.h"
 #include "process/sweep_checks.h"
 #include "strokelab/model/model.h"
-#include "strokelab/jobs/jobs.h"
+#include "strokelab/report/sweep_tables.h"
 #include "strokelab/sweep/sweep.h"
 
 namespace {
@@ -285,7 +285,7 @@ TEST(ServiceProcess, WorkerTokens) {
   const std::vector<double> frequencies = strokelab::GridAxis{5, 50, kFrequencies}.Values();
   for (double amplitude : strokelab::GridAxis{0.1, 0.6, kAmplitudes}.Values()) {
     for (const strokelab::SweepPoint& p : strokelab::SweepRow(strokelab::PaperModel(), amplitude, frequencies).points) {
-      const json row = strokelab::jobs::SweepPointJson(p);
+      const json row = strokelab::report::RowToJson(p);
       want.push_back(json::parse(row.dump()));  // as stored: through JSON text
     }
   }

@@ -2,19 +2,19 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/model/model_json.h"
 
 namespace strokelab {
 namespace {
 
-nlohmann::json Number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr); }
 
 nlohmann::json Parameters(const std::vector<FitParameter>& parameters) {
   nlohmann::json out = nlohmann::json::object();
   for (const FitParameter& p : parameters) {
-    out[p.name] = {{"value", Number(p.value)},
-                   {"standard_error", Number(p.standard_error)},
+    out[p.name] = {{"value", JsonNumber(p.value)},
+                   {"standard_error", JsonNumber(p.standard_error)},
                    {"unit", p.unit},
                    {"fixed", p.fixed},
                    {"identifiable", p.identifiable}};
@@ -24,11 +24,11 @@ nlohmann::json Parameters(const std::vector<FitParameter>& parameters) {
 }
 
 nlohmann::json Figures(const FitFigures& f) {
-  return {{"nrmse", Number(f.nrmse)},
-          {"heldout_nrmse", Number(f.heldout_nrmse)},
-          {"chi2", Number(f.chi2)},
-          {"heldout_chi2", Number(f.heldout_chi2)},
-          {"residual_variance", Number(f.residual_variance)}};
+  return {{"nrmse", JsonNumber(f.nrmse)},
+          {"heldout_nrmse", JsonNumber(f.heldout_nrmse)},
+          {"chi2", JsonNumber(f.chi2)},
+          {"heldout_chi2", JsonNumber(f.heldout_chi2)},
+          {"residual_variance", JsonNumber(f.residual_variance)}};
 }
 
 nlohmann::json EvidenceJson(const Evidence& e) {
@@ -36,15 +36,15 @@ nlohmann::json EvidenceJson(const Evidence& e) {
   for (Effect effect : e.points_to) points.push_back(Info(effect).id);
   return {{"kind", e.kind},
           {"summary", e.summary},
-          {"value", Number(e.value)},
-          {"standard_error", Number(e.standard_error)},
-          {"significance", Number(e.significance)},
+          {"value", JsonNumber(e.value)},
+          {"standard_error", JsonNumber(e.standard_error)},
+          {"significance", JsonNumber(e.significance)},
           {"points_to", points}};
 }
 
 nlohmann::json Complexes(const std::vector<std::complex<double>>& values) {
   nlohmann::json out = nlohmann::json::array();
-  for (const auto& c : values) out.push_back({{"re", Number(c.real())}, {"im", Number(c.imag())}});
+  for (const auto& c : values) out.push_back({{"re", JsonNumber(c.real())}, {"im", JsonNumber(c.imag())}});
   return out;
 }
 
@@ -68,8 +68,8 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
       for (const Evidence& e : d.signatures.evidence)
         for (Effect pointed : e.points_to)
           if (pointed == effect) entry["evidence"].push_back(EvidenceJson(e));
-      entry["heldout_gain"] = Number(c.heldout_gain);
-      entry["fit_gain"] = Number(c.fit_gain);
+      entry["heldout_gain"] = JsonNumber(c.heldout_gain);
+      entry["fit_gain"] = JsonNumber(c.fit_gain);
       entry["all_parameters"] = Parameters(c.parameters);
       out["missing_physics"].push_back(entry);
     }
@@ -89,12 +89,12 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
                                  {"chosen", static_cast<int>(i) == d.chosen},
                                  {"fitted", c.fitted},
                                  {"converged", c.converged},
-                                 {"heldout_gain", Number(c.heldout_gain)},
-                                 {"fit_gain", Number(c.fit_gain)},
+                                 {"heldout_gain", JsonNumber(c.heldout_gain)},
+                                 {"fit_gain", JsonNumber(c.fit_gain)},
                                  {"figures", Figures(c.figures)},
                                  {"effect_parameters", Parameters(c.effect_parameters)},
                                  {"passes", c.passes},
-                                 {"seconds", Number(c.seconds)},
+                                 {"seconds", JsonNumber(c.seconds)},
                                  {"note", c.note}});
   }
 
@@ -104,24 +104,24 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
   signatures["hotspots"] = nlohmann::json::array();
   for (const auto& h : d.signatures.hotspots)
     signatures["hotspots"].push_back({{"record", h.record},
-                                      {"frequency_hz", Number(h.frequency_hz)},
-                                      {"amplitude_v", Number(h.amplitude_v)},
+                                      {"frequency_hz", JsonNumber(h.frequency_hz)},
+                                      {"amplitude_v", JsonNumber(h.amplitude_v)},
                                       {"harmonic", h.harmonic},
-                                      {"magnitude_error", Number(h.magnitude_error)},
-                                      {"phase_error_rad", Number(h.phase_error_rad)},
-                                      {"chi2_per_residual", Number(h.chi2_per_residual)}});
+                                      {"magnitude_error", JsonNumber(h.magnitude_error)},
+                                      {"phase_error_rad", JsonNumber(h.phase_error_rad)},
+                                      {"chi2_per_residual", JsonNumber(h.chi2_per_residual)}});
   signatures["levels"] = nlohmann::json::array();
   for (const auto& l : d.signatures.levels)
-    signatures["levels"].push_back({{"amplitude_v", Number(l.amplitude_v)},
+    signatures["levels"].push_back({{"amplitude_v", JsonNumber(l.amplitude_v)},
                                     {"clear_records", l.clear_records},
-                                    {"resonance_hz", Number(l.resonance_hz)},
-                                    {"resonance_se_hz", Number(l.resonance_se_hz)},
-                                    {"second_harmonic_ratio", Number(l.second_harmonic_ratio)},
-                                    {"third_harmonic_ratio", Number(l.third_harmonic_ratio)},
-                                    {"mean_contact_time_s", Number(l.mean_contact_time_s)}});
-  signatures["contact_window_s"] = Number(d.signatures.contact_window_s);
-  signatures["residual_rms_near_contacts"] = Number(d.signatures.residual_rms_near_contacts);
-  signatures["residual_rms_elsewhere"] = Number(d.signatures.residual_rms_elsewhere);
+                                    {"resonance_hz", JsonNumber(l.resonance_hz)},
+                                    {"resonance_se_hz", JsonNumber(l.resonance_se_hz)},
+                                    {"second_harmonic_ratio", JsonNumber(l.second_harmonic_ratio)},
+                                    {"third_harmonic_ratio", JsonNumber(l.third_harmonic_ratio)},
+                                    {"mean_contact_time_s", JsonNumber(l.mean_contact_time_s)}});
+  signatures["contact_window_s"] = JsonNumber(d.signatures.contact_window_s);
+  signatures["residual_rms_near_contacts"] = JsonNumber(d.signatures.residual_rms_near_contacts);
+  signatures["residual_rms_elsewhere"] = JsonNumber(d.signatures.residual_rms_elsewhere);
   out["signatures"] = signatures;
 
   out["records"] = nlohmann::json::array();
@@ -129,23 +129,23 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
     const RecordMatch& b = d.before[i];
     const RecordMatch& a = i < d.after.size() ? d.after[i] : b;
     out["records"].push_back({{"name", b.name},
-                              {"frequency_hz", Number(b.frequency_hz)},
-                              {"amplitude_v", Number(b.amplitude_v)},
+                              {"frequency_hz", JsonNumber(b.frequency_hz)},
+                              {"amplitude_v", JsonNumber(b.amplitude_v)},
                               {"heldout", b.heldout},
                               {"clear", b.clear},
-                              {"nrmse_before", Number(b.nrmse)},
-                              {"nrmse_after", Number(a.nrmse)},
-                              {"chi2_before", Number(b.chi2)},
+                              {"nrmse_before", JsonNumber(b.nrmse)},
+                              {"nrmse_after", JsonNumber(a.nrmse)},
+                              {"chi2_before", JsonNumber(b.chi2)},
                               {"model_period_before", b.model_period},
                               {"model_period_after", a.model_period},
-                              {"model_contacts_before", Number(b.model_contacts_per_period)},
-                              {"model_contacts_after", Number(a.model_contacts_per_period)},
-                              {"chi2_after", Number(a.chi2)},
+                              {"model_contacts_before", JsonNumber(b.model_contacts_per_period)},
+                              {"model_contacts_after", JsonNumber(a.model_contacts_per_period)},
+                              {"chi2_after", JsonNumber(a.chi2)},
                               {"measured", Complexes(b.measured)},
                               {"model_before", Complexes(b.model)},
                               {"model_after", Complexes(a.model)}});
   }
-  out["seconds"] = Number(d.seconds);
+  out["seconds"] = JsonNumber(d.seconds);
   return out;
 }
 

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "strokelab/base/json_number.h"
+
 namespace strokelab {
 
 ActuatorModel ModelFromJson(const nlohmann::json& json, const std::string& pointer) {
@@ -61,7 +63,7 @@ nlohmann::json ModelToJson(const ActuatorModel& model) {
   nlohmann::json json = nlohmann::json::object();
   for (const ParameterInfo& info : Parameters()) {
     const double value = model.*(info.field);
-    json[info.json_name] = std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
+    json[info.json_name] = JsonNumber(value);
   }
   json["contact_law"] = ToString(model.contact_law);
   return json;

@@ -36,9 +36,6 @@ bool IsCampaignKind(const std::string& kind);
 // Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
 std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
 
-// A sweep point as a "points" result row (the stored and served form).
-nlohmann::json SweepPointJson(const SweepPoint& point);
-
 // 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
 std::string ContentKey(const std::string& text);
 
