@@ -219,7 +219,7 @@ void ValidateJob(const json& job) {
     CheckCampaignJob(job);
   } else {
     // The schema's kind enum and this dispatch must list the same kinds.
-    throw std::logic_error("job kind '" + kind + "' passed the schema but has no checks in job_spec.cc");
+    BrokenInvariant("job kind '" + kind + "' passed the schema but has no checks in job_spec.cc");
   }
 }
 

@@ -1,20 +1,28 @@
 #include "strokelab/report/csv_table.h"
 
-#include "strokelab/report/sweep_tables.h"  // CsvNumber
-
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
 
+#include "strokelab/base/errors.h"
+
 namespace strokelab::report {
+
+std::string CsvNumber(double value) {
+  if (!std::isfinite(value)) return "";
+  char text[32];
+  const auto result = std::to_chars(text, text + sizeof text, value, std::chars_format::general);
+  return std::string(text, result.ptr);
+}
 
 CsvTable::CsvTable(std::vector<std::string> columns) : names_(std::move(columns)), columns_(names_.size()) {}
 
 void CsvTable::SetColumn(const std::string& name, const std::vector<double>& values) {
   const auto it = std::find(names_.begin(), names_.end(), name);
-  if (it == names_.end()) throw std::logic_error("CsvTable: undeclared column " + name);
+  if (it == names_.end()) BrokenInvariant("CsvTable: undeclared column " + name);
   columns_[static_cast<size_t>(it - names_.begin())] = values;
 }
 

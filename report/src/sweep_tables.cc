@@ -1,10 +1,10 @@
 // The column tables of a sweep's results and the JSON and CSV written from them (sweep_tables.h).
 #include "strokelab/report/sweep_tables.h"
 
-#include <charconv>
 #include <cmath>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/report/csv_table.h"  // CsvNumber
 
 namespace strokelab::report {
 namespace {
@@ -167,13 +167,6 @@ std::string CsvLine(const Row& row) {
     }
   }
   return line + "\n";
-}
-
-std::string CsvNumber(double value) {
-  if (!std::isfinite(value)) return "";
-  char text[32];
-  const auto result = std::to_chars(text, text + sizeof text, value, std::chars_format::general);
-  return std::string(text, result.ptr);
 }
 
 #define STROKELAB_TABLE(Row)                                    \

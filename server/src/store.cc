@@ -28,6 +28,7 @@
 #include <utility>
 
 #include "migrations.h"
+#include "strokelab/base/errors.h"
 
 namespace strokelab::server {
 
@@ -252,7 +253,7 @@ class SqliteStore final : public Store {
     {
       Stmt s = Prepare(
           "SELECT t.job_id, t.idx, j.kind, t.spec_json FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1");
-      if (!s.Int(1, task_id).Step()) throw std::logic_error("job store: leased task vanished");
+      if (!s.Int(1, task_id).Step()) BrokenInvariant("job store: leased task vanished");
       lease.job_id = s.ColInt(0);
       lease.index = static_cast<int>(s.ColInt(1));
       lease.kind = s.ColText(2);
@@ -536,7 +537,7 @@ class SqliteStore final : public Store {
       Stmt s = Prepare(
           "SELECT kind, tasks_done, tasks_total, "
           "(SELECT count(*) FROM results WHERE job_id = ?1 AND table_name = 'points') FROM jobs WHERE id = ?1");
-      if (!s.Int(1, job_id).Step()) throw std::logic_error("job store: event of a job that does not exist");
+      if (!s.Int(1, job_id).Step()) BrokenInvariant("job store: event of a job that does not exist");
       e.kind = s.ColText(0);
       e.tasks_done = static_cast<int>(s.ColInt(1));
       e.tasks_total = static_cast<int>(s.ColInt(2));

@@ -151,5 +151,42 @@ TEST_F(RemoteLeaseTest, RemoteWorkerKeepsItsLeaseThroughALongTask) {
               seconds, task_ms / 1000, static_cast<long long>(lease_ms), asked);
 }
 
+// A worker may send rows the service cannot read back (a bug in it, or another version): storing them
+// is the worker's business, but reading them is then the service's failure, a 500 with an incident id
+// that the log names, never a 400 that blames the client (nor a crash: the FRF route indexed the
+// stored row for members it lacked).
+TEST_F(RemoteLeaseTest, RowsThatDoNotReadBackAre500WithAnIncidentInTheLog) {
+  StartService(60000);
+  const int64_t id = Submit(kOneTaskSweep);
+  auto leased = Lease("broken");
+  ASSERT_TRUE(leased && leased->status == 200);
+  const json task = json::parse(leased->body);
+  const json broken_point = {{"frequency_hz", 10.0}, {"amplitude_v", 0.3}, {"branch", "up"}};
+  const json completion = {{"job_id", task.at("job_id")},
+                           {"lease_token", task.at("lease_token")},
+                           {"rows", {{{"table", "points"}, {"values", broken_point}}}}};
+  auto done = Client().Post("/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>()) + "/complete",
+                            completion.dump(), "application/json");
+  ASSERT_TRUE(done && done->status == 200) << (done ? done->body : "no reply");
+  ASSERT_EQ(Status(id), "succeeded");
+
+  const std::string job = "/v1/jobs/" + std::to_string(id);
+  auto points = Client().Get(job + "/points");
+  ASSERT_TRUE(points);
+  EXPECT_EQ(points->status, 200) << "the rows are served as stored";
+  for (const std::string& path : {job + "/frf?amplitude_v=0.3", job + "/saturation-map?format=svg"}) {
+    ::testing::internal::CaptureStderr();
+    auto r = Client().Get(path);
+    const std::string log = ::testing::internal::GetCapturedStderr();
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, 500) << path << ": " << r->body;
+    const json error = json::parse(r->body).at("error");
+    EXPECT_EQ(error.at("code"), "internal") << path;
+    const std::string incident = error.at("incident");
+    EXPECT_NE(log.find("\"incident\":\"" + incident + "\""), std::string::npos) << path << " log: " << log;
+    EXPECT_NE(log.find("does not read"), std::string::npos) << "the log says what broke: " << log;
+  }
+}
+
 }  // namespace
 }  // namespace strokelab::server

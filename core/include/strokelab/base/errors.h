@@ -1,4 +1,6 @@
-// Errors that end a request: bad user input. Internal invariants use assert, never this.
+// The kinds of error, which callers tell apart: bad input (InputError, naming the field), a failed
+// numerical method (NumericalError), work stopped on request (Cancelled), and a broken internal
+// invariant (BrokenInvariant: a bug, never the user's input).
 #pragma once
 
 #include <stdexcept>
@@ -32,5 +34,16 @@ class NumericalError : public std::runtime_error {
 struct Cancelled : std::exception {
   const char* what() const noexcept override { return "cancelled"; }
 };
+
+// Thrown by BrokenInvariant in release builds; the service answers it 500 with a logged incident id.
+class InvariantError : public std::logic_error {
+ public:
+  using std::logic_error::logic_error;
+};
+
+// A broken internal invariant. Debug builds (NDEBUG not defined, as in the sanitizer builds) print
+// `what` and abort where it broke, as assert does; release builds throw InvariantError so that one
+// bad request does not take the service down.
+[[noreturn]] void BrokenInvariant(const std::string& what);
 
 }  // namespace strokelab

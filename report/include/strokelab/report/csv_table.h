@@ -7,6 +7,11 @@
 
 namespace strokelab::report {
 
+// A number as a CSV cell: the fewest digits that read back to the same double, laid out as %g does
+// (0.0009, 1.5e-05, 12345678), or empty when not finite.
+std::string CsvNumber(double value);
+
+
 class CsvTable {
  public:
   explicit CsvTable(std::vector<std::string> columns);

@@ -39,8 +39,4 @@ std::string CsvHeader();  // "frequency_hz,amplitude_v,...\n"
 template <class Row>
 std::string CsvLine(const Row& row);  // one line, numbers in their shortest round-trip form
 
-// A number as a CSV cell: the fewest digits that read back to the same double, laid out as %g does
-// (0.0009, 1.5e-05, 12345678), or empty when not finite.
-std::string CsvNumber(double value);
-
 }  // namespace strokelab::report

@@ -1,0 +1,137 @@
+// The service's in-process workers: each leases tasks from the store (or takes one handed over by a
+// remote lease), runs it, and stores its rows; fit and diagnose tasks run on threads of their own.
+#include "service_impl.h"
+
+#include <cstdio>
+
+#include "now.h"
+#include "strokelab/jobs/jobs.h"
+
+namespace strokelab::server {
+
+using nlohmann::json;
+using namespace internal;
+
+// A task handed over by LeaseForRemote whose lease is still held (renewed now), if any.
+std::optional<TaskLease> Service::Impl::TakeHandoff() {
+  for (;;) {
+    TaskLease lease;
+    {
+      std::lock_guard<std::mutex> lock(handoff_mutex);
+      if (handoff.empty()) return std::nullopt;
+      lease = handoff.front();
+      handoff.pop_front();
+    }
+    if (store->RenewLease(lease, NowMs(), options.lease_ms)) return lease;
+  }
+}
+
+// Runs a fit or diagnose task on a thread of its own, renewing the lease every lease_ms / 4 (these
+// tasks take seconds to minutes). Gives up, returning nullopt, when the service stops (the lease is
+// released at the next start and the task runs again), the job is cancelled or the lease is lost;
+// the computation then runs on to its end (core cannot interrupt it) and its result is dropped.
+std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease& lease,
+                                                                 const std::atomic<bool>& cancel) {
+  auto computation = std::make_shared<Computation>();
+  {
+    std::lock_guard<std::mutex> lock(computations_mutex);
+    std::erase_if(computations, [](auto& c) {
+      std::lock_guard<std::mutex> done_lock(c.second->mutex);
+      if (!c.second->done) return false;
+      c.first.join();
+      return true;
+    });
+    computations.emplace_back(std::thread([computation, spec = lease.spec] {
+                                std::vector<ResultRow> rows;
+                                std::exception_ptr error;
+                                try {
+                                  rows = jobs::RunTask(spec);
+                                } catch (...) {
+                                  error = std::current_exception();
+                                }
+                                std::lock_guard<std::mutex> done_lock(computation->mutex);
+                                computation->rows = std::move(rows);
+                                computation->error = error;
+                                computation->done = true;
+                                computation->done_cv.notify_all();
+                              }),
+                              computation);
+  }
+  int64_t renewed_ms = NowMs();
+  std::unique_lock<std::mutex> lock(computation->mutex);
+  while (!computation->done) {
+    computation->done_cv.wait_for(lock, std::chrono::milliseconds(100));
+    if (computation->done) break;
+    if (stopping || cancel) return std::nullopt;
+    if (NowMs() - renewed_ms >= options.lease_ms / 4) {
+      lock.unlock();
+      const bool held = store->RenewLease(lease, NowMs(), options.lease_ms);
+      lock.lock();
+      if (!held) return std::nullopt;
+      renewed_ms = NowMs();
+    }
+  }
+  if (computation->error) std::rethrow_exception(computation->error);
+  return std::move(computation->rows);
+}
+
+bool Service::Impl::StoreCompletion(const TaskLease& lease, const std::vector<ResultRow>& rows, const std::string& worker) {
+  for (;;) {
+    try {
+      const bool stored = store->CompleteTask(lease, rows, NowMs());
+      storage.WriteSucceeded();
+      return stored;
+    } catch (const StoreError& e) {
+      storage.WriteFailed(e.what(), NowMs());
+      std::fprintf(stderr, "%s\n", json({{"worker", worker}, {"error", e.what()}, {"retry_s", 1}}).dump().c_str());
+    }
+    std::unique_lock<std::mutex> lock(wake_mutex);
+    if (wake.wait_for(lock, std::chrono::seconds(1), [this] { return stopping.load(); })) return false;
+  }
+}
+
+void Service::Impl::WorkLoop(int index) {
+  const std::string name = "local-" + std::to_string(index);
+  while (!stopping) {
+    std::optional<TaskLease> lease;
+    try {
+      lease = TakeHandoff();
+      if (!lease) lease = store->LeaseTask(name, NowMs(), options.lease_ms);
+    } catch (const std::exception& e) {
+      if (dynamic_cast<const StoreError*>(&e)) storage.WriteFailed(e.what(), NowMs());
+      std::fprintf(stderr, "%s\n", json({{"worker", name}, {"error", e.what()}}).dump().c_str());
+    }
+    if (!lease) {
+      std::unique_lock<std::mutex> lock(wake_mutex);
+      wake.wait_for(lock, std::chrono::milliseconds(200));
+      continue;
+    }
+    auto cancel = std::make_shared<std::atomic<bool>>(false);
+    {
+      std::lock_guard<std::mutex> lock(cancel_mutex);
+      running.emplace(lease->job_id, cancel);
+    }
+    try {
+      const std::optional<std::vector<ResultRow>> rows =
+          jobs::IsCampaignKind(lease->kind) ? RunHeldTask(*lease, *cancel) : jobs::RunTask(lease->spec, cancel.get());
+      if (rows && StoreCompletion(*lease, *rows, name)) metrics.TaskDone(rows->size());
+    } catch (const Cancelled&) {
+      // The job was cancelled: its lease is void and nothing is written.
+    } catch (const std::exception& e) {
+      try {
+        store->FailTask(*lease, e.what(), NowMs());
+      } catch (const std::exception& inner) {
+        std::fprintf(stderr, "%s\n", json({{"worker", name}, {"error", inner.what()}}).dump().c_str());
+      }
+    }
+    std::lock_guard<std::mutex> lock(cancel_mutex);
+    for (auto it = running.begin(); it != running.end(); ++it) {
+      if (it->second == cancel) {
+        running.erase(it);
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace strokelab::server

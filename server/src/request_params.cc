@@ -1,0 +1,79 @@
+// Parsing and checking what a request carries (request_params.h).
+#include "request_params.h"
+
+#include <charconv>
+#include <cmath>
+
+#include "strokelab/base/errors.h"
+#include "strokelab/base/parse.h"
+
+namespace strokelab::server::internal {
+
+using nlohmann::json;
+
+int64_t ParseId(const std::string& text) {
+  try {
+    return std::stoll(text);
+  } catch (...) {
+    throw HttpError{404, "unknown_job", "no job " + text, ""};
+  }
+}
+
+double QueryNumber(const httplib::Request& req, const std::string& name) {
+  double value = 0;
+  try {
+    value = ParseNumber(req.get_param_value(name), name);
+  } catch (const InputError& e) {
+    throw HttpError{400, "bad_query", e.bare_message(), name};
+  }
+  if (!std::isfinite(value)) throw HttpError{400, "bad_query", "must be a finite number", name};
+  return value;
+}
+
+int64_t QueryInteger(const httplib::Request& req, const std::string& name) {
+  const std::string text = req.get_param_value(name);
+  int64_t value = -1;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || value < 0)
+    throw HttpError{400, "bad_query", "expected a whole number >= 0 (as returned by the service)", name};
+  return value;
+}
+
+bool WantsSvg(const httplib::Request& req) {
+  if (!req.has_param("format")) return false;
+  const std::string format = req.get_param_value("format");
+  if (format != "json" && format != "svg") throw HttpError{400, "bad_query", "must be json or svg", "format"};
+  return format == "svg";
+}
+
+json JsonBody(const httplib::Request& req) {
+  const std::string type = req.get_header_value("Content-Type");
+  if (type.substr(0, type.find(';')) != "application/json")
+    throw HttpError{415, "unsupported_media_type",
+                    "send the body as Content-Type: application/json (got '" + type + "')", ""};
+  try {
+    return json::parse(req.body);
+  } catch (const json::exception& e) {
+    throw HttpError{400, "bad_json", std::string("request body is not valid JSON: ") + e.what(), ""};
+  }
+}
+
+TaskLease LeaseOf(const httplib::Request& req, const json& body) {
+  TaskLease lease;
+  const std::string id = req.matches[1];
+  const auto [end, ec] = std::from_chars(id.data(), id.data() + id.size(), lease.task_id);
+  if (ec != std::errc() || end != id.data() + id.size()) throw HttpError{404, "unknown_task", "no task " + id, ""};
+  lease.job_id = BodyField<int64_t>(body, "job_id", "/job_id");
+  lease.lease_token = BodyField<std::string>(body, "lease_token", "/lease_token");
+  return lease;
+}
+
+int QueryLimit(const httplib::Request& req, int fallback, int maximum) {
+  if (!req.has_param("limit")) return fallback;
+  const double limit = QueryNumber(req, "limit");
+  if (limit < 1 || limit > maximum || limit != std::floor(limit))
+    throw HttpError{400, "bad_query", "must be an integer from 1 to " + std::to_string(maximum), "limit"};
+  return static_cast<int>(limit);
+}
+
+}  // namespace strokelab::server::internal

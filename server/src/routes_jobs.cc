@@ -1,0 +1,101 @@
+// The job routes: submit, list, read and cancel jobs, and upload campaigns for fit and diagnose jobs.
+#include "service_impl.h"
+
+#include "campaign_upload.h"
+#include "http_reply.h"
+#include "now.h"
+#include "request_params.h"
+#include "strokelab/jobs/job_spec.h"
+#include "strokelab/jobs/jobs.h"
+
+namespace strokelab::server {
+
+using nlohmann::json;
+using namespace internal;
+
+json JobJson(const JobRecord& job) {
+  json j = {{"id", job.id},
+            {"kind", job.kind},
+            {"status", ToString(job.status)},
+            {"progress", {{"done", job.tasks_done}, {"total", job.tasks_total}}},
+            {"created_ms", job.created_ms},
+            {"started_ms", job.started_ms ? json(job.started_ms) : json(nullptr)},
+            {"finished_ms", job.finished_ms ? json(job.finished_ms) : json(nullptr)}};
+  if (job.spec.contains("name")) j["name"] = job.spec["name"];
+  if (job.started_ms) j["elapsed_s"] = ((job.finished_ms ? job.finished_ms : NowMs()) - job.started_ms) / 1000.0;
+  if (!job.error.empty()) j["error"] = job.error;
+  return j;
+}
+
+JobRecord Service::Impl::RequireJob(const std::string& id_text) {
+  const int64_t id = ParseId(id_text);
+  std::optional<JobRecord> job = store->GetJob(id);
+  if (!job) throw HttpError{404, "unknown_job", "no job " + id_text, ""};
+  return *job;
+}
+
+void Service::Impl::AddJobRoutes() {
+  On("POST", "/v1/jobs", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+              const json job = JsonBody(req);
+              // Validates; InputError -> 400 (a campaign's file and line: jobs::CampaignError).
+              const std::vector<TaskSpec> tasks = jobs::PlanTasks(job, campaigns);
+              if (jobs::IsCampaignKind(job.at("kind")) && local_workers == 0)
+                throw HttpError{400, "unsupported_kind",
+                                job.at("kind").get<std::string>() +
+                                    " jobs need the server's in-process workers (this server runs with --workers 0)",
+                                "/kind"};
+              const int64_t id = store->SubmitJob(job.at("kind"), job, tasks, NowMs());
+              wake.notify_all();
+              // Accepted as queued, unless every task was served from the store at once (a worker
+              // may already have started it by the time this reply is written: still "queued" here).
+              const std::optional<JobRecord> record = store->GetJob(id);
+              const bool done = record && record->status == JobStatus::kSucceeded && record->tasks_done == record->tasks_total &&
+                                record->started_ms == record->finished_ms;
+              SendJson(res, {{"id", id}, {"status", done ? "succeeded" : "queued"}}, 201);
+            }));
+  On("GET", "/v1/jobs", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+             const int limit = QueryLimit(req, 50, 500);
+             const int64_t before = req.has_param("before") ? QueryInteger(req, "before") : 0;
+             json jobs = json::array();
+             int64_t last = 0;
+             for (const JobRecord& j : store->ListJobs(limit, before)) {
+               jobs.push_back(JobJson(j));
+               last = j.id;
+             }
+             SendJson(res, {{"jobs", jobs},
+                            {"next_before", static_cast<int>(jobs.size()) == limit ? json(last) : json(nullptr)}});
+           }));
+  On("GET", R"(/v1/jobs/(\d+))", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+             SendJson(res, JobJson(RequireJob(req.matches[1])));
+           }));
+  On("DELETE", R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+                const JobRecord job = RequireJob(req.matches[1]);
+                if (!store->CancelJob(job.id, NowMs()))
+                  throw HttpError{409, "already_finished", "job " + std::to_string(job.id) + " has already " +
+                                                              ToString(job.status), ""};
+                {
+                  std::lock_guard<std::mutex> lock(cancel_mutex);
+                  auto [begin, end] = running.equal_range(job.id);
+                  for (auto it = begin; it != end; ++it) *it->second = true;
+                }
+                SendJson(res, JobJson(*store->GetJob(job.id)));
+              }));
+
+  // Campaigns for fit and diagnose jobs (campaign_upload.h).
+  On("POST", "/v1/campaigns", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
+              const std::string type = req.get_header_value("Content-Type");
+              const auto is = [&type](const char* media) { return type.rfind(media, 0) == 0; };
+              if (!is("application/x-tar") && !is("application/zip") && !is("application/x-zip-compressed"))
+                throw HttpError{415, "unsupported_media_type",
+                                "send the campaign as a tar archive (ustar or pax) with Content-Type "
+                                "application/x-tar, or as a zip archive with Content-Type application/zip, "
+                                "not '" + type + "'", ""};
+              // The body's first bytes, not the type, choose the reader (campaign_upload.h).
+              ArchiveLimits limits;
+              limits.max_file_bytes = limits.max_total_bytes = options.max_campaign_bytes;
+              const UploadedCampaign upload = StoreUploadedCampaign(req.body, campaigns.uploads, limits);
+              SendJson(res, {{"campaign_id", upload.id}, {"campaign", CampaignSummary(upload.campaign)}}, 201);
+            }));
+}
+
+}  // namespace strokelab::server

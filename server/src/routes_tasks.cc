@@ -1,0 +1,86 @@
+// The remote workers' routes: lease a task, renew the lease, complete the task with its rows or fail it.
+#include "service_impl.h"
+
+#include "http_reply.h"
+#include "now.h"
+#include "request_params.h"
+#include "strokelab/jobs/jobs.h"
+
+namespace strokelab::server {
+
+using nlohmann::json;
+using namespace internal;
+
+// Leases a task for a remote worker. Fit and diagnose tasks read campaigns from the server's disk,
+// which a remote worker need not see: one drawn here stays leased and goes to the in-process workers
+// (or fails the job at once when there are none), and the next task is drawn for the remote worker.
+std::optional<TaskLease> Service::Impl::LeaseForRemote(const std::string& worker) {
+  for (;;) {
+    std::optional<TaskLease> lease = store->LeaseTask(worker, NowMs(), options.lease_ms);
+    if (!lease || !jobs::IsCampaignKind(lease->kind)) return lease;
+    if (local_workers == 0) {
+      store->FailTask(*lease, lease->kind + " jobs need the server's in-process workers (serve --workers >= 1)", NowMs());
+      continue;
+    }
+    {
+      std::lock_guard<std::mutex> lock(handoff_mutex);
+      handoff.push_back(*lease);
+    }
+    wake.notify_all();
+  }
+}
+
+void Service::Impl::AddTaskRoutes() {
+  On("POST", "/v1/tasks/lease", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+              const json body = req.body.empty() ? json::object() : JsonBody(req);
+              if (!body.is_object()) throw HttpError{400, "bad_request", "expected a JSON object", ""};
+              if (body.contains("worker") && !body["worker"].is_string())
+                throw HttpError{400, "bad_request", "expected a string", "/worker"};
+              // Remote names are prefixed so that none can pass for this server's own "local-" workers,
+              // whose leases are released at start.
+              const std::optional<TaskLease> lease = LeaseForRemote("remote:" + body.value("worker", std::string("unnamed")));
+              if (!lease) {
+                res.status = 204;
+                return;
+              }
+              SendJson(res, {{"task_id", lease->task_id}, {"job_id", lease->job_id}, {"index", lease->index},
+                             {"kind", lease->kind}, {"spec", lease->spec}, {"lease_token", lease->lease_token},
+                             {"expires_ms", lease->expires_ms}, {"lease_ms", options.lease_ms}});
+            }));
+  // A remote worker keeps its lease while a long task runs (remote_worker.cc renews every lease_ms / 4).
+  On("POST", R"(/v1/tasks/(\d+)/renew)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+       const TaskLease lease = LeaseOf(req, JsonBody(req));
+       if (!store->RenewLease(lease, NowMs(), options.lease_ms))
+         throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled", ""};
+       SendJson(res, {{"renewed", true}, {"lease_ms", options.lease_ms}});
+     }));
+  On("POST", R"(/v1/tasks/(\d+)/complete)",
+            Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+              const json body = JsonBody(req);
+              const TaskLease lease = LeaseOf(req, body);
+              const auto rows_at = body.find("rows");
+              if (rows_at == body.end() || !rows_at->is_array())
+                throw HttpError{400, "bad_request", "expected an array of rows", "/rows"};
+              const json& given = *rows_at;
+              std::vector<ResultRow> rows;
+              for (size_t i = 0; i < given.size(); ++i) {
+                const std::string at = "/rows/" + std::to_string(i);
+                rows.push_back({BodyField<std::string>(given[i], "table", at + "/table"),
+                                BodyField<json>(given[i], "values", at + "/values")});
+              }
+              if (!store->CompleteTask(lease, rows, NowMs()))
+                throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
+              metrics.TaskDone(rows.size());
+              SendJson(res, {{"accepted", true}});
+            }));
+  On("POST", R"(/v1/tasks/(\d+)/fail)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
+              const json body = JsonBody(req);
+              const TaskLease lease = LeaseOf(req, body);
+              const std::string error =
+                  body.contains("error") ? BodyField<std::string>(body, "error", "/error") : "worker failure";
+              store->FailTask(lease, error, NowMs());
+              SendJson(res, {{"accepted", true}});
+            }));
+}
+
+}  // namespace strokelab::server

@@ -1,0 +1,116 @@
+// The service's state, shared by its parts: the routes (service.cc sets up the server, routes_*.cc
+// add each group of routes) and the in-process workers (local_workers.cc). Internal to the service.
+#pragma once
+
+#include <httplib.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <regex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "metrics.h"
+#include "storage_health.h"
+#include "strokelab/jobs/campaigns.h"
+#include "strokelab/server/auth.h"
+#include "strokelab/server/service.h"
+#include "strokelab/server/store.h"
+#include "strokelab/sweep/sweep.h"
+
+namespace strokelab::server {
+
+// A job as the service shows it (GET /v1/jobs/{id}, lists, cancel replies).
+nlohmann::json JobJson(const JobRecord& job);
+
+struct Service::Impl {
+  ServiceOptions options;
+  std::unique_ptr<Store> store;
+  TokenTable tokens;
+  httplib::Server http;
+  internal::Metrics metrics;
+  std::vector<std::thread> workers;
+  std::thread http_thread;
+  std::atomic<bool> http_ended{false};  // listen_after_bind has returned
+  std::atomic<bool> stopping{false};
+  std::mutex wake_mutex;
+  std::condition_variable wake;
+  // Cancel flags of the tasks running in this process, by job.
+  std::mutex cancel_mutex;
+  std::multimap<int64_t, std::shared_ptr<std::atomic<bool>>> running;
+  int port = 0;
+  internal::StorageHealth storage;  // whether writes work, for /v1/health
+  int local_workers = 0;  // in-process workers, set by Start before the HTTP thread
+  jobs::CampaignDirs campaigns;
+  // Fit and diagnose tasks that a remote lease request drew: they need the server's disk, so they
+  // are handed to the in-process workers under that lease (LeaseForRemote).
+  std::mutex handoff_mutex;
+  std::deque<TaskLease> handoff;
+  // Fit and diagnose computations on threads of their own (RunHeldTask); joined when the service is
+  // destroyed, since core's fit and diagnosis cannot be interrupted.
+  struct Computation {
+    std::mutex mutex;
+    std::condition_variable done_cv;
+    bool done = false;
+    std::vector<ResultRow> rows;
+    std::exception_ptr error;
+  };
+  std::mutex computations_mutex;
+  std::vector<std::pair<std::thread, std::shared_ptr<Computation>>> computations;
+
+  void Authorize(const httplib::Request& req, Role required);
+
+  // Every route's path pattern with its methods: a request for a known path with another method is
+  // answered 405 with an Allow header, not 404 (set_error_handler).
+  std::vector<std::pair<std::regex, std::string>> route_methods;
+
+  // Registers a route (httplib matches the whole path against the pattern, as std::regex_match).
+  void On(const std::string& method, const std::string& pattern, httplib::Server::Handler handler);
+
+  // The methods routed for `path` ("GET, DELETE"); empty when no route matches it.
+  std::string AllowedMethods(const std::string& path) const;
+
+  // Wraps a handler with authorisation, error mapping, metrics and the access log.
+  httplib::Server::Handler Route(Role required, std::function<void(const httplib::Request&, httplib::Response&)> h);
+
+  // The job of a path's id (404 when there is none).
+  JobRecord RequireJob(const std::string& id_text);
+
+  // The stored results of a sweep job as a SweepResult (for the pictures).
+  SweepResult SweepResultOf(const JobRecord& job);
+
+  // A finished fit or diagnose job's stored rows of `table` (409 while it is not finished).
+  std::vector<nlohmann::json> CampaignJobRows(const JobRecord& job, const std::string& table);
+
+  // Campaign uploads may be larger than other bodies: the limit of the others is checked from
+  // Content-Length before their body is read (a chunked body is checked once read, at submission).
+  httplib::Server::HandlerResponse RefuseOversizeBody(const httplib::Request& req, httplib::Response& res);
+
+  // The routes: the server's own (service.cc), then each group's (routes_*.cc).
+  void SetUpRoutes();
+  void AddJobRoutes();
+  void AddResultRoutes();
+  void AddTaskRoutes();
+
+  // Remote and in-process workers (routes_tasks.cc, local_workers.cc).
+  std::optional<TaskLease> LeaseForRemote(const std::string& worker);
+  std::optional<TaskLease> TakeHandoff();
+  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease, const std::atomic<bool>& cancel);
+  void WorkLoop(int index);
+
+  // Stores a task's rows. A storage error (disk full, I/O) is not the task's fault: the rows are
+  // kept and the write retried every second until it succeeds, the lease is lost (false), or the
+  // service stops (false; the lease is released at the next start), instead of failing the job.
+  bool StoreCompletion(const TaskLease& lease, const std::vector<ResultRow>& rows, const std::string& worker);
+};
+
+}  // namespace strokelab::server
