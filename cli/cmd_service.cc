@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
@@ -127,20 +128,24 @@ int RunServe(const std::vector<std::string>& argv) {
   }
   server::ServiceOptions options;
   options.port = args.Integer("--port", 8080);
-  if (options.port < 0 || options.port > 65535) throw InputError("--port", "must be between 0 and 65535");
   options.db_path = args.GetOr("--db", "var/strokelab.db");
   options.workers = args.Integer("--workers", -1);
-  if (options.workers < -1 || options.workers > 256) throw InputError("--workers", "must be between 0 and 256");
   options.token_file = args.GetOr("--token-file", "");
   options.host = args.GetOr("--host", "127.0.0.1");
   options.lease_ms = static_cast<int64_t>(args.Number("--lease-s", 120.0) * 1000);
+  // Shorter leases are for tests; a deployment would lose leases to ordinary scheduling jitter.
   if (options.lease_ms < 1000) throw InputError("--lease-s", "must be at least 1 s");
   options.max_body_bytes = static_cast<size_t>(args.Number("--max-body-bytes", 1 << 20));
   options.max_campaign_bytes = static_cast<size_t>(args.Number("--max-campaign-bytes", 256.0 * (1 << 20)));
   options.data_root = args.GetOr("--data-root", "");
-  if (!options.data_root.empty() && !std::filesystem::is_directory(options.data_root))
-    throw InputError("--data-root", "'" + options.data_root + "' is not a directory");
   options.quiet = args.Has("--quiet");
+  if (const std::optional<FieldError> error = options.IsValid()) {
+    static const std::map<std::string, std::string> kFlags = {
+        {"port", "--port"}, {"workers", "--workers"}, {"db_path", "--db"}, {"lease_ms", "--lease-s"},
+        {"max_body_bytes", "--max-body-bytes"}, {"max_campaign_bytes", "--max-campaign-bytes"},
+        {"data_root", "--data-root"}};
+    throw InputError(kFlags.at(error->field), error->message);
+  }
   if (const auto parent = std::filesystem::path(options.db_path).parent_path(); !parent.empty())
     std::filesystem::create_directories(parent);
 

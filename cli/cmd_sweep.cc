@@ -221,7 +221,7 @@ SweepSpec SpecFromArgs(const Args& args) {
   spec.threads = args.Integer("--threads", static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
   spec.thresholds = !args.Has("--no-thresholds");
   try {
-    spec.Validate();
+    Validate(spec);
   } catch (const InputError& e) {
     const std::string flag = FlagFor(e.field(), eq1);
     if (flag != "--frequency-hz" && flag != "--amplitude-v") throw InputError(flag, e.bare_message());

@@ -56,10 +56,11 @@ class Random {
   double spare_ = 0.0;
 };
 
-void RequireFinite(double value, const char* field, bool positive, bool allow_zero = true) {
+std::optional<FieldError> FiniteError(double value, const char* field, bool positive, bool allow_zero = true) {
   if (!std::isfinite(value) || (positive && (value < 0 || (!allow_zero && value == 0))))
-    throw InputError(field, std::string("must be a finite number") + (positive ? (allow_zero ? " >= 0" : " > 0") : "") +
-                                ", got " + Num(value));
+    return FieldError{field, std::string("must be a finite number") + (positive ? (allow_zero ? " >= 0" : " > 0") : "") +
+                                 ", got " + Num(value)};
+  return std::nullopt;
 }
 
 double ResponseSample(const Record& record, const ActuatorModel& model, ResponseKind kind, size_t n) {
@@ -74,42 +75,44 @@ double ResponseSample(const Record& record, const ActuatorModel& model, Response
 
 }  // namespace
 
-void Validate(const SynthOptions& o) {
-  RequireFinite(o.sample_rate_hz, "sample_rate_hz", true, false);
-  const double nyquist_hz = 0.5 * o.sample_rate_hz;
-  if (o.frequencies_hz.empty()) throw InputError("frequencies_hz", "needs at least one frequency");
-  for (double f : o.frequencies_hz) {
-    RequireFinite(f, "frequencies_hz", true, false);
+std::optional<FieldError> SynthOptions::IsValid() const {
+  if (auto error = FiniteError(sample_rate_hz, "sample_rate_hz", true, false)) return error;
+  const double nyquist_hz = 0.5 * sample_rate_hz;
+  if (frequencies_hz.empty()) return FieldError{"frequencies_hz", "needs at least one frequency"};
+  for (double f : frequencies_hz) {
+    if (auto error = FiniteError(f, "frequencies_hz", true, false)) return error;
     if (f >= nyquist_hz)
-      throw InputError("frequencies_hz", Num(f) + " Hz is not below the Nyquist frequency " + Num(nyquist_hz) + " Hz");
+      return FieldError{"frequencies_hz", Num(f) + " Hz is not below the Nyquist frequency " + Num(nyquist_hz) + " Hz"};
   }
-  if (o.amplitudes_v.empty()) throw InputError("amplitudes_v", "needs at least one amplitude");
-  for (double a : o.amplitudes_v) RequireFinite(a, "amplitudes_v", true);
-  RequireFinite(o.duration_s, "duration_s", true, false);
-  if (std::llround(o.duration_s * o.sample_rate_hz) < 2)
-    throw InputError("duration_s", "a record must hold at least 2 samples");
-  RequireFinite(o.settle_s, "settle_s", true);
-  RequireFinite(o.sensitivity, "sensitivity", false);
-  RequireFinite(o.noise_rms_v, "noise_rms_v", true);
-  RequireFinite(o.voltage_noise_rms_v, "voltage_noise_rms_v", true);
-  RequireFinite(o.offset_v, "offset_v", false);
-  RequireFinite(o.hum_v, "hum_v", true);
-  RequireFinite(o.hum_hz, "hum_hz", true, false);
+  if (amplitudes_v.empty()) return FieldError{"amplitudes_v", "needs at least one amplitude"};
+  for (double a : amplitudes_v)
+    if (auto error = FiniteError(a, "amplitudes_v", true)) return error;
+  if (auto error = FiniteError(duration_s, "duration_s", true, false)) return error;
+  if (std::llround(duration_s * sample_rate_hz) < 2)
+    return FieldError{"duration_s", "a record must hold at least 2 samples"};
+  if (auto error = FiniteError(settle_s, "settle_s", true)) return error;
+  if (auto error = FiniteError(sensitivity, "sensitivity", false)) return error;
+  if (auto error = FiniteError(noise_rms_v, "noise_rms_v", true)) return error;
+  if (auto error = FiniteError(voltage_noise_rms_v, "voltage_noise_rms_v", true)) return error;
+  if (auto error = FiniteError(offset_v, "offset_v", false)) return error;
+  if (auto error = FiniteError(hum_v, "hum_v", true)) return error;
+  if (auto error = FiniteError(hum_hz, "hum_hz", true, false)) return error;
   std::set<std::string> keys;
-  for (const auto& [key, relative] : o.perturb) {
+  for (const auto& [key, relative] : perturb) {
     std::string name = key;
     if (key != "sensitivity") {
       try {
         name = FindParameter(key).key;
       } catch (const InputError& e) {
-        throw InputError("perturb", "'" + key + "': " + e.bare_message() + " or sensitivity");
+        return FieldError{"perturb", "'" + key + "': " + e.bare_message() + " or sensitivity"};
       }
     }
-    if (!keys.insert(name).second) throw InputError("perturb", "'" + key + "' is perturbed twice");
+    if (!keys.insert(name).second) return FieldError{"perturb", "'" + key + "' is perturbed twice"};
     if (!std::isfinite(relative) || relative < 0 || relative >= 1)
-      throw InputError("perturb", "'" + key + "': the relative perturbation must be in [0, 1), got " + Num(relative));
+      return FieldError{"perturb", "'" + key + "': the relative perturbation must be in [0, 1), got " + Num(relative)};
   }
-  if (o.threads < 0) throw InputError("threads", "must be >= 0");
+  if (threads < 0) return FieldError{"threads", "must be >= 0"};
+  return std::nullopt;
 }
 
 Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& options) {

@@ -109,7 +109,7 @@ SweepSpec SweepFromSchemaValidJob(const json& job) {
   spec.thresholds = job.value("thresholds", true);
   spec.threads = 1;
   try {
-    spec.Validate();  // everything above should have caught it: a safety net with the right pointer
+    Validate(spec);  // everything above should have caught it: a safety net with the right pointer
   } catch (const InputError& e) {
     throw InputError(PointerForSweepField(e.field()), e.bare_message());
   }

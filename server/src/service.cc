@@ -167,15 +167,24 @@ void Service::Impl::SetUpRoutes() {
   AddTaskRoutes();
 }
 
+std::optional<FieldError> ServiceOptions::IsValid() const {
+  if (port < 0 || port > 65535) return FieldError{"port", "must be between 0 and 65535"};
+  if (workers < -1 || workers > 256) return FieldError{"workers", "must be between 0 and 256 (-1: one per core)"};
+  if (db_path.empty()) return FieldError{"db_path", "must name a file"};
+  if (lease_ms < 1) return FieldError{"lease_ms", "must be positive"};
+  if (max_body_bytes < 1) return FieldError{"max_body_bytes", "must be at least 1"};
+  if (max_campaign_bytes < 1) return FieldError{"max_campaign_bytes", "must be at least 1"};
+  if (!data_root.empty() && !std::filesystem::is_directory(data_root))
+    return FieldError{"data_root", "'" + data_root + "' is not a directory"};
+  return std::nullopt;
+}
+
 Service::Service(const ServiceOptions& options) : impl_(std::make_unique<Impl>()) {
+  Validate(options);
   impl_->options = options;
   impl_->store = Store::Open(options.db_path);
   impl_->campaigns.uploads = options.db_path + ".campaigns";
-  if (!options.data_root.empty()) {
-    if (!std::filesystem::is_directory(options.data_root))
-      throw InputError("data_root", "'" + options.data_root + "' is not a directory");
-    impl_->campaigns.data_root = options.data_root;
-  }
+  impl_->campaigns.data_root = options.data_root;
   if (!options.quiet)
     impl_->store->SetJobEventSink([](const JobEvent& e) { internal::WriteLogLine(internal::JobEventLogLine(e)); });
   if (!options.token_file.empty()) impl_->tokens = TokenTable::Load(options.token_file);

@@ -272,21 +272,20 @@ TEST(FrfFitTest, RejectsBadFrequency) {
 TEST(FrfFitTest, RejectsInvalidOptionsNamingTheField) {
   const std::vector<FrfSample> samples = ExactFrf(Table2(), PaperGridHz());
   FrfFitOptions options;
-  std::string error;
-  EXPECT_TRUE(options.IsValid(&error));
-  EXPECT_TRUE(options.IsValid(nullptr));
+  EXPECT_FALSE(options.IsValid());
 
   options.mass_kg = 0.0;
-  EXPECT_FALSE(options.IsValid(&error));
-  EXPECT_EQ(error, "mass_kg: must be a finite number > 0, got 0");
+  ASSERT_TRUE(options.IsValid());
+  EXPECT_EQ(options.IsValid()->field, "mass_kg");
+  EXPECT_EQ(options.IsValid()->message, "must be a finite number > 0, got 0");
   EXPECT_EQ(FitErrorMessage(samples, options), "mass_kg: must be a finite number > 0, got 0");
   options.mass_kg = -0.032;
   EXPECT_THAT(FitErrorMessage(samples, options), HasSubstr("mass_kg: must be a finite number > 0, got -0.032"));
 
   options = FrfFitOptions{};
   options.max_iterations = 0;
-  EXPECT_FALSE(options.IsValid(&error));
-  EXPECT_EQ(error, "max_iterations: must be >= 1, got 0");
+  ASSERT_TRUE(options.IsValid());
+  EXPECT_EQ(options.IsValid()->field, "max_iterations");
   EXPECT_EQ(FitErrorMessage(samples, options), "max_iterations: must be >= 1, got 0");
 }
 

@@ -411,19 +411,18 @@ TEST(SteppedSineTest, RejectsBadInputNamingTheField) {
               HasSubstr("amplitude_v: must be a finite number > 0 (got 0)"));
 }
 
-TEST(SteppedSineOptionsTest, ValidateReportsTheFieldAndWhatIsWrong) {
-  std::string error;
-  EXPECT_TRUE(SteppedSineOptions{}.Validate(&error));
-  EXPECT_TRUE(error.empty());
+TEST(SteppedSineOptionsTest, IsValidReportsTheFieldAndWhatIsWrong) {
+  EXPECT_FALSE(SteppedSineOptions{}.IsValid());
   SteppedSineOptions o;
   o.settle_periods = 0;
-  EXPECT_FALSE(o.Validate(&error));
-  EXPECT_EQ(error, "settle_periods: must be >= 1 (got 0)");
+  ASSERT_TRUE(o.IsValid());
+  EXPECT_EQ(o.IsValid()->field, "settle_periods");
+  EXPECT_EQ(o.IsValid()->message, "must be >= 1 (got 0)");
   o = {};
   o.samples_per_period = 2;
-  EXPECT_FALSE(o.Validate(nullptr));
-  EXPECT_FALSE(o.Validate(&error));
-  EXPECT_EQ(error, "samples_per_period: must be >= 4 (got 2)");
+  ASSERT_TRUE(o.IsValid());
+  EXPECT_EQ(o.IsValid()->field, "samples_per_period");
+  EXPECT_EQ(o.IsValid()->message, "must be >= 4 (got 2)");
 }
 
 }  // namespace

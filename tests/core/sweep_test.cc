@@ -283,17 +283,17 @@ TEST(SweepEngineTest, BadSpecsNameTheField) {
   SweepSpec spec;
   spec.frequency_hz = {50.0, 5.0, 10};
   try {
-    spec.Validate();
+    Validate(spec);
     FAIL();
   } catch (const InputError& e) {
     EXPECT_EQ(e.field(), "frequency_hz.to");
   }
   spec.frequency_hz = {5.0, 50.0, 0};
-  EXPECT_THROW(spec.Validate(), InputError);
+  EXPECT_THROW(Validate(spec), InputError);
   spec.frequency_hz = {5.0, 50.0, 10};
   spec.threads = 0;
   try {
-    spec.Validate();
+    Validate(spec);
     FAIL();
   } catch (const InputError& e) {
     EXPECT_EQ(e.field(), "threads");

@@ -32,18 +32,19 @@ size_t SimulationOptions::SampleCount() const {
   return static_cast<size_t>(std::llround(duration_s * sample_rate_hz));
 }
 
-void Validate(const SimulationOptions& o) {
-  if (!std::isfinite(o.sample_rate_hz) || o.sample_rate_hz <= 0)
-    throw InputError("sample_rate_hz", "must be a finite number > 0");
-  if (!std::isfinite(o.duration_s) || o.duration_s <= 0) throw InputError("duration_s", "must be a finite number > 0");
-  if (o.SampleCount() < 2) throw InputError("duration_s", "the record must hold at least 2 samples");
-  if (o.SampleCount() > 200'000'000)
-    throw InputError("duration_s", "duration x sample rate exceeds 2e8 samples");
-  if (!std::isfinite(o.initial.x_m)) throw InputError("initial.x_m", "must be finite");
-  if (!std::isfinite(o.initial.v_m_per_s)) throw InputError("initial.v_m_per_s", "must be finite");
-  if (!(o.cvode_relative_tolerance > 0) || !(o.cvode_absolute_tolerance_m > 0) ||
-      !(o.cvode_absolute_tolerance_m_per_s > 0))
-    throw InputError("cvode tolerances", "must be > 0");
+std::optional<FieldError> SimulationOptions::IsValid() const {
+  if (!std::isfinite(sample_rate_hz) || sample_rate_hz <= 0)
+    return FieldError{"sample_rate_hz", "must be a finite number > 0"};
+  if (!std::isfinite(duration_s) || duration_s <= 0) return FieldError{"duration_s", "must be a finite number > 0"};
+  if (SampleCount() < 2) return FieldError{"duration_s", "the record must hold at least 2 samples"};
+  if (SampleCount() > 200'000'000)
+    return FieldError{"duration_s", "duration x sample rate exceeds 2e8 samples"};
+  if (!std::isfinite(initial.x_m)) return FieldError{"initial.x_m", "must be finite"};
+  if (!std::isfinite(initial.v_m_per_s)) return FieldError{"initial.v_m_per_s", "must be finite"};
+  if (!(cvode_relative_tolerance > 0) || !(cvode_absolute_tolerance_m > 0) ||
+      !(cvode_absolute_tolerance_m_per_s > 0))
+    return FieldError{"cvode tolerances", "must be > 0"};
+  return std::nullopt;
 }
 
 std::unique_ptr<Engine> MakeEngine(Method method) {

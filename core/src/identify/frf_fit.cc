@@ -47,20 +47,6 @@ struct Point {
   double weight;           // 1/|H_meas| for relative residuals, else 1 [V/N or dimensionless]
 };
 
-// A field and what is wrong with it.
-struct FieldError {
-  std::string field;
-  std::string message;
-};
-
-std::optional<FieldError> FindOptionsError(const FrfFitOptions& options) {
-  if (!std::isfinite(options.mass_kg) || options.mass_kg <= 0)
-    return FieldError{"mass_kg", "must be a finite number > 0, got " + FormatDouble(options.mass_kg)};
-  if (options.max_iterations < 1)
-    return FieldError{"max_iterations", "must be >= 1, got " + std::to_string(options.max_iterations)};
-  return std::nullopt;
-}
-
 std::vector<Point> ValidatedPoints(std::span<const FrfSample> samples, const FrfFitOptions& options) {
   if (samples.size() < kNumParameters)
     throw InputError("samples", "need at least 3 samples to fit w_p, zeta_p and g, got " +
@@ -309,14 +295,15 @@ FrfFitSummary Failure(FrfFitSummary s, const std::string& reason) {
 
 }  // namespace
 
-bool FrfFitOptions::IsValid(std::string* error) const {
-  const std::optional<FieldError> found = FindOptionsError(*this);
-  if (found && error != nullptr) *error = found->field + ": " + found->message;
-  return !found;
+std::optional<FieldError> FrfFitOptions::IsValid() const {
+  if (!std::isfinite(mass_kg) || mass_kg <= 0)
+    return FieldError{"mass_kg", "must be a finite number > 0, got " + FormatDouble(mass_kg)};
+  if (max_iterations < 1) return FieldError{"max_iterations", "must be >= 1, got " + std::to_string(max_iterations)};
+  return std::nullopt;
 }
 
 FrfFitSummary FitLinearFrf(std::span<const FrfSample> samples, const FrfFitOptions& options) {
-  if (const std::optional<FieldError> found = FindOptionsError(options)) throw InputError(found->field, found->message);
+  Validate(options);
   const std::vector<Point> points = ValidatedPoints(samples, options);
 
   const std::optional<Start> start = StartingValue(points);

@@ -11,12 +11,13 @@ double SineDrive::Voltage(double time_s) const {
   return amplitude_v * std::sin(AngularFrequency() * time_s + phase_rad);
 }
 
-void Validate(const SineDrive& drive) {
-  if (!std::isfinite(drive.amplitude_v) || drive.amplitude_v < 0)
-    throw InputError("amplitude_v", "must be a finite number >= 0");
-  if (!std::isfinite(drive.frequency_hz) || drive.frequency_hz <= 0)
-    throw InputError("frequency_hz", "must be a finite number > 0");
-  if (!std::isfinite(drive.phase_rad)) throw InputError("phase_rad", "must be finite");
+std::optional<FieldError> SineDrive::IsValid() const {
+  if (!std::isfinite(amplitude_v) || amplitude_v < 0)
+    return FieldError{"amplitude_v", "must be a finite number >= 0"};
+  if (!std::isfinite(frequency_hz) || frequency_hz <= 0)
+    return FieldError{"frequency_hz", "must be a finite number > 0"};
+  if (!std::isfinite(phase_rad)) return FieldError{"phase_rad", "must be finite"};
+  return std::nullopt;
 }
 
 double ClippedVoltage(const ActuatorModel& model, double voltage_v) {

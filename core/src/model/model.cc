@@ -15,18 +15,21 @@ std::string FormatDouble(double value) {
   return out.str();
 }
 
-void RequireFinite(double value, const char* field) {
-  if (!std::isfinite(value)) throw InputError(field, "must be a finite number, got " + FormatDouble(value));
+std::optional<FieldError> Finite(double value, const char* field) {
+  if (!std::isfinite(value)) return FieldError{field, "must be a finite number, got " + FormatDouble(value)};
+  return std::nullopt;
 }
 
-void RequirePositive(double value, const char* field) {
-  RequireFinite(value, field);
-  if (value <= 0) throw InputError(field, "must be > 0, got " + FormatDouble(value));
+std::optional<FieldError> Positive(double value, const char* field) {
+  if (auto error = Finite(value, field)) return error;
+  if (value <= 0) return FieldError{field, "must be > 0, got " + FormatDouble(value)};
+  return std::nullopt;
 }
 
-void RequireNonNegative(double value, const char* field) {
-  RequireFinite(value, field);
-  if (value < 0) throw InputError(field, "must be >= 0, got " + FormatDouble(value));
+std::optional<FieldError> NonNegative(double value, const char* field) {
+  if (auto error = Finite(value, field)) return error;
+  if (value < 0) return FieldError{field, "must be >= 0, got " + FormatDouble(value)};
+  return std::nullopt;
 }
 
 }  // namespace
@@ -57,31 +60,33 @@ ActuatorModel PresetModel(std::string_view name) {
   throw InputError("model", "unknown model preset '" + std::string(name) + "' (known: paper, linear)");
 }
 
-void Validate(const ActuatorModel& m) {
-  RequirePositive(m.mass_kg, "m_p");
-  RequireNonNegative(m.damping_n_s_per_m, "c_p");
-  RequirePositive(m.stiffness_n_per_m, "k_p");
-  RequireFinite(m.quadratic_stiffness_n_per_m2, "k2");
-  RequireFinite(m.cubic_stiffness_n_per_m3, "k3");
-  RequireFinite(m.gain_n_per_v, "g");
-  if (std::isnan(m.lower_stop_m) || m.lower_stop_m == ActuatorModel::kNoLimit)
-    throw InputError("d", "must be a finite position <= 0 or -inf (no stop), got " + FormatDouble(m.lower_stop_m));
-  if (m.lower_stop_m > 0)
-    throw InputError("d", "the lower stop must lie at or below the rest position (<= 0), got " +
-                              FormatDouble(m.lower_stop_m));
-  if (std::isnan(m.upper_stop_m) || m.upper_stop_m == ActuatorModel::kNoLowerStop)
-    throw InputError("d_upper", "must be a finite position >= 0 or +inf (no stop), got " + FormatDouble(m.upper_stop_m));
-  if (m.upper_stop_m < 0)
-    throw InputError("d_upper", "the upper stop must lie at or above the rest position (>= 0), got " +
-                                    FormatDouble(m.upper_stop_m));
-  if (m.HasLowerStop() && m.HasUpperStop() && m.upper_stop_m <= m.lower_stop_m)
-    throw InputError("d_upper", "must lie above the lower stop d");
-  if (m.HasLowerStop() || m.HasUpperStop()) RequirePositive(m.contact_stiffness, "k_s");
-  RequireNonNegative(m.contact_damping_n_s_per_m, "c_s");
-  RequireNonNegative(m.friction_force_n, "friction_n");
-  RequirePositive(m.friction_velocity_m_per_s, "friction_velocity");
-  if (std::isnan(m.amplifier_limit_v) || m.amplifier_limit_v <= 0)
-    throw InputError("amplifier_limit_v", "must be > 0 or +inf (no limit), got " + FormatDouble(m.amplifier_limit_v));
+std::optional<FieldError> ActuatorModel::IsValid() const {
+  if (auto error = Positive(mass_kg, "m_p")) return error;
+  if (auto error = NonNegative(damping_n_s_per_m, "c_p")) return error;
+  if (auto error = Positive(stiffness_n_per_m, "k_p")) return error;
+  if (auto error = Finite(quadratic_stiffness_n_per_m2, "k2")) return error;
+  if (auto error = Finite(cubic_stiffness_n_per_m3, "k3")) return error;
+  if (auto error = Finite(gain_n_per_v, "g")) return error;
+  if (std::isnan(lower_stop_m) || lower_stop_m == ActuatorModel::kNoLimit)
+    return FieldError{"d", "must be a finite position <= 0 or -inf (no stop), got " + FormatDouble(lower_stop_m)};
+  if (lower_stop_m > 0)
+    return FieldError{"d", "the lower stop must lie at or below the rest position (<= 0), got " +
+                              FormatDouble(lower_stop_m)};
+  if (std::isnan(upper_stop_m) || upper_stop_m == ActuatorModel::kNoLowerStop)
+    return FieldError{"d_upper", "must be a finite position >= 0 or +inf (no stop), got " + FormatDouble(upper_stop_m)};
+  if (upper_stop_m < 0)
+    return FieldError{"d_upper", "the upper stop must lie at or above the rest position (>= 0), got " +
+                                    FormatDouble(upper_stop_m)};
+  if (HasLowerStop() && HasUpperStop() && upper_stop_m <= lower_stop_m)
+    return FieldError{"d_upper", "must lie above the lower stop d"};
+  if (HasLowerStop() || HasUpperStop())
+    if (auto error = Positive(contact_stiffness, "k_s")) return error;
+  if (auto error = NonNegative(contact_damping_n_s_per_m, "c_s")) return error;
+  if (auto error = NonNegative(friction_force_n, "friction_n")) return error;
+  if (auto error = Positive(friction_velocity_m_per_s, "friction_velocity")) return error;
+  if (std::isnan(amplifier_limit_v) || amplifier_limit_v <= 0)
+    return FieldError{"amplifier_limit_v", "must be > 0 or +inf (no limit), got " + FormatDouble(amplifier_limit_v)};
+  return std::nullopt;
 }
 
 const std::vector<ParameterInfo>& Parameters() {

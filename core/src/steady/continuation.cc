@@ -262,9 +262,21 @@ std::optional<BranchPoint> SolveAt(const ActuatorModel& model, ContinuationParam
   return point;
 }
 
+std::optional<FieldError> ContinuationOptions::IsValid() const {
+  if (!(min_step > 0) || !std::isfinite(min_step)) return FieldError{"min_step", "must be a finite number > 0"};
+  if (!(max_step >= min_step) || !std::isfinite(max_step)) return FieldError{"max_step", "must be finite and >= min_step"};
+  if (!(initial_step >= min_step && initial_step <= max_step))
+    return FieldError{"initial_step", "must lie between min_step and max_step"};
+  if (max_points < 1) return FieldError{"max_points", "must be >= 1"};
+  if (max_corrector_iterations < 1) return FieldError{"max_corrector_iterations", "must be >= 1"};
+  if (!(tolerance > 0) || !std::isfinite(tolerance)) return FieldError{"tolerance", "must be a finite number > 0"};
+  return std::nullopt;
+}
+
 ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter which, double fixed_value, double p0,
                                State start, double p_min, double p_max, bool increasing,
                                const ContinuationOptions& options, const std::atomic<bool>* cancel) {
+  Validate(options);
   ContinuedBranch branch;
   branch.parameter = which;
   branch.fixed_value = fixed_value;

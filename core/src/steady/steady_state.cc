@@ -320,7 +320,18 @@ double SteadyState::ContactsPerPeriod() const {
   return static_cast<double>(figures.contacts) / periods;
 }
 
+std::optional<FieldError> ShootingOptions::IsValid() const {
+  if (plain_iterations < 0) return FieldError{"plain_iterations", "must be >= 0"};
+  if (max_newton_iterations < 1) return FieldError{"max_newton_iterations", "must be >= 1"};
+  if (!(tolerance > 0) || !std::isfinite(tolerance)) return FieldError{"tolerance", "must be a finite number > 0"};
+  if (settle_periods < 0) return FieldError{"settle_periods", "must be >= 0"};
+  if (max_period < 1) return FieldError{"max_period", "must be >= 1"};
+  return std::nullopt;
+}
+
 std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, const ShootingOptions& options) {
+  Validate(options);
+  if (period < 1) throw InputError("period", "must be >= 1");
   const double length = LengthScaleM(map.model());
   const double speed = length * 2.0 * std::numbers::pi * map.frequency_hz();
   auto apply = [&](State y) {
@@ -416,6 +427,7 @@ std::optional<SteadyState> PeriodicOrbitOfSettled(const PeriodMap& map, State y,
 }  // namespace
 
 SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOptions& options) {
+  Validate(options);
   State y = guess;
   for (int i = 0; i < options.plain_iterations; ++i) y = map.Apply(y);
   const std::optional<SteadyState> period1 = Shoot(map, y, 1, options);
@@ -437,6 +449,7 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
 }
 
 std::optional<SteadyState> SettledAttractor(const PeriodMap& map, State guess, const ShootingOptions& options) {
+  Validate(options);
   for (int i = 0; i < options.settle_periods; ++i) guess = map.Apply(guess);
   return PeriodicOrbitOfSettled(map, guess, options);
 }

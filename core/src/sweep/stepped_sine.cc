@@ -45,12 +45,10 @@ constexpr std::int64_t kMaxSamplesPerStep = 200'000'000;
 // C1 is aliased with the higher harmonics of an impacting response.
 constexpr int kMinSamplesPerPeriod = 4;
 
-struct FieldError {
-  std::string field;
-  std::string message;
-};
+}  // namespace
 
-std::optional<FieldError> FindOptionsError(const SteppedSineOptions& o) {
+std::optional<FieldError> SteppedSineOptions::IsValid() const {
+  const SteppedSineOptions& o = *this;
   if (o.settle_periods < 1)
     return FieldError{"settle_periods", "must be >= 1 (got " + std::to_string(o.settle_periods) + ")"};
   if (o.analyse_periods < 1)
@@ -65,6 +63,8 @@ std::optional<FieldError> FindOptionsError(const SteppedSineOptions& o) {
   }
   return std::nullopt;
 }
+
+namespace {
 
 void ValidateInput(const ActuatorModel& model, double amplitude_v, const std::vector<double>& frequencies_hz,
                    const SteppedSineOptions& options) {
@@ -83,18 +83,12 @@ void ValidateInput(const ActuatorModel& model, double amplitude_v, const std::ve
       throw InputError("frequencies_hz[" + std::to_string(i) + "]", message.str());
     }
   }
-  if (const std::optional<FieldError> found = FindOptionsError(options)) throw InputError(found->field, found->message);
+  Validate(options);
 }
 
 bool IsFinite(std::complex<double> z) { return std::isfinite(z.real()) && std::isfinite(z.imag()); }
 
 }  // namespace
-
-bool SteppedSineOptions::Validate(std::string* error) const {
-  const std::optional<FieldError> found = FindOptionsError(*this);
-  if (found && error != nullptr) *error = found->field + ": " + found->message;
-  return !found;
-}
 
 std::vector<SteppedSinePoint> SteppedSineSweep(const ActuatorModel& model, double amplitude_v,
                                                const std::vector<double>& frequencies_hz,

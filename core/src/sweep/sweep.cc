@@ -119,13 +119,14 @@ std::vector<JumpInterval> JumpIntervals(const ContinuedBranch& branch, double am
   return jumps;
 }
 
-void ValidateAxis(const GridAxis& axis, const std::string& name, double lowest) {
+std::optional<FieldError> AxisError(const GridAxis& axis, const std::string& name, double lowest) {
   if (!std::isfinite(axis.from) || axis.from < lowest)
-    throw InputError(name + ".from", "must be a finite number >= " + std::to_string(lowest));
-  if (!std::isfinite(axis.to) || axis.to < axis.from) throw InputError(name + ".to", "must be >= " + name + ".from");
-  if (axis.points < 1 || axis.points > 100000) throw InputError(name + ".points", "must be between 1 and 100000");
-  if (axis.points > 1 && axis.to == axis.from) throw InputError(name + ".to", "must be > from when points > 1");
-  if (axis.geometric && axis.from <= 0) throw InputError(name + ".from", "must be > 0 on a geometric grid");
+    return FieldError{name + ".from", "must be a finite number >= " + std::to_string(lowest)};
+  if (!std::isfinite(axis.to) || axis.to < axis.from) return FieldError{name + ".to", "must be >= " + name + ".from"};
+  if (axis.points < 1 || axis.points > 100000) return FieldError{name + ".points", "must be between 1 and 100000"};
+  if (axis.points > 1 && axis.to == axis.from) return FieldError{name + ".to", "must be > from when points > 1"};
+  if (axis.geometric && axis.from <= 0) return FieldError{name + ".from", "must be > 0 on a geometric grid"};
+  return std::nullopt;
 }
 
 }  // namespace
@@ -233,13 +234,14 @@ std::vector<double> GridAxis::Values() const {
   return values;
 }
 
-void SweepSpec::Validate() const {
-  strokelab::Validate(model);
-  ValidateAxis(frequency_hz, "frequency_hz", 1e-3);
-  ValidateAxis(amplitude_v, "amplitude_v", 1e-6);
+std::optional<FieldError> SweepSpec::IsValid() const {
+  if (auto error = model.IsValid()) return error;
+  if (auto error = AxisError(frequency_hz, "frequency_hz", 1e-3)) return error;
+  if (auto error = AxisError(amplitude_v, "amplitude_v", 1e-6)) return error;
   if (static_cast<double>(frequency_hz.points) * amplitude_v.points > 4e6)
-    throw InputError("grid", "frequency points x amplitude points must not exceed 4,000,000");
-  if (threads < 1 || threads > 256) throw InputError("threads", "must be between 1 and 256");
+    return FieldError{"grid", "frequency points x amplitude points must not exceed 4,000,000"};
+  if (threads < 1 || threads > 256) return FieldError{"threads", "must be between 1 and 256"};
+  return std::nullopt;
 }
 
 const char* ToString(Branch branch) {
@@ -253,7 +255,7 @@ const char* ToString(Branch branch) {
 
 SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const SweepProgress&)>& progress,
                      const std::atomic<bool>* cancel) {
-  spec.Validate();
+  Validate(spec);
   const auto start = std::chrono::steady_clock::now();
   SweepResult result;
   result.frequency_hz = spec.frequency_hz.Values();

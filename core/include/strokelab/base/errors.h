@@ -3,6 +3,7 @@
 // invariant (BrokenInvariant: a bug, never the user's input).
 #pragma once
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -23,6 +24,20 @@ class InputError : public std::runtime_error {
   std::string field_;
   std::string message_;
 };
+
+// What is wrong with a value: the field (a name, a CLI flag, a JSON pointer) and why. The one
+// validation convention: every model, drive and options type has
+//   std::optional<FieldError> IsValid() const;   // nothing, or its first wrong field
+// and Validate(value) throws that as an InputError. Callers that speak another language of names
+// (a job's JSON pointers, the CLI's flags) map `field` instead of parsing a message.
+struct FieldError {
+  std::string field, message;
+};
+
+template <class T>
+void Validate(const T& value) {
+  if (std::optional<FieldError> error = value.IsValid()) throw InputError(error->field, error->message);
+}
 
 // A numerical method failed (solver error, non-finite state). Carries the solver's own words.
 class NumericalError : public std::runtime_error {

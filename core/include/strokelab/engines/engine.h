@@ -36,8 +36,8 @@ struct SimulationOptions {
   bool record_velocity = true;     // the velocity channel is optional (saves memory bandwidth)
 
   size_t SampleCount() const;
+  std::optional<FieldError> IsValid() const;  // names duration_s / sample_rate_hz / initial
 };
-void Validate(const SimulationOptions& options);  // names duration_s / sample_rate_hz / initial
 
 // One stop contact: from the instant the stop starts pushing to the instant it lets go.
 struct ContactInterval {

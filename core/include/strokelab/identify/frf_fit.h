@@ -13,8 +13,11 @@
 #pragma once
 
 #include <complex>
+#include <optional>
 #include <span>
 #include <string>
+
+#include "strokelab/base/errors.h"  // FieldError
 
 namespace strokelab {
 
@@ -30,9 +33,8 @@ struct FrfFitOptions {
   // Weighting by the measured (noisy) |H| biases the estimates by O(noise^2), far below their
   // standard errors at a few per cent noise. Otherwise absolute [N/V].
   bool relative_residuals = true;
-  // False with "field: what is wrong" in *error (if not null) for mass_kg <= 0 or non-finite,
-  // max_iterations < 1.
-  bool IsValid(std::string* error) const;
+  // Nothing, or the wrong field: mass_kg <= 0 or non-finite, max_iterations < 1.
+  std::optional<FieldError> IsValid() const;
 };
 
 // Standard errors (_se, same units as their value) are from the Gauss-Newton covariance of the

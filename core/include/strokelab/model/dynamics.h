@@ -17,8 +17,8 @@ struct SineDrive {
 
   double AngularFrequency() const;           // [rad/s]
   double Voltage(double time_s) const;       // unclipped v_in(t) [V]
+  std::optional<FieldError> IsValid() const;  // names amplitude_v / frequency_hz / phase_rad
 };
-void Validate(const SineDrive& drive);  // throws InputError naming amplitude_v / frequency_hz / phase_rad
 
 // Which stops currently push on the mass. A stop pushes while the penetration is positive and the
 // contact force (stiffness plus damping) is positive: the clamp that keeps a damped stop from pulling.

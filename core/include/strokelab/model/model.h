@@ -19,6 +19,7 @@
 #pragma once
 
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -61,6 +62,8 @@ struct ActuatorModel {
   bool IsPiecewiseLinear() const;
   // Why the model is not piecewise linear (empty when it is).
   std::string NonlinearTerms() const;
+  // Physical sense: nothing, or the first offending field by its key (m_p, d, k_s, ...).
+  std::optional<FieldError> IsValid() const;
 };
 
 // Paper Table 2 with the one-sided stop at d = -1 mm.
@@ -69,9 +72,6 @@ ActuatorModel PaperModel();
 // Named presets: "paper" (Table 2), "linear" (Table 2 without stops).
 std::vector<std::string> PresetNames();
 ActuatorModel PresetModel(std::string_view name);  // throws InputError on an unknown name
-
-// Checks physical sense; throws InputError naming the first offending field.
-void Validate(const ActuatorModel& model);
 
 // One scalar model parameter, addressable by a short key (`--set k3=4e7`) and a JSON name.
 struct ParameterInfo {

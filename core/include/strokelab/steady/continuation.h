@@ -55,6 +55,7 @@ struct ContinuationOptions {
   bool locate_events = true;
   // Stop at the first fold, grazing point or loss of stability that is not a period doubling.
   bool stop_at_first_event = false;
+  std::optional<FieldError> IsValid() const;
 };
 
 struct ContinuedBranch {

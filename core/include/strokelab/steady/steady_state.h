@@ -84,6 +84,7 @@ struct ShootingOptions {
   double tolerance = 1e-11;          // on the scaled residual |P^k(y) - y| (x / L, v / (w L)), L = length scale
   int settle_periods = 400;          // plain iterations when Newton fails, to reach an attractor
   int max_period = 16;               // longest period searched for
+  std::optional<FieldError> IsValid() const;
 };
 
 struct SteadyState {

@@ -6,6 +6,7 @@
 
 #include <complex>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,9 +19,9 @@ struct SteppedSineOptions {
   int settle_periods = 300;     // drive periods run before the analysis window, per step
   int analyse_periods = 20;     // drive periods analysed at the end of each step
   int samples_per_period = 512; // output samples per drive period
-  // False with "field: what is wrong" in *error (if not null): any count < 1, samples_per_period < 4,
-  // or more than 2e8 samples per step.
-  bool Validate(std::string* error) const;
+  // Nothing, or the wrong field: any count < 1, samples_per_period < 4, or more than 2e8 samples per
+  // step.
+  std::optional<FieldError> IsValid() const;
 };
 
 struct SteppedSinePoint {

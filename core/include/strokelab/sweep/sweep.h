@@ -8,6 +8,7 @@
 #include <atomic>
 #include <complex>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,7 +32,8 @@ struct SweepSpec {
   int threads = 1;
   // Locate saturation thresholds per frequency and jump intervals per amplitude (the maps).
   bool thresholds = true;
-  void Validate() const;  // throws InputError naming the field (frequency_hz.to, amplitude_v.points, ...)
+  // Nothing, or the wrong field (frequency_hz.to, amplitude_v.points, a model key, ...).
+  std::optional<FieldError> IsValid() const;
 };
 
 enum class Branch { kUp, kDown, kUnstable };

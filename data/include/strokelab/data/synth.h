@@ -53,10 +53,11 @@ struct SynthOptions {
   std::optional<Method> method;  // none: exact for piecewise-linear models, cvode otherwise
   std::string actuator = "inertial actuator, test rig";
   int threads = 0;  // records simulated side by side; 0: one thread per core
+
+  // Nothing, or the offending field (frequencies_hz, amplitudes_v, duration_s, settle_s, sample_rate_hz,
+  // sensitivity, noise_rms_v, voltage_noise_rms_v, offset_v, hum_v, hum_hz, perturb, threads).
+  std::optional<FieldError> IsValid() const;
 };
-// Throws InputError naming the offending field (frequencies_hz, amplitudes_v, duration_s, settle_s,
-// sample_rate_hz, sensitivity, noise_rms_v, voltage_noise_rms_v, offset_v, hum_v, hum_hz, perturb, threads).
-void Validate(const SynthOptions& options);
 
 struct Synthesis {
   Campaign campaign;    // response in physical units of the written sensitivity (WriteCampaign's inverse)

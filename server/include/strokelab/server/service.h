@@ -16,7 +16,10 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
+
+#include "strokelab/base/errors.h"  // FieldError
 
 namespace strokelab::server {
 
@@ -33,12 +36,16 @@ struct ServiceOptions {
   std::string data_root;
   int64_t lease_ms = 120000;        // a task lease lasts this long [ms]
   bool quiet = false;               // no access log on stderr
+
+  // Nothing, or the wrong field (port, workers, lease_ms, max_body_bytes, max_campaign_bytes,
+  // data_root, db_path).
+  std::optional<FieldError> IsValid() const;
 };
 
 class Service {
  public:
-  // Opens the store (throws std::runtime_error naming the file) and loads the tokens (throws
-  // strokelab::InputError naming the file and line).
+  // Validates the options (InputError naming the field), opens the store (throws std::runtime_error
+  // naming the file) and loads the tokens (throws strokelab::InputError naming the file and line).
   explicit Service(const ServiceOptions& options);
   ~Service();
 
