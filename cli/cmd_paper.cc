@@ -154,7 +154,7 @@ void Spectra(Study& study) {
   }
 }
 
-// Fig. 6: the restoring force k_p x + k_s (x - d) below d (continuous form of Eq. 2, paper-notes).
+// Fig. 6: the restoring force k_p x + k_s (x - d) below d (continuous form of Eq. 2, model.h).
 void RestoringForce(Study& study) {
   const ActuatorModel& m = study.model;
   plot::Series s = Line("restoring force", {}, {});
@@ -308,8 +308,8 @@ bool ContactsFromRest(const Engine& engine, const ActuatorModel& model, double f
   return Summarize(engine.Simulate(model, drive, options), drive).contacts > 0;
 }
 
-// Saturation onset per frequency: the closed-form grazing amplitude V_sat (paper-notes) and the
-// lowest amplitude at which a record from rest touches the stop, by bisection to 1e-4 V.
+// Saturation onset per frequency: the closed-form grazing amplitude V_sat (linear_response.h) and
+// the lowest amplitude at which a record from rest touches the stop, by bisection to 1e-4 V.
 void SaturationOnset(Study& study) {
   if (!study.model.HasLowerStop()) return;
   const auto engine = MakeEngine(study.model.IsPiecewiseLinear() ? Method::kExact : Method::kCvode);

@@ -9,7 +9,8 @@ The record: paper model (Table 2), 8 Hz / 0.5 V (saturating, one contact per per
 51.2 kHz from rest, 512,000 samples. Every method is compared with the exact engine's series
 (read from `strokelab simulate --out`).
 
-scipy integrates the continuous form of paper Eq. 2 (shared/docs/paper-notes.md),
+scipy integrates Eq. 2 of "Nonlinear vibrations of a stroke-saturated inertial actuator"
+in its continuous form (its slip at contact corrected: the suspension keeps acting in contact),
 
     m x'' = g V sin(w t) - k_p x - c_p x' + (x < d ? k_s (d - x) : 0),
 

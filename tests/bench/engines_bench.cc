@@ -45,7 +45,7 @@ void BM_Simulate(benchmark::State& state, Method method, double frequency_hz, do
 BENCHMARK_CAPTURE(BM_Simulate, exact_8Hz_0.5V, Method::kExact, 8.0, 0.5)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Simulate, cvode_8Hz_0.5V, Method::kCvode, 8.0, 0.5)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Simulate, ode3_8Hz_0.5V, Method::kOde3, 8.0, 0.5)->Unit(benchmark::kMillisecond);
-// 13 Hz / 0.3 V: below the stop from rest (paper-notes: contact from ~0.415 V), so no switching.
+// 13 Hz / 0.3 V: below the stop from rest (contact from ~0.415 V), so no switching.
 BENCHMARK_CAPTURE(BM_Simulate, exact_13Hz_0.3V, Method::kExact, 13.0, 0.3)->Unit(benchmark::kMillisecond);
 // 5 Hz / 0.6 V: deep saturation, two impacts per drive period (the mass bounces off the stop),
 // so 10 contacts/s against 8 at 8 Hz; each still lasts ~0.49 ms (linear stop, paper Eq. 4).

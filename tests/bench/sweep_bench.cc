@@ -116,7 +116,7 @@ void BM_SteadyShoot_8Hz_0_5V(benchmark::State& state) {
 }
 BENCHMARK(BM_SteadyShoot_8Hz_0_5V)->Unit(benchmark::kMicrosecond);
 
-// 8 Hz / 0.264 V: just past grazing, where the response is period 2 (paper-notes): the period-1
+// 8 Hz / 0.264 V: just past grazing, where the response is period 2: the period-1
 // orbit is unstable, so SolveAttractor settles by plain iteration and shoots on period 2.
 void BM_SteadyAttractor_8Hz_0_264V(benchmark::State& state) {
   const PeriodMap map(PaperModel(), 8.0, 0.264);

@@ -116,7 +116,7 @@ TEST(SweepCliTest, SmallSweepAsJson) {
     }
   }
   EXPECT_GE(up_points, 24u) << "an up-branch steady state at every grid point";
-  // The grazing amplitude is the closed form V_sat for the piecewise-linear model (paper-notes).
+  // The grazing amplitude is the closed form V_sat (linear_response.h) of the piecewise-linear model.
   for (const auto& t : j["saturation_threshold"]) {
     const double w = 2 * std::numbers::pi * t["frequency_hz"].get<double>();
     EXPECT_REL_NEAR(t["grazing_amplitude_v"].get<double>(), strokelab::LinearSaturationThresholdV(model, w), 1e-3);

@@ -290,7 +290,7 @@ TEST(CvodeEngineTest, PaperModelSaturatesOncePerPeriodAt8Hz) {
     ASSERT_EQ(record.force_n[n], BlockedForce(model, drive.Voltage(record.TimeS(n)), record.displacement_m[n],
                                               record.velocity_m_per_s[n], mode));
   }
-  // |F1| of the prototype's closed-form reference (shared/docs/build-notes.md): 0.0774131 N.
+  // |F1| of an independent prototype's closed-form reference: 0.0774131 N.
   const Complex f1 = ComplexAmplitude(record.force_n, LastSecond(record), record.sample_rate_hz, 8.0);
   EXPECT_REL_NEAR(std::abs(f1), 0.0774131, 2e-6);
 }

@@ -121,8 +121,8 @@ std::string FitErrorMessage(const std::vector<FrfSample>& samples, const FrfFitO
 
 TEST(FrfFitTest, Table2TruthIsThePapersDerivedValues) {
   const TrueParameters t = Table2();
-  EXPECT_NEAR(t.natural_frequency_rad_s, 62.25, 0.005);  // paper-notes: 62.2 rad/s (9.91 Hz)
-  EXPECT_NEAR(t.damping_ratio, 0.32631, 5e-6);           // paper-notes: 0.326
+  EXPECT_NEAR(t.natural_frequency_rad_s, 62.25, 0.005);  // from Table 2: 62.2 rad/s (9.91 Hz)
+  EXPECT_NEAR(t.damping_ratio, 0.32631, 5e-6);           // from Table 2: 0.326
   EXPECT_REL_NEAR(t.stiffness_n_per_m(), kStiffnessNPerM, 1e-14);
   EXPECT_REL_NEAR(t.damping_n_s_per_m(), kDampingNsPerM, 1e-14);
 }

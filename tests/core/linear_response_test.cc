@@ -1,5 +1,5 @@
 // The linear actuator's closed forms: paper Eq. 3 against the model's m, c, k form, its limits,
-// H_p = -H / (m w^2), and the saturation threshold against the numbers paper-notes gives.
+// H_p = -H / (m w^2), and the saturation threshold against reference values to 4 decimals.
 #include "strokelab/model/linear_response.h"
 
 #include <gtest/gtest.h>
@@ -17,7 +17,7 @@ namespace {
 using Complex = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
 constexpr double kRoundingRel = 1e-14;
-// paper-notes quotes V_sat to 4 decimals.
+// The reference values of V_sat have 4 decimals.
 constexpr double kQuotedVolts = 1e-4;
 
 double RadS(double hz) { return 2.0 * kPi * hz; }
@@ -25,7 +25,7 @@ double RadS(double hz) { return 2.0 * kPi * hz; }
 TEST(LinearResponseTest, NaturalFrequencyAndDampingOfTable2) {
   const ActuatorModel m = PaperModel();
   EXPECT_REL_NEAR(NaturalFrequencyRadS(m), std::sqrt(124.0 / 0.032), kRoundingRel);
-  EXPECT_NEAR(NaturalFrequencyRadS(m), 62.2, 0.05);          // paper-notes: 62.2 rad/s
+  EXPECT_NEAR(NaturalFrequencyRadS(m), 62.2, 0.05);          // from Table 2: 62.2 rad/s
   EXPECT_NEAR(NaturalFrequencyRadS(m) / (2 * kPi), 9.91, 0.005);  // 9.91 Hz
   EXPECT_NEAR(DampingRatio(m), 0.326, 0.0005);
 }
@@ -45,7 +45,7 @@ TEST(LinearResponseTest, Eq3Limits) {
   const double wp = 62.25, zeta = 0.326, g = 0.3;
   // At resonance: -g / (j 2 zeta) = j g / (2 zeta), phase +90 degrees.
   EXPECT_REL_NEAR(ForceFrfEq3(wp, zeta, g, wp), Complex(0.0, g / (2 * zeta)), kRoundingRel);
-  // Far above resonance the blocked force tends to +g (paper-notes sign convention).
+  // Far above resonance the blocked force tends to +g (the sign of Eq. 3).
   EXPECT_REL_NEAR(ForceFrfEq3(wp, zeta, g, 1e6 * wp), Complex(g, 0.0), 1e-6);
   // Far below: -g (w / w_p)^2 (1 - j 2 zeta w / w_p + O(w^2)), negative.
   const double r = 1e-3;

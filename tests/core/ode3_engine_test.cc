@@ -109,8 +109,9 @@ TEST(Ode3EngineTest, AgreesWithCvodeOnThePaperModelToItsOwnError) {
   double max_force_difference_n = 0.0;
   for (size_t n = 0; n < ode3.size(); ++n)
     max_force_difference_n = std::max(max_force_difference_n, std::abs(ode3.force_n[n] - cvode.force_n[n]));
-  // Measured: F1 differs by 3.4e-4 relative (build-notes: 2.4e-4 in |F1|), the force by up to 0.087 N
-  // (build-notes: 0.087 N) at the spikes, where a contact starts or ends inside a step.
+  // Measured: F1 differs by 3.4e-4 relative (an independent prototype: 2.4e-4 in |F1|), the force
+  // by up to 0.087 N (the prototype: 0.087 N) at the spikes, where a contact starts or ends inside
+  // a step.
   EXPECT_REL_NEAR(f1_ode3, f1_cvode, 7e-4);
   EXPECT_LT(max_force_difference_n, 0.2);
   EXPECT_EQ(ode3.contacts.size(), cvode.contacts.size());

@@ -34,10 +34,10 @@ TEST(EnginesAgreeTest, SaturatingRecordAt8Hz) {
   EXPECT_REL_NEAR(cvode.first_harmonic_force_n, exact.first_harmonic_force_n, 1e-6);
   EXPECT_NEAR(cvode.first_harmonic_phase_rad, exact.first_harmonic_phase_rad, 1e-6);
   EXPECT_REL_NEAR(cvode.peak_force_n, exact.peak_force_n, 1e-3);
-  // build-notes: |F1| = 0.0774131 N on an independent prototype.
+  // |F1| = 0.0774131 N on an independent prototype.
   EXPECT_NEAR(exact.first_harmonic_force_n, 0.0774131, 5e-8);
   // ode3 at the output rate misses the spikes' peaks; its own error, measured 2.4e-4 relative in
-  // |F1| (build-notes: 2.4e-4) and 0.009 N at the peak, is bounded here, not hidden.
+  // |F1| (2.4e-4 on the prototype) and 0.009 N at the peak, is bounded here, not hidden.
   const double ode3_f1_error = std::abs(ode3.first_harmonic_force_n / exact.first_harmonic_force_n - 1);
   EXPECT_GT(ode3_f1_error, 1e-5);
   EXPECT_LT(ode3_f1_error, 5e-4);
@@ -76,8 +76,8 @@ double BisectContactAmplitude(double frequency_hz, double lo, double hi, double 
 }
 
 TEST(SaturationThresholdTest, LinearThresholdHoldsBelowResonance) {
-  // paper-notes: V_sat(w) = |d| |k_p - m_p w^2 + j c_p w| / g. Below resonance the steady state
-  // is reached without the transient touching the stop, so the bisection lands on V_sat.
+  // V_sat(w) = |d| |k_p - m_p w^2 + j c_p w| / g (linear_response.h). Below resonance the steady
+  // state is reached without the transient touching the stop, so the bisection lands on V_sat.
   for (double f_hz : {6.0, 8.0}) {
     const double v_sat = LinearSaturationThresholdV(PaperModel(), 2 * std::numbers::pi * f_hz);
     const double found = BisectContactAmplitude(f_hz, 0.9 * v_sat, 1.1 * v_sat, 1e-6 * v_sat, 6.0);
@@ -86,7 +86,7 @@ TEST(SaturationThresholdTest, LinearThresholdHoldsBelowResonance) {
 }
 
 TEST(SaturationThresholdTest, AboveResonanceTheTransientReachesTheStopFirst) {
-  // At 13 Hz a record from rest reaches the stop near 0.415 V (paper-notes), well below the
+  // At 13 Hz a record from rest reaches the stop near 0.415 V, well below the
   // closed-form grazing amplitude 0.4629 V: the start-up transient throws the mass onto the
   // contacting branch, which then persists (bistability in amplitude).
   const double v_sat = LinearSaturationThresholdV(PaperModel(), 2 * std::numbers::pi * 13.0);

@@ -1,5 +1,5 @@
 // Spike detection on synthetic trains of half-sine contact pulses (paper section 4.1, Eq. 4), RSD
-// (paper Eq. 6 with its square root, paper-notes) and k_s from the contact time (paper Eq. 5 and the
+// (paper Eq. 6 with its square root restored) and k_s from the contact time (paper Eq. 5 and the
 // damped relation).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -224,7 +224,7 @@ constexpr double kContact = 1.3e6;   // k_s [N/m]
 
 TEST(ContactStiffnessTest, Eq5RoundTripAndPaperContactTime) {
   const double dt = kPi * std::sqrt(kMass / kContact);  // undamped, k_p neglected
-  EXPECT_NEAR(dt, 0.49e-3, 0.005e-3);                    // paper-notes: 0.49 ms
+  EXPECT_NEAR(dt, 0.49e-3, 0.005e-3);                    // from Table 2 and Eq. 4-5: 0.49 ms
   EXPECT_REL_NEAR(ContactStiffnessEq5(kMass, dt), kContact, 1e-14);
   // Fig. 7: 0.4 ms -> about 2 MN/m.
   EXPECT_REL_NEAR(ContactStiffnessEq5(kMass, 0.4e-3), kMass * std::pow(kPi / 0.4e-3, 2), 1e-15);

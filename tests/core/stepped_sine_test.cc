@@ -106,7 +106,7 @@ TEST(SteppedSineTest, LinearModelFollowsEq3UpAndDown) {
 }
 
 TEST(SteppedSineTest, PaperModelBelowGrazingIsLinearAndNeverTouches) {
-  // 0.2 V is below the lowest grazing amplitude, 0.255 V near 8.8 Hz (paper-notes): no contact, so
+  // 0.2 V is below the lowest grazing amplitude, 0.255 V near 8.8 Hz (V_sat): no contact, so
   // the response is the linear one, Eq. 3, in both directions.
   const ActuatorModel model = PaperModel();
   const std::vector<double> grid = PaperFrequencyGridHz();

@@ -1,5 +1,5 @@
 // Steady-state sweeps of the paper's model against closed forms, against time-domain stepped-sine
-// sweeps (the second method), and against what the paper and paper-notes report.
+// sweeps (the second method), and against what the paper reports and reference values.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -38,7 +38,7 @@ SweepResult Sweep(GridAxis frequency, GridAxis amplitude, int threads = 1, bool 
 TEST(SaturationThresholdTest, GrazingAmplitudeIsTheClosedForm) {
   const SweepResult r = Sweep({8.0, 13.0, 2}, {0.3, 0.3, 1});
   ASSERT_EQ(r.saturation_threshold.size(), 2u);
-  // paper-notes: 0.2610 V at 8 Hz, 0.4629 V at 13 Hz. Root-finding on the orbit, not the grid.
+  // V_sat: 0.2610 V at 8 Hz, 0.4629 V at 13 Hz. Root-finding on the orbit, not the grid.
   EXPECT_NEAR(r.saturation_threshold[0].grazing_amplitude_v, 0.2610, 5e-5);
   EXPECT_NEAR(r.saturation_threshold[1].grazing_amplitude_v, 0.4629, 5e-5);
   for (const SaturationThreshold& t : r.saturation_threshold)
@@ -53,7 +53,7 @@ TEST(SaturationThresholdTest, LowestContactAmplitudeAgreesWithTheTimeDomain) {
   // At 13 Hz the contacting response is bistable with the free one down to a fold near 0.41 V.
   const SweepResult r = Sweep({13.0, 13.0, 1}, {0.3, 0.3, 1});
   const double lowest = r.saturation_threshold[0].lowest_contact_amplitude_v;
-  EXPECT_NEAR(lowest, 0.4136, 0.001);  // paper-notes: from rest the stop is reached near 0.415 V
+  EXPECT_NEAR(lowest, 0.4136, 0.001);  // from rest the stop is reached near 0.415 V
   // Second method: start on the contacting orbit at 0.45 V and run 300 periods at the lower amplitude.
   const SteadyState contacting = ContactingAttractor(13.0, 0.45);
   ASSERT_EQ(contacting.figures.contacts, 1);
@@ -106,7 +106,7 @@ void ExpectJumpMatchesSteppedSine(double amplitude_v) {
   const JumpInterval& jump = r.jump[0];
   EXPECT_EQ(jump.from_kind, "grazing");
   EXPECT_EQ(jump.to_kind, "fold");
-  // The grazing end is where the free response touches the stop: V_sat(f) = V (paper-notes).
+  // The grazing end is where the free response touches the stop: V_sat(f) = V (linear_response.h).
   EXPECT_REL_NEAR(LinearSaturationThresholdV(PaperModel(), Omega(jump.bistable_from_hz)), amplitude_v, 1e-9);
 
   const std::vector<double> grid = PaperFrequencyGridHz();
@@ -155,7 +155,7 @@ TEST(JumpTest, FoldIsWhereAMultiplierReachesOne) {
 }
 
 TEST(PeriodDoublingTest, JustPastGrazingAt8HzTheResponseIsPeriod2) {
-  // paper-notes / build-notes: at 8 Hz, 0.262-0.267 V, the period-1 orbit is unstable (a Floquet
+  // At 8 Hz, 0.262-0.267 V, the period-1 orbit is unstable (a Floquet
   // multiplier below -1) and the response is period-2.
   const SweepResult r = Sweep({8.0, 8.0, 1}, {0.264, 0.264, 1}, 1, false);
   bool saw_unstable_period1 = false;

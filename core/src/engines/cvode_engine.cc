@@ -20,7 +20,7 @@
 //   a stop that does not push starts pushing when g_geom rises through 0 (the mass enters the stop)
 //     or when g_force rises through 0 while p > 0 (a damped stop that let go is pressed again);
 //   a pushing stop lets go when g_force falls through 0 (with c_s = 0 that is also p returning to 0;
-//     with c_s > 0 it comes first: the clamp that keeps the stop from pulling, paper-notes);
+//     with c_s > 0 it comes first: the clamp that keeps the stop from pulling, model.h);
 //   at an apex (g_apex = 0), a stop that does not push but would (ModeFromState) was entered
 //     unseen inside the step: the entry instant is found by bisection on the step's interpolating
 //     polynomial, the samples after it are discarded and the run restarts there in contact.
@@ -30,7 +30,8 @@
 // 46 ms, against 220 ms for CV_NORMAL with tout at every sample and 135 ms for one CVodeGetDky call
 // per sample.
 //
-// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator" (shared/paper/).
+// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2
+// (in its continuous form, model.h).
 #include <cvode/cvode.h>
 #include <nvector/nvector_serial.h>
 #include <sundials/sundials_context.h>

@@ -11,8 +11,8 @@
 // the error a fixed-step run of the paper's model carries (spikes, contact times quantised to 1/fs).
 //
 // Reference: P. Bogacki, L. F. Shampine, "A 3(2) pair of Runge-Kutta formulas", Appl. Math. Lett. 2
-// (1989) 321-325; the paper: "Nonlinear vibrations of a stroke-saturated inertial actuator"
-// (shared/paper/).
+// (1989) 321-325; "Nonlinear vibrations of a stroke-saturated inertial actuator", section 4.1
+// (the Simulink ode3 run).
 #include <cmath>
 #include <complex>
 #include <optional>

@@ -1,5 +1,5 @@
 // Closed forms of the linear actuator, paper Eq. 3 and section 3.2, and the linear saturation
-// threshold of paper-notes.
+// threshold V_sat (linear_response.h).
 #include "strokelab/model/linear_response.h"
 
 #include <cmath>

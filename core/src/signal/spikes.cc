@@ -188,7 +188,7 @@ std::vector<Spike> DetectSpikes(std::span<const double> force, double sample_rat
   return spikes;
 }
 
-// Paper Eq. 6 with the square root restored (paper-notes).
+// Paper Eq. 6 with the square root restored (as printed it has none).
 ContactTimeStatistics ContactTimeStats(std::span<const double> contact_times_s) {
   for (double t : contact_times_s) {
     if (!std::isfinite(t) || t <= 0.0) {

@@ -359,7 +359,7 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
       s.newton_iterations = iteration;
       return s;
     }
-    // Stalled Newton (cycling, build-notes): give up and let the caller fall back.
+    // Stalled Newton (cycling, seen at high drive): give up and let the caller fall back.
     if (error < 0.5 * best) {
       best = error;
       stalled = 0;

@@ -10,7 +10,7 @@
 // H over the analysis record [t0, t1], t1 - t0 = K T (K = analyse_periods, T = 1/f, w = 2 pi f):
 //   H = C1(f) / C1(v_in),   C1(v_in) = V e^{-j pi/2} = -j V   (signal.h: v = Re(C1 e^{j w t})),
 //   C1(f) = (2 / KT) int_{t0}^{t1} f e^{-j w t} dt,   the continuous-time Fourier coefficient.
-// With f = m_p x'' (paper-notes) and e^{-j w t0} = e^{-j w t1} = 1 (whole periods), integrating by
+// With f = m_p x'' (model.h) and e^{-j w t0} = e^{-j w t1} = 1 (whole periods), integrating by
 // parts twice gives
 //   C1(f) = m_p [ (2 / KT) (x'(t1) - x'(t0) + j w (x(t1) - x(t0))) - w^2 C1(x) ],
 // where the bracketed boundary term is the transient left in the window (0 for a periodic response)

@@ -11,14 +11,14 @@
 //   4. Candidates (EffectLibrary): the base model extended by each effect (and the best pair when two
 //      effects each beat noise), fitted with the base parameters free (k_s held at the base fit's
 //      value with a smooth suspension term: the impacts fix it), by the defect-corrected refinement
-//      of core/src/extended_fit.h for terms the closed-form engine cannot take.
+//      of identify/extended_fit.h for terms the closed-form engine cannot take.
 //   5. Choice: by the held-out chi-square (harmonic residuals over their standard errors, scaled by
 //      the candidate's residual variance on the fit records): an effect is named only when it lowers
 //      the held-out chi-square by more than `min_heldout_gain` and the fit records' chi-square by more
 //      than the Akaike penalty 2 k (k its parameters); else the answer is "nothing missing".
 //
-// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator" (shared/paper/), Eq. 2-6;
-// conventions of shared/docs/paper-notes.md.
+// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2-6
+// (Eq. 2 in its continuous form, model.h; Eq. 6 with its square root restored, signal.h).
 #pragma once
 
 #include <complex>

@@ -1,4 +1,4 @@
-// Three simulation engines behind one interface (design card, "Simulation"):
+// Three simulation engines behind one interface:
 //   exact  closed-form propagation in each linear region, switching instants located on the
 //          closed form; piecewise-linear models only. The fast path.
 //   cvode  SUNDIALS CVODE with root-finding on every switching surface; any model.
@@ -53,7 +53,7 @@ struct Record {
   double sample_rate_hz = 0.0;
   std::vector<double> displacement_m;
   std::vector<double> velocity_m_per_s;  // empty when options.record_velocity is false
-  std::vector<double> force_n;           // blocked force f = m_p x'' (paper-notes)
+  std::vector<double> force_n;           // blocked force f = m_p x'' (model.h)
   std::vector<std::uint8_t> in_contact;  // 1 where a stop pushes at t_n
   std::vector<ContactInterval> contacts; // switching instants as the engine located them
   State final_state;                     // at t = N / fs

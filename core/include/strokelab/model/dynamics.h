@@ -2,7 +2,8 @@
 //
 //   m_p x'' = g u(t) - k_p x - k2 x^2 - k3 x^3 - c_p x' - F_c tanh(x'/v_s) + F_lower - F_upper
 //
-// Paper Eq. 2 (continuous form, paper-notes) plus the extra terms of model.h.
+// Paper Eq. 2 in its continuous form (its slip at contact corrected, model.h) plus the extra terms
+// of model.h.
 #pragma once
 
 #include "strokelab/model/model.h"
@@ -40,7 +41,7 @@ double StopForceUnclamped(const ActuatorModel& model, double penetration_m, doub
 // The mode a state is in, judged from the state alone (used where no mode is tracked: ode3).
 ContactMode ModeFromState(const ActuatorModel& model, double x_m, double v_m_per_s);
 
-// m_p x'' [N]: the blocked force f (paper-notes) for a given contact mode and drive voltage.
+// m_p x'' [N]: the blocked force f (model.h) for a given contact mode and drive voltage.
 double BlockedForce(const ActuatorModel& model, double drive_voltage_v, double x_m, double v_m_per_s,
                     ContactMode mode);
 

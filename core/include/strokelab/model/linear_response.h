@@ -1,5 +1,5 @@
 // Closed forms of the linear actuator (no stop contact): paper Eq. 3 and the saturation threshold
-// of paper-notes.
+// V_sat (the non-contacting part of Eq. 2 reaching the stop).
 #pragma once
 
 #include <complex>
@@ -21,7 +21,7 @@ double NaturalFrequencyRadS(const ActuatorModel& model);
 double DampingRatio(const ActuatorModel& model);
 
 // V_sat(w) = |d| |k_p - m_p w^2 + j c_p w| / g [V]: the drive amplitude at which the linear
-// steady state first grazes the lower stop d (paper-notes). Infinite without a lower stop.
+// steady state first grazes the lower stop d. Infinite without a lower stop.
 double LinearSaturationThresholdV(const ActuatorModel& model, double omega_rad_s);
 
 }  // namespace strokelab

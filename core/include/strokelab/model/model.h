@@ -1,8 +1,8 @@
 // The actuator model: a proof mass on a suspension, driven by a coil, stopped by end stops.
 //
-// Paper Eq. 2 in its continuous form (see shared/docs/paper-notes.md: as printed, Eq. 2 makes the
-// suspension force jump by k_p*d at contact; here the suspension keeps acting, k_p x, and the stop
-// adds k_s (x - d)), extended by composable force terms:
+// Paper Eq. 2 in its continuous form, i.e. with its slip at contact corrected (as printed, Eq. 2
+// makes the suspension force jump by k_p*d at contact; here the suspension keeps acting, k_p x, and
+// the stop adds k_s (x - d)), extended by composable force terms:
 //
 //   m_p x'' = g u(t) - [k_p x + k2 x^2 + k3 x^3 + c_p x'] - F_friction(x') + F_stops(x, x')
 //
@@ -11,11 +11,11 @@
 //               that the stop only pushes (n = 1 linear, paper Eq. 2; n = 3/2 Hertzian)
 //   F_friction  F_c tanh(x' / v_s): dry friction, smoothed
 //
-// Output is the blocked force f = m_p x'' (paper-notes), the displacement x (positive away from the
-// lower stop) and the velocity x'.
+// Output is the blocked force f = m_p x'' (the sign of paper Eq. 3 and of H_p = -H / (m_p w^2) in
+// its section 3.2), the displacement x (positive away from the lower stop) and the velocity x'.
 //
-// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator" (the paper in
-// shared/paper/), Table 2 for the `paper` preset.
+// Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2 and
+// Table 2 for the `paper` preset.
 #pragma once
 
 #include <limits>

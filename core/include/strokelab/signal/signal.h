@@ -1,7 +1,7 @@
-// Signal analysis for simulated and recorded signals alike (design card, "Signal analysis"):
+// Signal analysis for simulated and recorded signals alike:
 // complex amplitudes at the drive frequency and its harmonics, first-order FRFs (paper section 3),
 // Hann-windowed spectra (paper Fig. 3), spikes and contact times (paper section 4.1, Fig. 8),
-// RSD (paper Eq. 6 as corrected in paper-notes), k_s from contact time (paper Eq. 5 and the exact
+// RSD (paper Eq. 6 with its square root restored), k_s from contact time (paper Eq. 5 and the exact
 // damped relation), and the stepped-sine frequency grid (paper Eq. 1).
 #pragma once
 
@@ -71,7 +71,7 @@ std::vector<Spike> DetectSpikes(std::span<const double> force, double sample_rat
                                 SampleWindow window, const SpikeOptions& options = {});
 
 // Mean contact time and its relative standard deviation, paper Eq. 6 with the square root restored
-// (paper-notes): RSD = sqrt(sum (dT_n - E[dT])^2 / (N - 1)) / E[dT]. RSD is NaN for N < 2.
+// (as printed it has none): RSD = sqrt(sum (dT_n - E[dT])^2 / (N - 1)) / E[dT]. NaN for N < 2.
 struct ContactTimeStatistics {
   size_t count = 0;
   double mean_s = 0.0;

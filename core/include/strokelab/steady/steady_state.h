@@ -1,5 +1,6 @@
-// Periodic steady states by shooting on the period map (design card, "Steady state"; robust as in
-// shared/docs/build-notes.md).
+// Periodic steady states by shooting on the period map, guarded against the traps of the paper's
+// model: plain period iterations before Newton, a fall-back when Newton stalls, a linear start
+// clipped into the stops' range, and the Floquet multipliers checked (period 2 past grazing).
 //
 // The period map P takes the state at t = 0 (drive phase 0) to the state one drive period later.
 // For piecewise-linear models it is evaluated on the closed form (pwl_system.h) together with its
@@ -69,7 +70,7 @@ class PeriodMap {
   // first harmonic are about half a closed-form trace): for Newton steps whose figures are not kept.
   OrbitFigures Linearize(State y, int periods = 1) const;
   // The state of the linear (no-contact) steady state at phase 0, clipped into the stops' range:
-  // the shooting start of build-notes.
+  // the shooting start (a start inside the stop does not converge).
   State ClippedLinearStart() const;
 
  private:
@@ -79,7 +80,7 @@ class PeriodMap {
 };
 
 struct ShootingOptions {
-  int plain_iterations = 3;          // period iterations before Newton (build-notes)
+  int plain_iterations = 3;          // period iterations before Newton (it can cycle)
   int max_newton_iterations = 30;
   double tolerance = 1e-11;          // on the scaled residual |P^k(y) - y| (x / L, v / (w L)), L = length scale
   int settle_periods = 400;          // plain iterations when Newton fails, to reach an attractor

@@ -1,4 +1,4 @@
-// Steady-state sweeps over an amplitude x frequency grid (design card, "Steady state"): periodic
+// Steady-state sweeps over an amplitude x frequency grid: periodic
 // orbits by shooting, continued in frequency by pseudo-arclength continuation through folds; the
 // saturation threshold per frequency (grazing amplitude and lowest contacting amplitude, by
 // root-finding), the jump (bistable) intervals per amplitude, and the first-order FRFs of the up-

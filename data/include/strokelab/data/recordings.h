@@ -1,5 +1,5 @@
-// Campaign directories as the test rig exports them (shared/docs/recordings-format.md), read into
-// and written from the in-memory Campaign of core (strokelab/campaign.h).
+// Campaign directories as the test rig exports them (the format below), read into and written from
+// the in-memory Campaign of core (strokelab/identify/campaign.h).
 //
 // Layout:
 //

@@ -1,5 +1,5 @@
 // The strokelab service: a REST API over the job store, and an in-process pool of workers that
-// lease tasks from it (design card, "server/, worker/, schema/").
+// lease tasks from it.
 //
 //   POST   /v1/jobs                        submit (JSON job, validated against schema/job.schema.json)
 //   GET    /v1/jobs?limit=&before=         list, newest first
