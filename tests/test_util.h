@@ -5,8 +5,14 @@
 
 #include <cmath>
 #include <complex>
+#include <numbers>
 
 namespace strokelab::testing {
+
+inline constexpr double kPi = std::numbers::pi;
+inline constexpr double kFs = 51200.0;  // the paper's sampling rate [Hz]
+// An estimate passes when it lies within this many of its standard errors of the truth.
+inline constexpr double kSigmaBound = 3.0;
 
 // |actual - expected| <= rel * |expected|, printed with both values and the relative error.
 inline ::testing::AssertionResult NearRelative(double actual, double expected, double rel) {

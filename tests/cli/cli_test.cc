@@ -21,14 +21,7 @@ using ::strokelab::testing::RunCli;
 
 const std::string kSimulate = "simulate --frequency-hz 8 --amplitude-v 0.4 --duration-s 2 ";
 
-// One line, exit code 2, naming what is wrong.
-void ExpectInputError(const std::string& args, const std::string& expected) {
-  const Result r = RunCli(args);
-  EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.stderr_text;
-  EXPECT_THAT(r.stderr_text, HasSubstr(expected)) << args;
-  EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1) << r.stderr_text;
-  EXPECT_TRUE(r.stdout_text.empty()) << r.stdout_text;
-}
+using ::strokelab::testing::ExpectInputError;
 
 TEST(CliTest, BadInputNamesTheField) {
   ExpectInputError(kSimulate + "--set m_p=-0.1", "strokelab: error: m_p: must be > 0, got -0.1");

@@ -1,10 +1,12 @@
 // Runs the strokelab binary with arguments and captures exit code, stdout and stderr.
 #pragma once
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <fstream>
@@ -35,6 +37,16 @@ inline CliResult RunCli(const std::string& args) {
   result.stderr_text.assign(std::istreambuf_iterator<char>(err), {});
   std::remove(err_path.c_str());
   return result;
+}
+
+// `strokelab ARGS` fails with one line on stderr, exit code 2 and nothing on stdout, and the line
+// holds `expected` (the field and what is wrong with it).
+inline void ExpectInputError(const std::string& args, const std::string& expected) {
+  const CliResult r = RunCli(args);
+  EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.stderr_text;
+  EXPECT_THAT(r.stderr_text, ::testing::HasSubstr(expected)) << args;
+  EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1) << r.stderr_text;
+  EXPECT_TRUE(r.stdout_text.empty()) << r.stdout_text;
 }
 
 }  // namespace strokelab::testing

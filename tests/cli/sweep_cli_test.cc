@@ -34,36 +34,32 @@ using ::testing::HasSubstr;
 using Result = ::strokelab::testing::CliResult;
 using ::strokelab::testing::RunCli;
 
-// One line, exit code 2, naming what is wrong.
-void ExpectInputError(const std::string& args, const std::string& expected) {
-  const Result r = RunCli("sweep " + args);
-  EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.stderr_text;
-  EXPECT_THAT(r.stderr_text, HasSubstr(expected)) << args;
-  EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1) << r.stderr_text;
-  EXPECT_TRUE(r.stdout_text.empty()) << r.stdout_text;
+// `strokelab sweep ARGS` fails with one line, exit code 2, naming what is wrong.
+void ExpectSweepInputError(const std::string& args, const std::string& expected) {
+  ::strokelab::testing::ExpectInputError("sweep " + args, expected);
 }
 
 TEST(SweepCliTest, BadGridsNameTheFlag) {
   // SweepSpec::Validate's fields (frequency_hz.to, ...) come back as the flags, in FROM:TO words.
-  ExpectInputError("--frequency-hz 50:5", "strokelab: error: --frequency-hz: TO must be ");
-  ExpectInputError("--frequency-hz 50:5", "FROM (got '50:5')");
-  ExpectInputError("--amplitude-v 0.6:0.1", "--amplitude-v: TO must be ");
-  ExpectInputError("--frequency-hz 0:50", "--frequency-hz: FROM must be ");
-  ExpectInputError("--grid geometric --frequency-hz 5:5", "--frequency-hz: TO must be ");
-  ExpectInputError("--amplitude-points 0", "--amplitude-points: must be ");
-  ExpectInputError("--frequency-points 0", "--frequency-points: must be ");
-  ExpectInputError("--grid eq1 --frequency-points 0", "--frequency-points: must be ");
-  ExpectInputError("--threads 0", "--threads: must be ");
-  ExpectInputError("--grid foo", "--grid: unknown grid 'foo' (known: linear, geometric, eq1)");
-  ExpectInputError("--grid eq1 --frequency-hz 5:9", "--grid: eq1 fixes the frequencies");
-  ExpectInputError("--frequency-hz 5", "--frequency-hz: expected FROM:TO, e.g. 5:50, got '5'");
-  ExpectInputError("--frequency-hz a:5", "--frequency-hz: expected a number, got 'a'");
-  ExpectInputError("--amplitude-v 0.1:inf", "--amplitude-v: must be finite, got '0.1:inf'");
-  ExpectInputError("--frequency-points 2.5", "--frequency-points: expected an integer, got '2.5'");
-  ExpectInputError("--json --out x", "--json: cannot be combined with --out");
-  ExpectInputError("--set k9=1", "--set k9: unknown model parameter");
-  ExpectInputError("--model papr", "--model: unknown model preset 'papr'");
-  ExpectInputError("--frobnicate", "--frobnicate: unknown option");
+  ExpectSweepInputError("--frequency-hz 50:5", "strokelab: error: --frequency-hz: TO must be ");
+  ExpectSweepInputError("--frequency-hz 50:5", "FROM (got '50:5')");
+  ExpectSweepInputError("--amplitude-v 0.6:0.1", "--amplitude-v: TO must be ");
+  ExpectSweepInputError("--frequency-hz 0:50", "--frequency-hz: FROM must be ");
+  ExpectSweepInputError("--grid geometric --frequency-hz 5:5", "--frequency-hz: TO must be ");
+  ExpectSweepInputError("--amplitude-points 0", "--amplitude-points: must be ");
+  ExpectSweepInputError("--frequency-points 0", "--frequency-points: must be ");
+  ExpectSweepInputError("--grid eq1 --frequency-points 0", "--frequency-points: must be ");
+  ExpectSweepInputError("--threads 0", "--threads: must be ");
+  ExpectSweepInputError("--grid foo", "--grid: unknown grid 'foo' (known: linear, geometric, eq1)");
+  ExpectSweepInputError("--grid eq1 --frequency-hz 5:9", "--grid: eq1 fixes the frequencies");
+  ExpectSweepInputError("--frequency-hz 5", "--frequency-hz: expected FROM:TO, e.g. 5:50, got '5'");
+  ExpectSweepInputError("--frequency-hz a:5", "--frequency-hz: expected a number, got 'a'");
+  ExpectSweepInputError("--amplitude-v 0.1:inf", "--amplitude-v: must be finite, got '0.1:inf'");
+  ExpectSweepInputError("--frequency-points 2.5", "--frequency-points: expected an integer, got '2.5'");
+  ExpectSweepInputError("--json --out x", "--json: cannot be combined with --out");
+  ExpectSweepInputError("--set k9=1", "--set k9: unknown model parameter");
+  ExpectSweepInputError("--model papr", "--model: unknown model preset 'papr'");
+  ExpectSweepInputError("--frobnicate", "--frobnicate: unknown option");
 }
 
 TEST(SweepCliTest, HelpListsTheOptionsAndOutputs) {

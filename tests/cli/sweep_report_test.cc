@@ -14,9 +14,14 @@
 
 #include "strokelab/model/model.h"
 
+#include "report_test_util.h"
+
 namespace strokelab::report {
 namespace {
 
+using ::strokelab::testing::FreshDir;
+using ::strokelab::testing::Lines;
+using ::strokelab::testing::ReadFile;
 using ::testing::HasSubstr;
 
 SweepPoint Point(double f_hz, double v, Branch branch, std::complex<double> h) {
@@ -69,20 +74,6 @@ SweepResult Synthetic() {
   return r;
 }
 
-std::string ReadFile(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-std::vector<std::string> Lines(const std::string& text) {
-  std::vector<std::string> lines;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
-
 std::vector<std::string> Cells(const std::string& line) {
   std::vector<std::string> cells;
   std::string cell;
@@ -92,11 +83,6 @@ std::vector<std::string> Cells(const std::string& line) {
   return cells;
 }
 
-std::filesystem::path FreshDir(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / name;
-  std::filesystem::remove_all(dir);
-  return dir;
-}
 
 TEST(SweepOutputTest, JsonHasThePromisedKeys) {
   const SweepResult r = Synthetic();

@@ -30,7 +30,7 @@ using ::strokelab::testing::ComplexAmplitude;
 using ::strokelab::testing::LastSecond;
 using ::strokelab::testing::PaperEq3;
 using Complex = std::complex<double>;
-constexpr double kPi = std::numbers::pi;
+using ::strokelab::testing::kPi;
 
 // Named tolerances, with what the engine achieved at its default tolerances (rel 1e-10).
 // First-harmonic force vs paper Eq. 3, relative: measured 6e-12 (5 Hz) to 1.3e-9 (47 Hz); clipped
@@ -44,13 +44,8 @@ constexpr double kFreeDecayRelativeTolerance = 1e-8;
 
 
 
-// Damped natural frequency in contact with a linear stop [rad/s].
-double ContactDampedFrequency(const ActuatorModel& m) {
-  const double a = (m.damping_n_s_per_m + m.contact_damping_n_s_per_m) / (2.0 * m.mass_kg);
-  return std::sqrt((m.stiffness_n_per_m + m.contact_stiffness) / m.mass_kg - a * a);
-}
+using ::strokelab::testing::ContactDampedFrequency;
 
-ActuatorModel LinearModel() { return PresetModel("linear"); }
 
 // A stop at d = 0 and an initial state on it, moving in at v0 < 0: the mass pushes from t = 0.
 ActuatorModel StopAtRestModel() {
@@ -66,12 +61,12 @@ SimulationOptions ImpactOptions(double duration_s, double v0_m_per_s) {
   return options;
 }
 
-const SineDrive kNoDrive{.amplitude_v = 0.0, .frequency_hz = 8.0, .phase_rad = 0.0};
+using ::strokelab::testing::kNoDrive;
 
 TEST(CvodeEngineTest, ReportsItsMethod) { EXPECT_EQ(MakeCvodeEngine()->method(), Method::kCvode); }
 
 TEST(CvodeEngineTest, LinearForceFrfIsPaperEq3) {
-  const ActuatorModel model = LinearModel();
+  const ActuatorModel model = PresetModel("linear");
   SimulationOptions options;
   options.duration_s = 3.0;  // the transient decays as e^{-20.3 t}: gone (1e-18) after 2 s
   for (const double f_hz : {5.0, 8.0, 13.0, 47.0}) {
@@ -86,7 +81,7 @@ TEST(CvodeEngineTest, LinearForceFrfIsPaperEq3) {
 }
 
 TEST(CvodeEngineTest, FreeDecayIsTheDampedOscillator) {
-  const ActuatorModel model = LinearModel();
+  const ActuatorModel model = PresetModel("linear");
   SimulationOptions options;
   options.duration_s = 0.5;
   options.initial = {.x_m = 0.5e-3, .v_m_per_s = 0.02};
@@ -253,7 +248,7 @@ TEST(CvodeEngineTest, CubicAndHertzianModelsHitBothStops) {
 }
 
 TEST(CvodeEngineTest, AmplifierLimitClipsTheDrive) {
-  ActuatorModel model = LinearModel();  // linear: each harmonic of the clipped drive passes through Eq. 3
+  ActuatorModel model = PresetModel("linear");  // linear: each harmonic of the clipped drive passes through Eq. 3
   model.amplifier_limit_v = 0.2;
   const SineDrive drive{.amplitude_v = 0.5, .frequency_hz = 8.0};
   SimulationOptions options;
@@ -376,7 +371,7 @@ TEST(CvodeEngineTest, ReusesTheRecordAndHonoursRecordVelocity) {
 
   options.duration_s = 0.25;
   options.record_velocity = false;
-  engine->Simulate(LinearModel(), drive, options, &record);
+  engine->Simulate(PresetModel("linear"), drive, options, &record);
   EXPECT_EQ(record.size(), 12800u);
   EXPECT_EQ(record.force_n.size(), 12800u);
   EXPECT_EQ(record.in_contact.size(), 12800u);
@@ -387,7 +382,7 @@ TEST(CvodeEngineTest, ReusesTheRecordAndHonoursRecordVelocity) {
 }
 
 template <typename Mutate>
-std::string InputErrorField(Mutate mutate) {
+std::string SimulationInputErrorField(Mutate mutate) {
   ActuatorModel model = PaperModel();
   SineDrive drive{.amplitude_v = 0.5, .frequency_hz = 8.0};
   SimulationOptions options;
@@ -402,22 +397,22 @@ std::string InputErrorField(Mutate mutate) {
 }
 
 TEST(CvodeEngineTest, RejectsBadInputNamingTheField) {
-  EXPECT_EQ(InputErrorField([](ActuatorModel*, SineDrive*, SimulationOptions* o) { o->sample_rate_hz = 0; }),
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel*, SineDrive*, SimulationOptions* o) { o->sample_rate_hz = 0; }),
             "sample_rate_hz");
-  EXPECT_EQ(InputErrorField([](ActuatorModel*, SineDrive*, SimulationOptions* o) { o->duration_s = -1; }),
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel*, SineDrive*, SimulationOptions* o) { o->duration_s = -1; }),
             "duration_s");
-  EXPECT_EQ(InputErrorField([](ActuatorModel*, SineDrive*, SimulationOptions* o) { o->initial.x_m = NAN; }),
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel*, SineDrive*, SimulationOptions* o) { o->initial.x_m = NAN; }),
             "initial.x_m");
-  EXPECT_EQ(InputErrorField([](ActuatorModel* m, SineDrive*, SimulationOptions*) { m->mass_kg = 0; }), "m_p");
-  EXPECT_EQ(InputErrorField([](ActuatorModel* m, SineDrive*, SimulationOptions*) { m->lower_stop_m = 1e-3; }), "d");
-  EXPECT_EQ(InputErrorField([](ActuatorModel*, SineDrive* d, SimulationOptions*) { d->frequency_hz = 0; }),
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel* m, SineDrive*, SimulationOptions*) { m->mass_kg = 0; }), "m_p");
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel* m, SineDrive*, SimulationOptions*) { m->lower_stop_m = 1e-3; }), "d");
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel*, SineDrive* d, SimulationOptions*) { d->frequency_hz = 0; }),
             "frequency_hz");
-  EXPECT_EQ(InputErrorField([](ActuatorModel*, SineDrive* d, SimulationOptions*) { d->amplitude_v = -1; }),
+  EXPECT_EQ(SimulationInputErrorField([](ActuatorModel*, SineDrive* d, SimulationOptions*) { d->amplitude_v = -1; }),
             "amplitude_v");
 }
 
 TEST(CvodeEngineTest, DivergingModelIsANumericalErrorNamingCvode) {
-  ActuatorModel model = LinearModel();
+  ActuatorModel model = PresetModel("linear");
   model.cubic_stiffness_n_per_m3 = -1e12;  // softening that escapes to infinity in finite time
   const SineDrive drive{.amplitude_v = 0.5, .frequency_hz = 8.0};
   SimulationOptions options;

@@ -29,6 +29,16 @@ inline size_t LastSecond(const Record& record) {
   return record.size() - static_cast<size_t>(record.sample_rate_hz);
 }
 
+// Damped natural frequency in contact with a linear stop [rad/s]: the linear part plus the stop's
+// stiffness and damping, sqrt((k_p + k_c)/m_p - ((c_p + c_c)/(2 m_p))^2).
+inline double ContactDampedFrequency(const ActuatorModel& m) {
+  const double a = (m.damping_n_s_per_m + m.contact_damping_n_s_per_m) / (2.0 * m.mass_kg);
+  return std::sqrt((m.stiffness_n_per_m + m.contact_stiffness) / m.mass_kg - a * a);
+}
+
+// No drive at all: free responses from an initial state.
+inline const SineDrive kNoDrive{.amplitude_v = 0.0, .frequency_hz = 8.0, .phase_rad = 0.0};
+
 // Paper Eq. 3 for a model's linear part.
 inline std::complex<double> PaperEq3(const ActuatorModel& m, double w_rad_per_s) {
   const double w_p = std::sqrt(m.stiffness_n_per_m / m.mass_kg);

@@ -46,7 +46,7 @@ using ::testing::HasSubstr;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // Named tolerances.
-constexpr double kSigmaBound = 3.0;  // estimate within 3 standard errors of the truth (see above)
+using ::strokelab::testing::kSigmaBound;  // (see above)
 // Within 1 % of the truth: the perturbations are 5-30 %, so this shows the fit went to the truth and
 // not stayed at the data sheet; the standard errors are far smaller (k_s 0.15 %, the others 0.002 %).
 constexpr double kTruthRelTol = 0.01;

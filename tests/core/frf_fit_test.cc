@@ -31,7 +31,7 @@ constexpr double kGainNPerV = 0.3;       // g, Table 2
 constexpr double kNoiseFreeRelTol = 1e-8;   // parameters from exact data
 constexpr double kNoiseFreeRmsTol = 1e-12;  // relative residual of exact data
 constexpr double kNoiseLevel = 0.01;        // rms of the relative complex noise
-constexpr double kSigmaBound = 3.0;         // estimate within 3 standard errors of the truth
+using ::strokelab::testing::kSigmaBound;
 // Reported standard error vs the Monte-Carlo spread: asked for within a factor 2; the delta method
 // is this good on 500 seeds (measured ratios 0.96 ... 1.09), so hold it to 25 %.
 constexpr double kSeSpreadFactor = 1.25;

@@ -15,8 +15,8 @@ namespace strokelab {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kPi = std::numbers::pi;
-constexpr double kRoundingRel = 1e-14;
+using ::strokelab::testing::kPi;
+constexpr double kClosedFormRoundingRel = 1e-14;
 // The reference values of V_sat have 4 decimals.
 constexpr double kQuotedVolts = 1e-4;
 
@@ -24,7 +24,7 @@ double RadS(double hz) { return 2.0 * kPi * hz; }
 
 TEST(LinearResponseTest, NaturalFrequencyAndDampingOfTable2) {
   const ActuatorModel m = PaperModel();
-  EXPECT_REL_NEAR(NaturalFrequencyRadS(m), std::sqrt(124.0 / 0.032), kRoundingRel);
+  EXPECT_REL_NEAR(NaturalFrequencyRadS(m), std::sqrt(124.0 / 0.032), kClosedFormRoundingRel);
   EXPECT_NEAR(NaturalFrequencyRadS(m), 62.2, 0.05);          // from Table 2: 62.2 rad/s
   EXPECT_NEAR(NaturalFrequencyRadS(m) / (2 * kPi), 9.91, 0.005);  // 9.91 Hz
   EXPECT_NEAR(DampingRatio(m), 0.326, 0.0005);
@@ -37,14 +37,14 @@ TEST(LinearResponseTest, Eq3EqualsTheMassSpringDamperForm) {
     const double w = RadS(hz);
     const Complex expected = -m.gain_n_per_v * m.mass_kg * w * w /
                              Complex(m.stiffness_n_per_m - m.mass_kg * w * w, m.damping_n_s_per_m * w);
-    EXPECT_REL_NEAR(ForceFrf(m, w), expected, kRoundingRel) << hz;
+    EXPECT_REL_NEAR(ForceFrf(m, w), expected, kClosedFormRoundingRel) << hz;
   }
 }
 
 TEST(LinearResponseTest, Eq3Limits) {
   const double wp = 62.25, zeta = 0.326, g = 0.3;
   // At resonance: -g / (j 2 zeta) = j g / (2 zeta), phase +90 degrees.
-  EXPECT_REL_NEAR(ForceFrfEq3(wp, zeta, g, wp), Complex(0.0, g / (2 * zeta)), kRoundingRel);
+  EXPECT_REL_NEAR(ForceFrfEq3(wp, zeta, g, wp), Complex(0.0, g / (2 * zeta)), kClosedFormRoundingRel);
   // Far above resonance the blocked force tends to +g (the sign of Eq. 3).
   EXPECT_REL_NEAR(ForceFrfEq3(wp, zeta, g, 1e6 * wp), Complex(g, 0.0), 1e-6);
   // Far below: -g (w / w_p)^2 (1 - j 2 zeta w / w_p + O(w^2)), negative.
@@ -59,7 +59,7 @@ TEST(LinearResponseTest, DisplacementFrfIsMinusHOverMassOmegaSquared) {
     EXPECT_REL_NEAR(DisplacementFrf(m, w), -ForceFrf(m, w) / (m.mass_kg * w * w), 1e-13) << hz;
   }
   // Static limit: g / k_p.
-  EXPECT_REL_NEAR(DisplacementFrf(m, 0.0), Complex(0.3 / 124.0, 0.0), kRoundingRel);
+  EXPECT_REL_NEAR(DisplacementFrf(m, 0.0), Complex(0.3 / 124.0, 0.0), kClosedFormRoundingRel);
 }
 
 TEST(LinearResponseTest, SaturationThresholdMatchesPaperNotes) {
@@ -79,7 +79,7 @@ TEST(LinearResponseTest, SaturationThresholdIsWhereTheLinearStrokeReachesTheStop
   const ActuatorModel m = PaperModel();
   for (const double hz : {3.0, 8.0, 13.0, 40.0}) {
     const double w = RadS(hz);
-    EXPECT_REL_NEAR(std::abs(DisplacementFrf(m, w)) * LinearSaturationThresholdV(m, w), 1e-3, kRoundingRel) << hz;
+    EXPECT_REL_NEAR(std::abs(DisplacementFrf(m, w)) * LinearSaturationThresholdV(m, w), 1e-3, kClosedFormRoundingRel) << hz;
   }
 }
 

@@ -27,16 +27,13 @@ using ::strokelab::testing::ComplexAmplitude;
 using ::strokelab::testing::LastSecond;
 using ::strokelab::testing::PaperEq3;
 using Complex = std::complex<double>;
-constexpr double kPi = std::numbers::pi;
+using ::strokelab::testing::kPi;
 
 
 
-double ContactDampedFrequency(const ActuatorModel& m) {
-  const double a = (m.damping_n_s_per_m + m.contact_damping_n_s_per_m) / (2.0 * m.mass_kg);
-  return std::sqrt((m.stiffness_n_per_m + m.contact_stiffness) / m.mass_kg - a * a);
-}
+using ::strokelab::testing::ContactDampedFrequency;
 
-const SineDrive kNoDrive{.amplitude_v = 0.0, .frequency_hz = 8.0, .phase_rad = 0.0};
+using ::strokelab::testing::kNoDrive;
 
 TEST(Ode3EngineTest, ReportsItsMethod) { EXPECT_EQ(MakeOde3Engine()->method(), Method::kOde3); }
 

@@ -22,8 +22,8 @@ namespace {
 using ::testing::HasSubstr;
 using Complex = std::complex<double>;
 
-constexpr double kPi = std::numbers::pi;
-constexpr double kFs = 51200.0;  // the paper's sampling rate [Hz]
+using ::strokelab::testing::kPi;
+using ::strokelab::testing::kFs;
 // Exact-arithmetic results computed in double: rounding only, a few hundred ulps at most.
 constexpr double kRoundingRel = 1e-10;
 

@@ -20,8 +20,8 @@
 namespace strokelab {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-constexpr double kFs = 51200.0;  // the paper's sampling rate [Hz]
+using ::strokelab::testing::kPi;
+using ::strokelab::testing::kFs;
 
 // A contact time of 0.49 ms spans 25 samples (19.5 us each). The half-height crossings are
 // interpolated linearly, so quantisation leaves well under a sample of error; the residual comes

@@ -31,7 +31,7 @@ namespace {
 using ::testing::HasSubstr;
 using Complex = std::complex<double>;
 
-constexpr double kPi = std::numbers::pi;
+using ::strokelab::testing::kPi;
 
 // Set STROKELAB_TEST_VERBOSE=1 to print the measured errors and the sweeps.
 bool Verbose() { return std::getenv("STROKELAB_TEST_VERBOSE") != nullptr; }

@@ -99,14 +99,14 @@ struct CampaignText {
   }
 };
 
-struct Defect {
+struct TextDefect {
   std::string name;                          // what is broken
   std::function<void(CampaignText&)> apply;  // breaks it
   std::string field, fragment;               // the error's field, exactly; a piece of its message
 };
 
-std::vector<Defect> Generate() {
-  std::vector<Defect> out;
+std::vector<TextDefect> Generate() {
+  std::vector<TextDefect> out;
   const size_t last = kSamples + 1;  // the last data line
   for (const std::string& file : kFiles) {
     for (const size_t line : {size_t{2}, size_t{kSamples / 2}, last}) {
@@ -192,11 +192,11 @@ fs::path Scratch(const std::string& name) {
 
 TEST(MalformedCampaignGenerated, LibraryAndCliNameTheFileAndLine) {
   const CampaignText valid = CampaignText::Valid(Scratch("valid"));
-  const std::vector<Defect> defects = Generate();
+  const std::vector<TextDefect> defects = Generate();
   std::printf("[          ] %zu malformed campaigns\n", defects.size());
   ASSERT_GE(defects.size(), 50u);
   for (size_t i = 0; i < defects.size(); ++i) {
-    const Defect& d = defects[i];
+    const TextDefect& d = defects[i];
     SCOPED_TRACE(d.name);
     CampaignText text = valid;
     d.apply(text);

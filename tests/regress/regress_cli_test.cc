@@ -13,6 +13,7 @@
 #include <string>
 
 #include "cli/run_cli.h"
+#include "read_json.h"
 
 namespace {
 
@@ -34,10 +35,7 @@ fs::path TempDir() {
   return dir;
 }
 
-json ReadJson(const fs::path& path) {
-  std::ifstream in(path);
-  return json::parse(in);
-}
+using ::strokelab::testing::ReadJson;
 
 void WriteText(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());

@@ -12,6 +12,7 @@
 #include "cli/run_cli.h"
 #include "regression.h"
 #include "strokelab/jobs/version.h"
+#include "read_json.h"
 
 namespace {
 
@@ -24,10 +25,7 @@ using ::testing::HasSubstr;
 
 const fs::path kBaselines = fs::path(STROKELAB_REGRESS_DIR) / "baselines";
 
-json ReadJson(const fs::path& path) {
-  std::ifstream in(path);
-  return json::parse(in);
-}
+using ::strokelab::testing::ReadJson;
 
 std::string ReadText(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);

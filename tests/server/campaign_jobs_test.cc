@@ -25,6 +25,7 @@
 #include "campaign_upload.h"
 #include "ustar.h"
 #include "zip_writer.h"
+#include "test_tokens.h"
 
 namespace strokelab::server {
 namespace {
@@ -33,8 +34,8 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using nlohmann::json;
 
-const char* kSubmitToken = "submit-token-0123456789";
-const char* kReadToken = "read-token-0123456789ab";
+using ::strokelab::testing::kReadToken;
+using ::strokelab::testing::kSubmitToken;
 
 // Parameters of the service's fit and of the direct fit agree to this relative difference: the same
 // files, options and code (dimensionless; the fit runs Ceres on one thread per record set).

@@ -22,7 +22,7 @@ namespace {
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-constexpr int64_t kLeaseMs = 200;
+constexpr int64_t kShortLeaseMs = 200;
 
 // A one-task job that takes 0.5-0.7 s of CPU in Release (CVODE, 60 s at 51.2 kHz); the test that runs
 // it sets the lease from its measured time, so that it is several leases long on any machine.
@@ -77,29 +77,29 @@ class RemoteLeaseTest : public ::testing::Test {
 };
 
 TEST_F(RemoteLeaseTest, RenewedLeaseIsKeptAndAnUnrenewedOneIsLost) {
-  StartService(kLeaseMs);
+  StartService(kShortLeaseMs);
   Submit(kOneTaskSweep);
   auto first = Lease("a");
   ASSERT_TRUE(first);
   ASSERT_EQ(first->status, 200) << first->body;
   const json task = json::parse(first->body);
-  EXPECT_EQ(task.at("lease_ms"), kLeaseMs);
+  EXPECT_EQ(task.at("lease_ms"), kShortLeaseMs);
   const std::string renew = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>()) + "/renew";
   const std::string proof = json({{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}}).dump();
 
   // Five leases' time, renewed at a quarter of the lease: the task stays with "a".
   const auto start = Clock::now();
-  while (Clock::now() - start < std::chrono::milliseconds(5 * kLeaseMs)) {
+  while (Clock::now() - start < std::chrono::milliseconds(5 * kShortLeaseMs)) {
     auto r = Client().Post(renew, proof, "application/json");
     ASSERT_TRUE(r);
     ASSERT_EQ(r->status, 200) << r->body;
     auto other = Lease("b");
     ASSERT_TRUE(other);
     EXPECT_EQ(other->status, 204) << "the renewed task was handed to another worker: " << other->body;
-    std::this_thread::sleep_for(std::chrono::milliseconds(kLeaseMs / 4));
+    std::this_thread::sleep_for(std::chrono::milliseconds(kShortLeaseMs / 4));
   }
   // Not renewed for two leases: lost, and handed out again.
-  std::this_thread::sleep_for(std::chrono::milliseconds(2 * kLeaseMs));
+  std::this_thread::sleep_for(std::chrono::milliseconds(2 * kShortLeaseMs));
   auto late = Client().Post(renew, proof, "application/json");
   ASSERT_TRUE(late);
   EXPECT_EQ(late->status, 409) << late->body;
@@ -111,13 +111,13 @@ TEST_F(RemoteLeaseTest, RenewedLeaseIsKeptAndAnUnrenewedOneIsLost) {
 
 TEST_F(RemoteLeaseTest, RemoteWorkerKeepsItsLeaseThroughALongTask) {
   // The task's time on this machine and build (a fast machine ran it in 0.51 s, a sanitizer build
-  // takes seconds): the lease is a sixth of it, at least 25 ms and at most kLeaseMs.
+  // takes seconds): the lease is a sixth of it, at least 25 ms and at most kShortLeaseMs.
   const std::vector<jobs::TaskSpec> tasks = jobs::PlanTasks(json::parse(kLongSimulate));
   ASSERT_EQ(tasks.size(), 1u);
   const auto timed = Clock::now();
   (void)jobs::RunTask(tasks[0].spec);
   const double task_ms = std::chrono::duration<double, std::milli>(Clock::now() - timed).count();
-  const int64_t lease_ms = std::clamp<int64_t>(static_cast<int64_t>(task_ms / 6), 25, kLeaseMs);
+  const int64_t lease_ms = std::clamp<int64_t>(static_cast<int64_t>(task_ms / 6), 25, kShortLeaseMs);
   StartService(lease_ms);
 
   const int64_t id = Submit(kLongSimulate);

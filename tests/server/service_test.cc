@@ -1,6 +1,7 @@
 // The REST service in process: every error path answers with its status, a stable code, a message
 // and (for bad jobs) the JSON pointer of the field; tokens and roles are enforced.
 #include "strokelab/server/service.h"
+#include "test_tokens.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -18,8 +19,8 @@ namespace {
 using ::testing::HasSubstr;
 using nlohmann::json;
 
-const char* kSubmitToken = "submit-token-0123456789";
-const char* kReadToken = "read-token-0123456789ab";
+using ::strokelab::testing::kReadToken;
+using ::strokelab::testing::kSubmitToken;
 
 const json kSmallSweep = {{"kind", "sweep"},
                           {"model", "paper"},

@@ -1,0 +1,9 @@
+// The bearer tokens the in-process service tests write to their token file (one per role).
+#pragma once
+
+namespace strokelab::testing {
+
+inline constexpr const char* kSubmitToken = "submit-token-0123456789";
+inline constexpr const char* kReadToken = "read-token-0123456789ab";
+
+}  // namespace strokelab::testing
