@@ -34,7 +34,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kHelp = R"(usage: strokelab backup --db FILE --to FILE [--force]
+constexpr const char* kBackupHelp = R"(usage: strokelab backup --db FILE --to FILE [--force]
 
 Copies the service's SQLite job store (strokelab serve --db FILE) to one self-contained file, safely
 while the service runs: the copy is the database as of one instant (SQLite online backup API),
@@ -116,7 +116,7 @@ void CopyPages(sqlite3* source, sqlite3* dest, const fs::path& source_path) {
 int RunBackup(const std::vector<std::string>& argv) {
   const Args args(argv, {"--db", "--to"}, {"--force", "--help"});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kBackupHelp;
     return 0;
   }
   if (!args.Positional().empty()) throw InputError(args.Positional().front(), "unexpected argument (see --help)");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "format.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
 #include "strokelab/base/errors.h"
@@ -18,7 +19,7 @@
 namespace strokelab::cli {
 namespace {
 
-constexpr const char* kHelp = R"(usage: strokelab diagnose --data DIR [--model paper|linear] [--json] [--out DIR] [options]
+constexpr const char* kDiagnoseHelp = R"(usage: strokelab diagnose --data DIR [--model paper|linear] [--json] [--out DIR] [options]
 
 Fits the base model (as strokelab fit) to all but every n-th record, measures where it misses (per
 record and harmonic, harmonic balance below the stop, resonance against amplitude, contact times,
@@ -43,18 +44,11 @@ Exit codes: 0 diagnosed (including "nothing missing"), 2 bad input (the message 
 line or the flag), 3 numerical failure.
 )";
 
-std::string General(double value, int digits = 4) {
-  if (!std::isfinite(value)) return "-";
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, "%.*g", digits, value);
-  return buffer;
-}
-
 void PrintReport(const Diagnosis& d, std::ostream& out) {
   out << d.conclusion << "\n\n";
-  out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse) << ", after "
-      << General(d.fit_after.nrmse) << "; held-out records (" << d.heldout.size() << "): before "
-      << General(d.fit_before.heldout_nrmse) << ", after " << General(d.fit_after.heldout_nrmse) << "\n";
+  out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse, 4) << ", after "
+      << General(d.fit_after.nrmse, 4) << "; held-out records (" << d.heldout.size() << "): before "
+      << General(d.fit_before.heldout_nrmse, 4) << ", after " << General(d.fit_after.heldout_nrmse, 4) << "\n";
   if (d.chosen >= 0) {
     const CandidateFit& chosen = d.candidates[d.chosen];
     out << "\nfitted parameters of " << chosen.label
@@ -71,8 +65,8 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
   out << line;
   for (const CandidateFit& c : d.candidates) {
     std::snprintf(line, sizeof line, "  %-42s %12s %12s %10s %10s %8s\n", c.label.c_str(),
-                  General(c.heldout_gain).c_str(), General(c.fit_gain).c_str(), General(c.figures.nrmse).c_str(),
-                  General(c.figures.heldout_nrmse).c_str(), General(c.seconds, 3).c_str());
+                  General(c.heldout_gain, 4).c_str(), General(c.fit_gain, 4).c_str(), General(c.figures.nrmse, 4).c_str(),
+                  General(c.figures.heldout_nrmse, 4).c_str(), General(c.seconds, 3).c_str());
     out << line;
     if (!c.note.empty() && !c.fitted) out << "    " << c.note << "\n";
   }
@@ -84,8 +78,8 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
   }
   out << "\nworst records of the base model:\n";
   for (const auto& h : d.signatures.hotspots)
-    out << "  " << h.record << " (" << General(h.frequency_hz) << " Hz, " << General(h.amplitude_v) << " V): chi2/residual "
-        << General(h.chi2_per_residual) << ", worst harmonic " << h.harmonic << " (magnitude "
+    out << "  " << h.record << " (" << General(h.frequency_hz, 4) << " Hz, " << General(h.amplitude_v, 4) << " V): chi2/residual "
+        << General(h.chi2_per_residual, 4) << ", worst harmonic " << h.harmonic << " (magnitude "
         << General(100 * h.magnitude_error, 3) << " %, phase " << General(h.phase_error_rad, 3) << " rad)\n";
   out << "\n" << General(d.seconds, 3) << " s\n";
 }
@@ -98,7 +92,7 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   switches.insert(switches.end(), {"--json", "--no-pairs", "--progress", "--help"});
   const Args args(argv, {values.begin(), values.end()}, {switches.begin(), switches.end()});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kDiagnoseHelp;
     return 0;
   }
   if (!args.Positional().empty())

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "format.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/data/recordings.h"
@@ -14,7 +15,7 @@
 namespace strokelab::cli {
 namespace {
 
-constexpr const char* kHelp = R"(usage: strokelab fit --data DIR [--model paper|linear] [--json] [options]
+constexpr const char* kFitHelp = R"(usage: strokelab fit --data DIR [--model paper|linear] [--json] [options]
 
 Fits a model to a stepped-sine campaign (manifest.json + one CSV per record): the paper's procedure
 made robust. Per record the true drive from the voltage channel, offsets and mains hum removed, the
@@ -44,13 +45,6 @@ std::string Fixed(double value, int precision) {
   return buffer;
 }
 
-std::string General(double value, int digits = 6) {
-  if (!std::isfinite(value)) return "-";
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, "%.*g", digits, value);
-  return buffer;
-}
-
 void PrintReport(const FitResult& r, std::ostream& out) {
   out << "model " << ToString(r.model_kind) << ", " << ToString(r.response) << " response"
       << (r.absolute_scale ? "" : " (sensitivity nominal: only ratios identifiable)") << ", " << r.records.size()
@@ -71,13 +65,13 @@ void PrintReport(const FitResult& r, std::ostream& out) {
 
   const FrfFitSummary& l = r.linear.summary;
   out << "\nstage 2, paper Eq. 3 on " << r.linear.records.size() << " clear records: k_p "
-      << General(l.stiffness_n_per_m) << " N/m, c_p " << General(l.damping_n_s_per_m) << " N s/m, g "
-      << General(l.gain_n_per_v) << " N/V" << (l.converged ? "" : " (NOT CONVERGED)") << "\n";
+      << General(l.stiffness_n_per_m, 6) << " N/m, c_p " << General(l.damping_n_s_per_m, 6) << " N s/m, g "
+      << General(l.gain_n_per_v, 6) << " N/V" << (l.converged ? "" : " (NOT CONVERGED)") << "\n";
   const ContactEstimate& c = r.contact;
   if (!c.records.empty()) {
     out << "stage 3, contact: " << c.records.size() << " contacting records, " << c.spikes << " spikes, contact time "
         << General(c.contact_time_s * 1e3, 4) << " ms (RSD " << General(c.contact_time_rsd, 2) << "), k_s "
-        << General(c.stiffness_n_per_m) << " +- " << General(c.stiffness_spread_n_per_m, 3)
+        << General(c.stiffness_n_per_m, 6) << " +- " << General(c.stiffness_spread_n_per_m, 3)
         << " N/m (spread), |d| between " << General(c.largest_clear_amplitude_m, 4) << " and "
         << General(c.smallest_contacting_amplitude_m, 4) << " m (" << (c.lower_stop ? "lower" : "upper") << " stop)\n";
   }
@@ -144,7 +138,7 @@ int RunFit(const std::vector<std::string>& argv) {
   switches.insert(switches.end(), {"--json", "--help"});
   const Args args(argv, {values.begin(), values.end()}, {switches.begin(), switches.end()});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kFitHelp;
     return 0;
   }
   if (!args.Positional().empty())

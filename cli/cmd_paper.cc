@@ -32,7 +32,7 @@ namespace strokelab::cli {
 using report::CsvTable;
 namespace {
 
-constexpr const char* kHelp = R"(usage: strokelab paper --out DIR [options]
+constexpr const char* kPaperHelp = R"(usage: strokelab paper --out DIR [options]
 
   --out DIR              folder for the figures (SVG), tables (CSV) and summary.txt   (required)
   --model NAME|FILE      preset or JSON model file                                    [paper]
@@ -367,7 +367,7 @@ int RunPaper(const std::vector<std::string>& argv) {
   const Args args(argv, {"--out", "--model", "--set", "--method", "--step-duration-s", "--threads"}, {"--help"},
                   {"--set"});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kPaperHelp;
     return 0;
   }
   Study study;

@@ -31,7 +31,7 @@ using regression::Tolerances;
 
 constexpr size_t kMaxDetails = 10;  // regression lines printed per job file
 
-constexpr const char* kHelp = R"(usage: strokelab regress JOB.json... --baseline DIR [--update]
+constexpr const char* kRegressHelp = R"(usage: strokelab regress JOB.json... --baseline DIR [--update]
 
 Regression jobs for CI. Runs each job file in process, as the service's workers would (its tasks
 in order), compares the result rows with the baseline DIR/NAME (NAME: the job file's own name)
@@ -320,7 +320,7 @@ Outcome RunOne(const JobFile& file, const fs::path& baseline_dir, bool update, L
 int RunRegress(const std::vector<std::string>& argv) {
   const Args args(argv, {"--baseline"}, {"--update", "--help"});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kRegressHelp;
     const Tolerances defaults = Tolerances::Defaults();
     for (const std::string& field : defaults.KnownFields())
       std::cout << "  " << field << std::string(field.size() < 28 ? 28 - field.size() : 1, ' ')

@@ -17,7 +17,7 @@
 namespace strokelab::cli {
 namespace {
 
-constexpr const char* kHelp = R"(usage: strokelab simulate [options]
+constexpr const char* kSimulateHelp = R"(usage: strokelab simulate [options]
 
   --model NAME|FILE      preset (paper, linear) or a JSON model file          [paper]
   --set KEY=VALUE        override a model parameter (repeatable), e.g. --set k3=4e7
@@ -91,7 +91,7 @@ int RunSimulate(const std::vector<std::string>& argv) {
                    "--sample-rate-hz", "--method", "--out"},
                   {"--json", "--help"}, {"--set"});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kSimulateHelp;
     return 0;
   }
   if (!args.Get("--frequency-hz")) throw InputError("--frequency-hz", "is required");

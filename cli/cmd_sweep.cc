@@ -29,7 +29,7 @@ using report::SweepToJson;
 using report::WriteSweepFolder;
 namespace {
 
-constexpr const char* kHelp = R"(usage: strokelab sweep [options]
+constexpr const char* kSweepHelp = R"(usage: strokelab sweep [options]
 
 Steady states over a grid of drive frequency x drive amplitude: periodic orbits by shooting,
 continued in frequency through folds, on the up-sweep and down-sweep branches and the unstable
@@ -240,7 +240,7 @@ int RunSweep(const std::vector<std::string>& argv) {
                    "--amplitude-points", "--threads", "--out"},
                   {"--json", "--no-thresholds", "--help"}, {"--set"});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kSweepHelp;
     return 0;
   }
   if (!args.Positional().empty()) throw InputError(args.Positional().front(), "unexpected argument (see --help)");

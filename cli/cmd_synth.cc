@@ -15,7 +15,7 @@
 namespace strokelab::cli {
 namespace {
 
-constexpr const char* kHelp = R"(usage: strokelab synth --out DIR [options]
+constexpr const char* kSynthHelp = R"(usage: strokelab synth --out DIR [options]
 
 Writes a stepped-sine campaign as the test rig exports it (manifest.json + rec_NNN.csv) from a model,
 and the truth (model used, perturbations, noise, seed) apart in truth.json, which the manifest does
@@ -105,7 +105,7 @@ int RunSynth(const std::vector<std::string>& argv) {
                    "--threads"},
                   {"--nominal", "--help"}, {"--set", "--perturb"});
   if (args.Has("--help")) {
-    std::cout << kHelp;
+    std::cout << kSynthHelp;
     return 0;
   }
   const auto out_dir = args.Get("--out");

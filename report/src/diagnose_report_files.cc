@@ -15,19 +15,6 @@
 namespace strokelab::report {
 namespace diagnose_internal {
 
-std::string Format(const char* format, ...) {
-  // Sized by a first pass, so that long captions (record names are the user's) are never cut.
-  va_list args, copy;
-  va_start(args, format);
-  va_copy(copy, args);
-  const int size = std::vsnprintf(nullptr, 0, format, copy);
-  va_end(copy);
-  std::string text(size > 0 ? static_cast<size_t>(size) : 0, '\0');
-  if (size > 0) std::vsnprintf(text.data(), text.size() + 1, format, args);
-  va_end(args);
-  return text;
-}
-
 std::string Num(double value, int digits) {
   if (!std::isfinite(value)) return "-";
   // Whole numbers below a million read better written out than as 1.685e+04.

@@ -5,12 +5,13 @@
 #include <utility>
 #include <vector>
 
+#include "format.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/plot/svg_plot.h"
 
 namespace strokelab::report::diagnose_internal {
 
-std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+using ::strokelab::report::Format;
 
 // "%.<digits>g" (whole numbers below 1e6 written out), or "-" for a non-finite value.
 std::string Num(double value, int digits = 4);

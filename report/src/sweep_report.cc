@@ -1,3 +1,4 @@
+#include "format.h"
 #include "strokelab/report/sweep_report.h"
 
 #include <algorithm>
@@ -24,16 +25,6 @@ using nlohmann::json;
 constexpr const char* kPalette[] = {"#0072B2", "#D55E00", "#009E73", "#CC79A7",
                                     "#E69F00", "#56B4E9", "#000000", "#7F7F7F"};
 const char* AmplitudeColor(size_t i) { return kPalette[i % std::size(kPalette)]; }
-
-std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
-std::string Format(const char* format, ...) {
-  char buffer[512];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buffer, sizeof buffer, format, args);
-  va_end(args);
-  return buffer;
-}
 
 json Numbers(const std::vector<double>& values) {
   json list = json::array();

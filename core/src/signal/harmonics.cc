@@ -27,22 +27,17 @@
 #include "strokelab/signal/harmonic_fit.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/signal/signal.h"
+#include "require_positive.h"
 
 namespace strokelab {
 namespace {
+
+using signal_internal::RequirePositiveFinite;
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr size_t kBlockSamples = 256;
 // Below this reciprocal condition number the kept samples do not determine the harmonics.
 constexpr double kMinReciprocalCondition = 1e-12;
-
-void RequirePositiveFinite(double value, const char* field) {
-  if (!std::isfinite(value) || value <= 0.0) {
-    std::ostringstream message;
-    message << "must be a finite number > 0 (got " << value << ")";
-    throw InputError(field, message.str());
-  }
-}
 
 // exp(j 2 pi cycles), with the angle reduced to one cycle first so that a large sample number costs
 // no accuracy beyond the rounding of `cycles` itself.

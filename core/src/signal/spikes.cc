@@ -20,9 +20,12 @@
 #include "strokelab/signal/harmonic_fit.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/signal/signal.h"
+#include "require_positive.h"
 
 namespace strokelab {
 namespace {
+
+using signal_internal::RequirePositiveFinite;
 
 constexpr int kBaselineIterations = 3;
 constexpr double kMadToSigma = 1.4826;          // sigma / MAD for normal noise
@@ -107,14 +110,6 @@ double LevelCrossing(const std::vector<double>& score, size_t peak, double level
       return static_cast<double>(inside) + direction * fraction;
     }
     inside = next;
-  }
-}
-
-void RequirePositiveFinite(double value, const char* field) {
-  if (!std::isfinite(value) || value <= 0.0) {
-    std::ostringstream message;
-    message << "must be a finite number > 0 (got " << value << ")";
-    throw InputError(field, message.str());
   }
 }
 
