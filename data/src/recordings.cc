@@ -19,21 +19,18 @@
 
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parallel_for.h"
+#include "format_number.h"
 
 namespace strokelab {
 namespace {
+
+using data_internal::Num;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr ResponseKind kResponseKinds[] = {ResponseKind::kForce, ResponseKind::kAcceleration, ResponseKind::kVelocity,
                                            ResponseKind::kDisplacement};
-
-std::string Num(double value) {
-  char buffer[40];
-  std::snprintf(buffer, sizeof buffer, "%.9g", value);
-  return buffer;
-}
 
 // A rate estimated from a time column printed to a few digits: 6 significant digits.
 std::string Rate(double value) {
@@ -479,7 +476,7 @@ Recording ReadRecord(const fs::path& dir, const RecordSpec& spec, const Channels
 // ---- Writing -----------------------------------------------------------------------------------
 
 // Integral values as JSON integers (51200, not 51200.0), as the rig writes them.
-json JsonNumber(double value) {
+json ManifestNumber(double value) {
   if (std::abs(value) < 1e15 && value == std::floor(value)) return json(static_cast<std::int64_t>(value));
   return json(value);
 }
@@ -648,12 +645,12 @@ void WriteCampaign(const Campaign& campaign, const fs::path& dir, const WriteOpt
   nlohmann::ordered_json voltage = {
       {"column", options.voltage_column}, {"unit", "V"}, {"note", "drive voltage measured before the power amplifier"}};
   nlohmann::ordered_json response = {
-      {"column", response_column}, {"unit", "V"}, {SensitivityKey(campaign.response), JsonNumber(sensitivity)}};
+      {"column", response_column}, {"unit", "V"}, {SensitivityKey(campaign.response), ManifestNumber(sensitivity)}};
   if (!campaign.absolute_scale) response["nominal"] = true;
   std::string manifest = "{\n";
   manifest += "  \"format\": " + json(kRecordingsFormat).dump() + ",\n";
   manifest += "  \"actuator\": " + json(options.actuator.empty() ? campaign.actuator : options.actuator).dump() + ",\n";
-  manifest += "  \"sample_rate_hz\": " + JsonNumber(sample_rate_hz).dump() + ",\n";
+  manifest += "  \"sample_rate_hz\": " + ManifestNumber(sample_rate_hz).dump() + ",\n";
   manifest += "  \"channels\": {\n";
   manifest += "    \"voltage\": " + voltage.dump() + ",\n";
   manifest += "    " + json(ToString(campaign.response)).dump() + ": " + response.dump() + "\n";
@@ -663,12 +660,12 @@ void WriteCampaign(const Campaign& campaign, const fs::path& dir, const WriteOpt
     nlohmann::ordered_json entry = {{"file", files[i]}};
     if (record.broadband) {
       entry["excitation"] = "broadband";
-      if (record.nominal_amplitude_v > 0) entry["drive_amplitude_v"] = JsonNumber(record.nominal_amplitude_v);
+      if (record.nominal_amplitude_v > 0) entry["drive_amplitude_v"] = ManifestNumber(record.nominal_amplitude_v);
     } else {
-      entry["drive_frequency_hz"] = JsonNumber(record.nominal_frequency_hz);
-      entry["drive_amplitude_v"] = JsonNumber(record.nominal_amplitude_v);
+      entry["drive_frequency_hz"] = ManifestNumber(record.nominal_frequency_hz);
+      entry["drive_amplitude_v"] = ManifestNumber(record.nominal_amplitude_v);
     }
-    if (record.sample_rate_hz != sample_rate_hz) entry["sample_rate_hz"] = JsonNumber(record.sample_rate_hz);
+    if (record.sample_rate_hz != sample_rate_hz) entry["sample_rate_hz"] = ManifestNumber(record.sample_rate_hz);
     manifest += "    " + entry.dump() + (i + 1 < campaign.records.size() ? ",\n" : "\n");
   }
   manifest += "  ]\n}\n";

@@ -14,15 +14,12 @@
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/model/dynamics.h"
 #include "strokelab/model/model_json.h"
+#include "format_number.h"
 
 namespace strokelab {
 namespace {
 
-std::string Num(double value) {
-  char buffer[40];
-  std::snprintf(buffer, sizeof buffer, "%.9g", value);
-  return buffer;
-}
+using data_internal::Num;
 
 // Random numbers fixed by the seed and a stream index on every platform: mt19937_64 and seed_seq
 // are specified by the standard; the uniform and normal transforms are done here (the standard

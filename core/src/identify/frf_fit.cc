@@ -32,7 +32,7 @@ namespace strokelab {
 namespace {
 
 constexpr int kNumParameters = 3;  // ln w_p, ln zeta_p, g
-enum ParameterIndex { kLogNaturalFrequency = 0, kLogDampingRatio = 1, kGain = 2 };
+enum FrfParameter { kFrfLogNaturalFrequency = 0, kFrfLogDampingRatio = 1, kFrfGain = 2 };
 
 std::string FormatDouble(double value) {
   std::ostringstream out;
@@ -88,10 +88,10 @@ struct Eq3Residual {
 
   template <typename T>
   bool operator()(const T* theta, T* residual) const {
-    const T natural_frequency_rad_s = exp(theta[kLogNaturalFrequency]);
-    const T damping_ratio = exp(theta[kLogDampingRatio]);
+    const T natural_frequency_rad_s = exp(theta[kFrfLogNaturalFrequency]);
+    const T damping_ratio = exp(theta[kFrfLogDampingRatio]);
     T re, im;
-    ModelEq3(natural_frequency_rad_s, damping_ratio, theta[kGain], point.omega_rad_s, &re, &im);
+    ModelEq3(natural_frequency_rad_s, damping_ratio, theta[kFrfGain], point.omega_rad_s, &re, &im);
     residual[0] = point.weight * (point.h.real() - re);
     residual[1] = point.weight * (point.h.imag() - im);
     return true;
@@ -322,9 +322,9 @@ FrfFitSummary FitLinearFrf(std::span<const FrfSample> samples, const FrfFitOptio
   FrfFitSummary s;
   s.iterations = solver_summary.num_successful_steps + solver_summary.num_unsuccessful_steps;
   s.report = start->description + "\n" + solver_summary.BriefReport();
-  s.natural_frequency_rad_s = std::exp(theta[kLogNaturalFrequency]);
-  s.damping_ratio = std::exp(theta[kLogDampingRatio]);
-  s.gain_n_per_v = theta[kGain];
+  s.natural_frequency_rad_s = std::exp(theta[kFrfLogNaturalFrequency]);
+  s.damping_ratio = std::exp(theta[kFrfLogDampingRatio]);
+  s.gain_n_per_v = theta[kFrfGain];
   s.stiffness_n_per_m = options.mass_kg * s.natural_frequency_rad_s * s.natural_frequency_rad_s;
   s.damping_n_s_per_m = 2 * s.damping_ratio * options.mass_kg * s.natural_frequency_rad_s;
   const double ssr = 2 * solver_summary.final_cost;  // Ceres' cost is SSR / 2
