@@ -5,6 +5,7 @@
 #   deploy/local.sh test   build and run every test (what .ci/run calls): the Release build and its
 #                          tests, then the sanitizer stages (ASan+UBSan with the fuzz harnesses, TSan)
 #   deploy/local.sh test-release    the Release build and its tests only (the quick loop)
+#   deploy/local.sh test-slow       the Release build and the tests labelled "slow" (long diagnosis cases)
 #   deploy/local.sh build  build only
 #   deploy/local.sh sanitize        the sanitizer stages only
 #   deploy/local.sh fuzz [SECONDS]  build the libFuzzer harnesses and run each for SECONDS (default 600)
@@ -102,9 +103,10 @@ stage() {  # NAME COMMAND...
 }
 
 # The stages `test` runs: the Release build and its tests, then the sanitizer builds and theirs.
+# Tests labelled "slow" (long cases; tests/README.md) are left to `test-slow`.
 release_stages() {
   stage "release build" build
-  stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)"
+  stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)" -LE slow
 }
 sanitizer_stages() {
   stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
@@ -137,6 +139,12 @@ case "${1:-}" in
     release_stages
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
+  test-slow)
+    install_missing
+    stage "release build" build
+    stage "slow release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)" -L slow
+    printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
+    ;;
   sanitize)
     install_missing
     sanitizer_stages
@@ -152,7 +160,7 @@ case "${1:-}" in
     build
     ;;
   *)
-    echo "usage: deploy/local.sh run|demo|test|test-release|build|sanitize|fuzz [SECONDS]" >&2
+    echo "usage: deploy/local.sh run|demo|test|test-release|test-slow|build|sanitize|fuzz [SECONDS]" >&2
     exit 2
     ;;
 esac
