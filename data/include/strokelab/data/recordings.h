@@ -46,8 +46,10 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
+#include "strokelab/base/errors.h"
 #include "strokelab/identify/campaign.h"
 
 namespace strokelab {
@@ -79,9 +81,10 @@ struct WriteOptions {
   // File names: a record's own name, or rec_001.csv, ... (by position) when it has none or when
   // rename_records is set.
   bool rename_records = false;
+
+  // Nothing, or the offending field (sensitivity, voltage_column, response_column).
+  std::optional<FieldError> IsValid() const;
 };
-// Throws InputError naming the offending field (sensitivity, voltage_column, response_column).
-void Validate(const WriteOptions& options);
 
 // Writes manifest.json and one CSV per record (time_s, voltage, response in sensor volts, each
 // "%.10g"), creating `dir` if needed and overwriting files of the same names. A record whose sample
