@@ -94,6 +94,17 @@ std::optional<FieldError> SynthOptions::IsValid() const {
   if (auto error = FiniteError(offset_v, "offset_v", false)) return error;
   if (auto error = FiniteError(hum_v, "hum_v", true)) return error;
   if (auto error = FiniteError(hum_hz, "hum_hz", true, false)) return error;
+  if (auto error = FiniteError(voltage_offset_v, "voltage_offset_v", false)) return error;
+  if (!std::isfinite(drive_frequency_error) || std::abs(drive_frequency_error) >= 1)
+    return FieldError{"drive_frequency_error", "must be a finite number in (-1, 1), got " + Num(drive_frequency_error)};
+  for (double f : frequencies_hz) {
+    const double true_hz = f * (1.0 + drive_frequency_error);
+    if (true_hz >= nyquist_hz)
+      return FieldError{"drive_frequency_error", "drives " + Num(f) + " Hz at " + Num(true_hz) +
+                                                     " Hz, not below the Nyquist frequency " + Num(nyquist_hz) + " Hz"};
+  }
+  if (!std::isfinite(sensitivity_error) || sensitivity_error <= -1)
+    return FieldError{"sensitivity_error", "must be a finite number > -1, got " + Num(sensitivity_error)};
   std::set<std::string> keys;
   for (const auto& [key, relative] : perturb) {
     std::string name = key;
@@ -108,6 +119,8 @@ std::optional<FieldError> SynthOptions::IsValid() const {
     if (!std::isfinite(relative) || relative < 0 || relative >= 1)
       return FieldError{"perturb", "'" + key + "': the relative perturbation must be in [0, 1), got " + Num(relative)};
   }
+  if (sensitivity_error != 0 && keys.count("sensitivity") != 0)
+    return FieldError{"sensitivity_error", "and a 'sensitivity' perturbation do not go together: give one"};
   if (threads < 0) return FieldError{"threads", "must be >= 0"};
   return std::nullopt;
 }
@@ -118,7 +131,7 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   Synthesis out;
   const double written_sensitivity =
       options.sensitivity != 0 ? options.sensitivity : DefaultSensitivity(options.response);
-  double true_sensitivity = written_sensitivity;
+  double true_sensitivity = written_sensitivity * (1.0 + options.sensitivity_error);
 
   // Perturbations, drawn in the order given from stream 0.
   Random parameter_random(options.seed, 0);
@@ -169,24 +182,28 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   campaign.response = options.response;
   campaign.absolute_scale = !options.nominal;
   campaign.records.resize(count);
-  std::vector<double> hum_phases(count);
+  std::vector<double> hum_phases(count), drive_phases(count);
 
   ParallelFor(count, [&](size_t k) {
-    const auto engine = MakeEngine(out.method);
-    Record record;
-    SineDrive drive;
-    drive.frequency_hz = options.frequencies_hz[k % frequencies];
-    drive.amplitude_v = options.amplitudes_v[k / frequencies];
-    engine->Simulate(out.model, drive, simulation, &record);
+    // Stream 1 + k: the hum phase, then the drive phase (when random), then the noise sample by sample.
     Random random(options.seed, 1 + k);
     const double hum_phase = 2.0 * std::numbers::pi * random.Uniform();
     hum_phases[k] = hum_phase;
+    const double nominal_hz = options.frequencies_hz[k % frequencies];
+    SineDrive drive;
+    drive.frequency_hz = nominal_hz * (1.0 + options.drive_frequency_error);
+    drive.amplitude_v = options.amplitudes_v[k / frequencies];
+    if (options.random_drive_phase) drive.phase_rad = 2.0 * std::numbers::pi * random.Uniform() - std::numbers::pi;
+    drive_phases[k] = drive.phase_rad;
+    const auto engine = MakeEngine(out.method);
+    Record record;
+    engine->Simulate(out.model, drive, simulation, &record);
     Recording& rec = campaign.records[k];
     char name[32];
     std::snprintf(name, sizeof name, "rec_%03zu.csv", k + 1);
     rec.name = name;
     rec.sample_rate_hz = options.sample_rate_hz;
-    rec.nominal_frequency_hz = drive.frequency_hz;
+    rec.nominal_frequency_hz = nominal_hz;
     rec.nominal_amplitude_v = drive.amplitude_v;
     rec.voltage_v.resize(kept);
     rec.response.resize(kept);
@@ -194,7 +211,8 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
     for (size_t n = 0; n < kept; ++n) {
       const double t_kept = static_cast<double>(n) / options.sample_rate_hz;
       const double t_simulated = static_cast<double>(first + n) / options.sample_rate_hz;
-      rec.voltage_v[n] = drive.Voltage(t_simulated) + options.voltage_noise_rms_v * random.Normal();
+      rec.voltage_v[n] =
+          drive.Voltage(t_simulated) + options.voltage_offset_v + options.voltage_noise_rms_v * random.Normal();
       const double volts = true_sensitivity * ResponseSample(record, out.model, options.response, first + n) +
                            options.offset_v + options.hum_v * std::sin(hum_omega * t_kept + hum_phase) +
                            options.noise_rms_v * random.Normal();
@@ -209,6 +227,7 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
                        {"frequency_hz", campaign.records[k].nominal_frequency_hz},
                        {"amplitude_v", campaign.records[k].nominal_amplitude_v},
                        {"hum_phase_rad", hum_phases[k]}});
+    if (options.random_drive_phase) records.back()["drive_phase_rad"] = drive_phases[k];
   }
   out.truth = {
       {"format", "strokelab-synth-truth/1"},
@@ -231,6 +250,10 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
       {"sample_rate_hz", options.sample_rate_hz},
       {"records", records},
   };
+  // The newer imperfections only when set, so that the truths of campaigns without them stay as they were.
+  if (options.voltage_offset_v != 0) out.truth["voltage_offset_v"] = options.voltage_offset_v;
+  if (options.drive_frequency_error != 0) out.truth["drive_frequency_error"] = options.drive_frequency_error;
+  if (options.sensitivity_error != 0) out.truth["sensitivity_error"] = options.sensitivity_error;
   return out;
 }
 

@@ -731,6 +731,16 @@ SynthOptions SmallSynth() {
   return options;
 }
 
+// The engine's record of one SmallSynth step (0.75 s of settling, then the kept 0.5 s), and the index
+// of its first kept sample.
+Record SmallSynthStep(const ActuatorModel& model, const SineDrive& drive) {
+  SimulationOptions simulation;
+  simulation.duration_s = 1.25;
+  simulation.sample_rate_hz = 8192;
+  return MakeExactEngine()->Simulate(model, drive, simulation);
+}
+constexpr size_t kSmallSynthFirstKept = 10240 - 4096;
+
 TEST(Synthesize, CleanChannelsAreTheEngineRecordInSensorVolts) {
   const ActuatorModel model = PaperModel();
   for (ResponseKind kind :
@@ -749,11 +759,8 @@ TEST(Synthesize, CleanChannelsAreTheEngineRecordInSensorVolts) {
     SineDrive drive;
     drive.frequency_hz = 13;
     drive.amplitude_v = 0.5;
-    SimulationOptions simulation;
-    simulation.duration_s = 1.25;
-    simulation.sample_rate_hz = 8192;
-    const Record record = MakeExactEngine()->Simulate(model, drive, simulation);
-    const size_t first = 10240 - 4096;
+    const Record record = SmallSynthStep(model, drive);
+    const size_t first = kSmallSynthFirstKept;
     for (size_t n = 0; n < rec.size(); n += 97) {
       const double expected = kind == ResponseKind::kForce          ? record.force_n[first + n]
                               : kind == ResponseKind::kAcceleration ? record.force_n[first + n] / model.mass_kg
@@ -762,6 +769,35 @@ TEST(Synthesize, CleanChannelsAreTheEngineRecordInSensorVolts) {
       EXPECT_NEAR(rec.response[n], expected, 1e-12 * std::abs(expected) + 1e-300) << ToString(kind) << " n=" << n;
       EXPECT_NEAR(rec.voltage_v[n], drive.Voltage(static_cast<double>(first + n) / 8192), 1e-15);
     }
+    EXPECT_FALSE(synthesis.truth.contains("drive_frequency_error"));  // unset: the truth as before
+    EXPECT_FALSE(synthesis.truth["records"][3].contains("drive_phase_rad"));
+  }
+
+  // A generator 0.1 % fast, each drive at its own phase and a sensor 10 % above its written
+  // sensitivity: the channels are the engine's record of that drive, the manifest keeps the nominal.
+  SynthOptions off = SmallSynth();
+  off.drive_frequency_error = 1e-3;
+  off.random_drive_phase = true;
+  off.sensitivity_error = 0.1;
+  const Synthesis synthesis = Synthesize(model, off);
+  const Recording& rec = synthesis.campaign.records[3];
+  EXPECT_EQ(rec.nominal_frequency_hz, 13.0);
+  EXPECT_EQ(synthesis.truth["drive_frequency_error"], 1e-3);
+  EXPECT_DOUBLE_EQ(synthesis.truth["sensitivity_true"].get<double>(), 1.1 * synthesis.write.sensitivity);
+  const double phase = synthesis.truth["records"][3]["drive_phase_rad"].get<double>();
+  EXPECT_GE(phase, -std::numbers::pi);
+  EXPECT_LT(phase, std::numbers::pi);
+  EXPECT_NE(phase, synthesis.truth["records"][2]["drive_phase_rad"].get<double>());
+  SineDrive drive;
+  drive.frequency_hz = 13 * (1.0 + 1e-3);  // as the synthesiser computes it
+  drive.amplitude_v = 0.5;
+  drive.phase_rad = phase;
+  const Record record = SmallSynthStep(model, drive);
+  const size_t first = kSmallSynthFirstKept;
+  for (size_t n = 0; n < rec.size(); n += 97) {
+    const double expected = 1.1 * record.force_n[first + n];
+    EXPECT_NEAR(rec.response[n], expected, 1e-12 * std::abs(expected) + 1e-300) << "n=" << n;
+    EXPECT_NEAR(rec.voltage_v[n], drive.Voltage(static_cast<double>(first + n) / 8192), 1e-15);
   }
 }
 
@@ -773,6 +809,7 @@ TEST(Synthesize, NoiseOffsetAndHumHaveTheirSettingsAndDependOnTheSeedOnly) {
   dirty.voltage_noise_rms_v = 1e-4;
   dirty.offset_v = 0.05;
   dirty.hum_v = 0.01;
+  dirty.voltage_offset_v = 2e-3;
   dirty.seed = 42;
   dirty.threads = 1;
   const Synthesis a = Synthesize(model, clean);
@@ -786,19 +823,25 @@ TEST(Synthesize, NoiseOffsetAndHumHaveTheirSettingsAndDependOnTheSeedOnly) {
     // The added signal in sensor volts: offset + hum + noise.
     const size_t count = a.campaign.records[k].size();
     const double hum_phase = b.truth["records"][k]["hum_phase_rad"].get<double>();
-    double mean = 0, noise_square = 0, voltage_square = 0;
+    double mean = 0, noise_square = 0, voltage_mean = 0, voltage_square = 0;
     for (size_t n = 0; n < count; ++n) {
       const double added = (b.campaign.records[k].response[n] - a.campaign.records[k].response[n]) * s;
       mean += added;
       const double hum = 0.01 * std::sin(2 * std::numbers::pi * 50 * static_cast<double>(n) / 8192 + hum_phase);
       noise_square += std::pow(added - 0.05 - hum, 2);
-      voltage_square += std::pow(b.campaign.records[k].voltage_v[n] - a.campaign.records[k].voltage_v[n], 2);
+      const double voltage_added = b.campaign.records[k].voltage_v[n] - a.campaign.records[k].voltage_v[n];
+      voltage_mean += voltage_added;
+      voltage_square += std::pow(voltage_added - 2e-3, 2);
     }
-    // 4096 samples: the rms estimate is within ~1.1 % (1 sigma), the mean within 3e-5 V.
+    // 4096 samples: the rms estimate is within ~1.1 % (1 sigma), the mean within 3e-5 V (the
+    // voltage's within 1.6e-6 V).
     EXPECT_NEAR(mean / count, 0.05, 2e-4);
+    EXPECT_NEAR(voltage_mean / count, 2e-3, 1e-5);
     EXPECT_NEAR(std::sqrt(noise_square / count), 2e-3, 2e-3 * 0.06);
     EXPECT_NEAR(std::sqrt(voltage_square / count), 1e-4, 1e-4 * 0.06);
   }
+  EXPECT_EQ(b.truth["voltage_offset_v"], 2e-3);
+  EXPECT_FALSE(a.truth.contains("voltage_offset_v"));
   dirty.seed = 43;
   const Synthesis d = Synthesize(model, dirty);
   EXPECT_NE(d.campaign.records[0].response, b.campaign.records[0].response);
@@ -855,6 +898,23 @@ TEST(Synthesize, RejectsBadOptionsNamingTheField) {
   o = SmallSynth();
   o.perturb = {{"k_p", 0.1}, {"stiffness_n_per_m", 0.1}};
   expect_refused(o, "perturb", "perturbed twice");
+  o = SmallSynth();
+  o.voltage_offset_v = INFINITY;
+  expect_refused(o, "voltage_offset_v", "finite");
+  o = SmallSynth();
+  o.drive_frequency_error = -1;
+  expect_refused(o, "drive_frequency_error", "in (-1, 1)");
+  o = SmallSynth();
+  o.frequencies_hz = {8, 4000};  // below the Nyquist frequency of 4096 Hz, but driven at 4400
+  o.drive_frequency_error = 0.1;
+  expect_refused(o, "drive_frequency_error", "drives 4000 Hz at 4400 Hz");
+  o = SmallSynth();
+  o.sensitivity_error = -1;
+  expect_refused(o, "sensitivity_error", "> -1");
+  o = SmallSynth();
+  o.sensitivity_error = 0.1;
+  o.perturb = {{"sensitivity", 0.1}};
+  expect_refused(o, "sensitivity_error", "do not go together");
 }
 
 // ---- strokelab synth end to end ----------------------------------------------------------------

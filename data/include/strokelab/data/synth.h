@@ -4,16 +4,18 @@
 //
 // Each record is one stepped-sine step (amplitudes outer, frequencies inner: record k is amplitude
 // k / F, frequency k % F), simulated from rest for settle_s + duration_s with the drive
-// v_in = V sin(2 pi f t) starting at t = 0; the last duration_s are kept and re-timed from 0. The
-// channels, in sensor volts as written:
+// v_in = V sin(2 pi f (1 + drive_frequency_error) t + theta_k) starting at t = 0; the last duration_s
+// are kept and re-timed from 0. The channels, in sensor volts as written:
 //
-//   voltage   v_in(t) + N(0, voltage_noise_rms_v^2)         (measured before the amplifier: unclipped)
+//   voltage   v_in(t) + voltage_offset_v + N(0, voltage_noise_rms_v^2)   (before the amplifier: unclipped)
 //   response  s_true r(t) + offset_v + hum_v sin(2 pi hum_hz t + phi_k) + N(0, noise_rms_v^2)
 //
 // with r the model's response in physical units (force: blocked force f = m_p x'' [N];
 // acceleration: x'' [m/s^2]; velocity: x' [m/s]; displacement: x [m]), phi_k a random hum phase per
-// record and s_true the sensitivity the sensor really has (the written one unless perturbed). The
-// manifest says nothing of the truth; Synthesis::truth does (written as truth.json).
+// record, theta_k a random drive phase per record (random_drive_phase; else 0) and s_true the
+// sensitivity the sensor really has (the written one unless perturbed or sensitivity_error is set).
+// The manifest says nothing of the truth (it keeps the nominal frequency f); Synthesis::truth does
+// (written as truth.json).
 #pragma once
 
 #include <cstdint>
@@ -44,6 +46,14 @@ struct SynthOptions {
   double offset_v = 0.0;             // DC offset on the response channel [sensor V]
   double hum_v = 0.0;                // mains hum amplitude on the response channel [sensor V]
   double hum_hz = 50.0;              // mains frequency [Hz]
+  double voltage_offset_v = 0.0;     // DC offset on the voltage channel [V]
+  // The signal generator's true / nominal frequency - 1, in (-1, 1) [dimensionless]: the manifest
+  // keeps the nominal frequency, as a rig's would.
+  double drive_frequency_error = 0.0;
+  bool random_drive_phase = false;  // each drive starts at its own phase in [-pi, pi), drawn from the seed
+  // The sensor's true / written sensitivity - 1, > -1 [dimensionless]: a fixed departure, where
+  // perturb's "sensitivity" draws one (the two do not go together).
+  double sensitivity_error = 0.0;
   // Relative perturbations (key, r): the value used is nominal * (1 + r u), u uniform in [-1, 1]
   // drawn from the seed, in the order given. Keys: model parameter keys or JSON names (model.h), or
   // "sensitivity" (the sensor's true sensitivity departs from the written one). r in [0, 1)
@@ -55,7 +65,8 @@ struct SynthOptions {
   int threads = 0;  // records simulated side by side; 0: one thread per core
 
   // Nothing, or the offending field (frequencies_hz, amplitudes_v, duration_s, settle_s, sample_rate_hz,
-  // sensitivity, noise_rms_v, voltage_noise_rms_v, offset_v, hum_v, hum_hz, perturb, threads).
+  // sensitivity, noise_rms_v, voltage_noise_rms_v, offset_v, hum_v, hum_hz, voltage_offset_v,
+  // drive_frequency_error, sensitivity_error, perturb, threads).
   std::optional<FieldError> IsValid() const;
 };
 
@@ -64,7 +75,9 @@ struct Synthesis {
   WriteOptions write;   // the written sensitivity
   ActuatorModel model;  // the model actually simulated (after perturbation)
   Method method = Method::kExact;
-  nlohmann::json truth;  // truth.json: model, nominal model, perturbations, sensitivities, noise, seed
+  // truth.json: model, nominal model, perturbations, sensitivities, noise, seed; the voltage offset,
+  // frequency error and each record's drive phase only when set (so that older truths stay as they were)
+  nlohmann::json truth;
 };
 
 // Results depend on the options and the seed only, not on the thread count.
