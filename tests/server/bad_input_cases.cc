@@ -228,15 +228,15 @@ void QueryCases(std::vector<BadRequest>& out, const Tokens& tokens, const KnownJ
   }
   add(sweep + "/points?frequency_max_hz=x", "bad_query", "frequency_max_hz");
   add(sweep + "/frf?amplitude_v=x", "bad_query", "amplitude_v");
-  for (const std::string& limit : {"0", "-1", "10001", "1.5", "abc", "1e400", "inf"})
+  for (const std::string limit : {"0", "-1", "10001", "1.5", "abc", "1e400", "inf"})
     add(sweep + "/points?limit=" + limit, "bad_query", "limit");
-  for (const std::string& limit : {"0", "501", "2.5", "x"}) add("/v1/jobs?limit=" + limit, "bad_query", "limit");
-  for (const std::string& cursor : {"-1", "1.5", "1e30", "99999999999999999999"})
+  for (const std::string limit : {"0", "501", "2.5", "x"}) add("/v1/jobs?limit=" + limit, "bad_query", "limit");
+  for (const std::string cursor : {"-1", "1.5", "1e30", "99999999999999999999"})
     add(sweep + "/points?cursor=" + cursor, "bad_query", "cursor");
   add("/v1/jobs?before=-5", "bad_query", "before");
-  for (const std::string& branch : {"sideways", "UP", "", "up,down", "%FF"})
+  for (const std::string branch : {"sideways", "UP", "", "up,down", "%FF"})
     add(sweep + "/points?branch=" + branch, "bad_query", "branch");
-  for (const std::string& format : {"png", "SVG", "", "svg%00"}) {
+  for (const std::string format : {"png", "SVG", "", "svg%00"}) {
     add(sweep + "/saturation-map?format=" + format, "bad_query", "format");
     add(sweep + "/frf?amplitude_v=0.1&format=" + format, "bad_query", "format");
   }
