@@ -81,7 +81,9 @@ TEST(SweepTables, TheCsvHasTheJsonColumnsInOrderAndRoundTripsNumbers) {
   for (size_t i = 0; i < names.size(); ++i) {
     ASSERT_TRUE(j.contains(names[i])) << names[i];
     const json& v = j[names[i]];
-    if (v.is_number_float()) EXPECT_EQ(std::stod(cells[i]), v.get<double>()) << names[i] << " " << cells[i];
+    if (v.is_number_float()) {
+      EXPECT_EQ(std::stod(cells[i]), v.get<double>()) << names[i] << " " << cells[i];
+    }
   }
   EXPECT_EQ(cells[0], "12.681717581234567");
   EXPECT_EQ(cells[9], "-0.0009") << "laid out as %g does";
