@@ -298,7 +298,7 @@ TEST(RegressionBaselineTest, FormatRoundTripsOneRowALine) {
   EXPECT_THAT(text, HasSubstr("\n      {\"frequency_hz\":8.0,"));
   EXPECT_NO_THROW(CheckBaseline(parsed, "b.json"));
   EXPECT_TRUE(CompareTables(parsed["tables"], tables, Tolerances::Defaults()).Passed());
-  EXPECT_NO_THROW(json::parse(FormatBaseline(job, "v", json::object())));
+  EXPECT_TRUE(json::accept(FormatBaseline(job, "v", json::object())));
 }
 
 TEST(RegressionBaselineTest, BadBaselinesNameTheFile) {
