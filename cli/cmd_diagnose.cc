@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -105,13 +106,13 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   options.min_heldout_gain = args.Number("--min-gain", options.min_heldout_gain);
   options.max_seconds = args.Number("--max-seconds", options.max_seconds);
   options.pairs = !args.Has("--no-pairs");
-  if (std::string error; !options.IsValid(&error)) {
-    const std::string field = error.substr(0, error.find(':'));
+  if (const std::optional<FieldError> error = options.IsValid()) {
+    const std::string& field = error->field;
     const std::string flag = field == "heldout_every"      ? "--heldout-every"
                              : field == "min_heldout_gain" ? "--min-gain"
                              : field == "max_seconds"      ? "--max-seconds"
                                                            : field;
-    throw InputError(flag, error.substr(error.find(": ") + 2));
+    throw InputError(flag, error->message);
   }
   if (args.Has("--progress")) options.progress = [](const std::string& stage) { std::cerr << stage << std::endl; };
 

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -118,15 +119,15 @@ FitOptions FitOptionsFromArgs(const Args& args) {
   options.max_iterations = args.Integer("--max-iterations", options.max_iterations);
   options.fit_contact_damping = args.Has("--fit-contact-damping");
   options.refine = !args.Has("--no-refine");
-  if (std::string error; !options.IsValid(&error)) {
-    // "harmonic_orders: must be >= 1" -> the flag that set it.
-    const std::string field = error.substr(0, error.find(':'));
+  if (const std::optional<FieldError> error = options.IsValid()) {
+    // The field that is wrong -> the flag that set it.
+    const std::string& field = error->field;
     const std::string flag = field == "harmonic_orders"        ? "--harmonics"
                              : field == "mass_kg"              ? "--mass-kg"
                              : field == "max_clear_distortion" ? "--max-distortion"
                              : field == "max_iterations"       ? "--max-iterations"
                                                                : "--mains-hz";
-    throw InputError(flag, error.substr(error.find(": ") + 2));
+    throw InputError(flag, error->message);
   }
 
   return options;

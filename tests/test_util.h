@@ -1,4 +1,4 @@
-// Shared test helpers: relative comparisons with named tolerances, Eigen comparisons.
+// Shared test helpers: relative comparisons with named tolerances, Eigen comparisons, IsValid as text.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -6,6 +6,10 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <optional>
+#include <string>
+
+#include "strokelab/base/errors.h"
 
 namespace strokelab::testing {
 
@@ -28,6 +32,13 @@ inline ::testing::AssertionResult NearRelative(std::complex<double> actual, std:
   if (std::isfinite(err) && err <= rel) return ::testing::AssertionSuccess();
   return ::testing::AssertionFailure() << "actual " << actual << " vs expected " << expected
                                        << ": relative error " << err << " > " << rel;
+}
+
+// What IsValid says of an options or model value: "field: message", or "" when it is valid.
+template <class T>
+std::string IsValidText(const T& value) {
+  const std::optional<FieldError> error = value.IsValid();
+  return error ? error->field + ": " + error->message : "";
 }
 
 }  // namespace strokelab::testing

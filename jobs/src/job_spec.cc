@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "strokelab/engines/engine.h"
@@ -150,14 +151,11 @@ std::string PointerForOptionField(std::string field) {
   return "/options/" + field;
 }
 
-// Throws InputError at the option's pointer when IsValid says no ("FIELD: message").
+// Throws InputError at the option's pointer when IsValid names a wrong field.
 template <typename Options>
 void CheckOptions(const Options& options) {
-  std::string error;
-  if (options.IsValid(&error)) return;
-  const size_t colon = error.find(": ");
-  if (colon == std::string::npos) throw InputError("/options", error);
-  throw InputError(PointerForOptionField(error.substr(0, colon)), error.substr(colon + 2));
+  if (const std::optional<FieldError> error = options.IsValid())
+    throw InputError(PointerForOptionField(error->field), error->message);
 }
 
 // The FitOptions of a fit or diagnose job that passed the schema.

@@ -90,4 +90,19 @@ TEST(CliTest, WritesTheSeriesAsCsv) {
   EXPECT_EQ(rows, 102400u);
 }
 
+// fit and diagnose check their options before they read the campaign: a wrong value is reported
+// under the flag that set it, in the words of FitOptions / DiagnoseOptions::IsValid.
+TEST(CliTest, FitAndDiagnoseOptionErrorsNameTheFlag) {
+  ExpectInputError("fit --data no-such-dir --harmonics 0", "strokelab: error: --harmonics: must be >= 1, got 0");
+  ExpectInputError("fit --data no-such-dir --mass-kg -1", "--mass-kg: must be a finite number > 0, got -1");
+  ExpectInputError("fit --data no-such-dir --max-distortion 0",
+                   "--max-distortion: must be a finite number > 0, got 0");
+  ExpectInputError("fit --data no-such-dir --max-iterations 0", "--max-iterations: must be >= 1, got 0");
+  ExpectInputError("fit --data no-such-dir --model cubic", "--model: unknown fit model 'cubic' (known: paper, linear)");
+  ExpectInputError("diagnose --data no-such-dir --heldout-every 1", "--heldout-every: must be >= 2, got 1");
+  ExpectInputError("diagnose --data no-such-dir --min-gain -1", "--min-gain: must be a finite number >= 0");
+  ExpectInputError("diagnose --data no-such-dir --max-seconds 0", "--max-seconds: must be > 0");
+  ExpectInputError("diagnose --data no-such-dir --harmonics 0", "--harmonics: must be >= 1, got 0");
+}
+
 }  // namespace

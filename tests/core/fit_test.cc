@@ -497,5 +497,18 @@ TEST(FitCampaign, RejectsBroadbandOnlyAndBrokenRecords) {
   EXPECT_THROW(ParseFitModel("cubic"), InputError);
 }
 
+TEST(FitOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {
+  using ::strokelab::testing::IsValidText;
+  FitOptions options;
+  EXPECT_EQ(IsValidText(options), "");
+  options.harmonic_orders = 0;
+  EXPECT_EQ(IsValidText(options), "harmonic_orders: must be >= 1, got 0");
+  options.mass_kg = -0.5;  // mass_kg is checked first
+  EXPECT_EQ(IsValidText(options), "mass_kg: must be a finite number > 0, got -0.5");
+  options = FitOptions{};
+  options.spikes.baseline_harmonics = -1;
+  EXPECT_EQ(IsValidText(options), "spikes.baseline_harmonics: must be >= 0");
+}
+
 }  // namespace
 }  // namespace strokelab

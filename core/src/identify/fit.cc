@@ -25,8 +25,8 @@ constexpr double kTable2ContactStiffness = 1.3e6;  // k_s [N/m], start when no s
 
 std::vector<RecordAnalysis> AnalyseCampaign(const Campaign& campaign, const FitOptions& options,
                                             std::vector<std::string>* warnings) {
-  using fit_internal::Format, fit_internal::ThrowIfInvalid;
-  ThrowIfInvalid(options);
+  using fit_internal::Format;
+  Validate(options);
   if (campaign.records.empty()) throw InputError("records", "the campaign holds no records");
   std::vector<const Recording*> stepped;
   for (const Recording& record : campaign.records) {
@@ -62,9 +62,8 @@ FitResult FitCampaign(const Campaign& campaign, const FitOptions& options) {
 
 FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind response, bool absolute_scale,
                       const FitOptions& options) {
-  using fit_internal::Format, fit_internal::Identifiability, fit_internal::kTable2ContactStiffness,
-      fit_internal::ThrowIfInvalid;
-  ThrowIfInvalid(options);
+  using fit_internal::Format, fit_internal::Identifiability, fit_internal::kTable2ContactStiffness;
+  Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();
   if (analyses.empty()) throw InputError("records", "no stepped-sine record to fit");
   FitResult result;

@@ -36,9 +36,6 @@ inline std::string Format(double value) {
 // Throws InputError(field) unless value is finite and > 0 (fit_drive.cc).
 void RequirePositiveFinite(double value, const std::string& field);
 
-// Throws InputError naming the first wrong field of the options (fit_options.cc).
-void ThrowIfInvalid(const FitOptions& options);
-
 // ---- Parameters of the refinement (fit_parameters.cc) ---------------------------------------------
 
 enum ParameterIndex { kStiffness = 0, kDamping = 1, kGain = 2, kStop = 3, kContactStiffness = 4, kContactDamping = 5 };

@@ -217,8 +217,8 @@ std::vector<Spike> ImpactSpikes(std::vector<Spike> spikes) {
 RecordAnalysis AnalyseRecord(const Recording& record, ResponseKind kind, const FitOptions& options) {
   using fit_internal::Complex, fit_internal::FitResponse, fit_internal::Format, fit_internal::ImpactSpikes,
       fit_internal::RequirePositiveFinite, fit_internal::RethrowForRecord, fit_internal::SpikeSignal,
-      fit_internal::ThrowIfInvalid, fit_internal::UsableHarmonics;
-  ThrowIfInvalid(options);
+      fit_internal::UsableHarmonics;
+  Validate(options);
   const std::string name = record.name.empty() ? "record" : record.name;
   if (record.broadband) throw InputError(name, "is broadband: only stepped-sine records are fitted");
   if (record.voltage_v.size() != record.response.size())

@@ -117,10 +117,10 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       fit_internal::kContactStiffness, fit_internal::kCorrectionTolerance, fit_internal::kInf,
       fit_internal::kMaxCorrectionPasses, fit_internal::kMaxParameters, fit_internal::kNaN,
       fit_internal::kParameterRange, fit_internal::MakeCost, fit_internal::MakeLayout, fit_internal::ParameterLayout,
-      fit_internal::RecordTarget, fit_internal::ReportParameters, fit_internal::ThrowIfInvalid;
+      fit_internal::RecordTarget, fit_internal::ReportParameters;
   using internal::AfterSuccessfulStep, internal::BestMatchingOrbit, internal::MismatchSquared, internal::ModelOrbit,
       internal::OrbitSearch, internal::PowerOf, internal::SamplingCorrection, internal::SolveOrbit;
-  ThrowIfInvalid(options);
+  Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();
   const int orders = options.harmonic_orders;
   const ParameterLayout layout = MakeLayout(start, options.fit_contact_damping);

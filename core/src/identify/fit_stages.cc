@@ -45,8 +45,8 @@ std::complex<double> EquivalentForceFrf(std::complex<double> frf, ResponseKind k
 }
 
 LinearStage FitClearRecords(std::span<const RecordAnalysis> analyses, ResponseKind kind, const FitOptions& options) {
-  using fit_internal::Format, fit_internal::kMinClearRecords, fit_internal::ThrowIfInvalid;
-  ThrowIfInvalid(options);
+  using fit_internal::Format, fit_internal::kMinClearRecords;
+  Validate(options);
   LinearStage stage;
   std::vector<FrfSample> samples;
   size_t spiky = 0;

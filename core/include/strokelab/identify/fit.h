@@ -43,11 +43,13 @@
 #include <complex>
 #include <cstddef>
 #include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "strokelab/base/errors.h"  // FieldError
 #include "strokelab/identify/campaign.h"
 #include "strokelab/identify/frf_fit.h"
 #include "strokelab/model/model.h"
@@ -78,8 +80,8 @@ struct FitOptions {
   bool refine = true;                     // step 4 (false: stop at the staged estimates of steps 2-3)
   int max_iterations = 50;                // Ceres iterations of the refinement, >= 1
   double max_refinement_seconds = 120.0;  // wall time of the refinement [s]; then reported as not converged
-  // False with "field: what is wrong" in *error (if not null).
-  bool IsValid(std::string* error) const;
+  // Nothing, or the first wrong field ("harmonic_orders", "spikes.threshold_sigmas", ...) and why.
+  std::optional<FieldError> IsValid() const;
 };
 
 // ---- Step 1: one record ------------------------------------------------------------------------
