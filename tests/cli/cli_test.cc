@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "strokelab/diagnose/diagnose.h"
+
 namespace {
 
 using ::testing::HasSubstr;
@@ -103,6 +105,23 @@ TEST(CliTest, FitAndDiagnoseOptionErrorsNameTheFlag) {
   ExpectInputError("diagnose --data no-such-dir --min-gain -1", "--min-gain: must be a finite number >= 0");
   ExpectInputError("diagnose --data no-such-dir --max-seconds 0", "--max-seconds: must be > 0");
   ExpectInputError("diagnose --data no-such-dir --harmonics 0", "--harmonics: must be >= 1, got 0");
+}
+
+// Every flag of the option tables (FitOptionFields, DiagnoseOptionFields) is in the help texts.
+TEST(CliTest, FitAndDiagnoseHelpListEveryOptionFlag) {
+  const Result fit = RunCli("fit --help"), diagnose = RunCli("diagnose --help");
+  ASSERT_EQ(fit.exit_code, 0);
+  ASSERT_EQ(diagnose.exit_code, 0);
+  for (const strokelab::OptionInfo<strokelab::FitOptions>& info : strokelab::FitOptionFields()) {
+    if (info.flag == nullptr) continue;
+    EXPECT_THAT(fit.stdout_text, HasSubstr(info.flag));
+    EXPECT_THAT(diagnose.stdout_text, HasSubstr(info.flag));
+  }
+  for (const strokelab::OptionInfo<strokelab::DiagnoseOptions>& info : strokelab::DiagnoseOptionFields()) {
+    if (info.flag != nullptr) {
+      EXPECT_THAT(diagnose.stdout_text, HasSubstr(info.flag));
+    }
+  }
 }
 
 }  // namespace

@@ -168,5 +168,12 @@ TEST(DiagnoseOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {
   EXPECT_EQ(IsValidText(options), "max_seconds: must be > 0");
 }
 
+TEST(DiagnoseOptionsTest, FieldTableNamesEachOptionAsIsValidDoes) {
+  EXPECT_EQ(::strokelab::testing::OptionNames(DiagnoseOptionFields()),
+            "heldout_every heldout_every --heldout-every; min_heldout_gain min_heldout_gain --min-gain; "
+            "max_seconds max_seconds --max-seconds; pairs pairs --no-pairs (clears); max_passes max_passes -");
+  ::strokelab::testing::ExpectTableFieldsAreIsValidFields<DiagnoseOptions>(DiagnoseOptionFields());
+}
+
 }  // namespace
 }  // namespace strokelab

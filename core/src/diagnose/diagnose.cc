@@ -192,6 +192,17 @@ std::optional<FieldError> DiagnoseOptions::IsValid() const {
   return std::nullopt;
 }
 
+const std::vector<OptionInfo<DiagnoseOptions>>& DiagnoseOptionFields() {
+  static const std::vector<OptionInfo<DiagnoseOptions>> kFields = {
+      {"heldout_every", "heldout_every", "--heldout-every", &DiagnoseOptions::heldout_every},
+      {"min_heldout_gain", "min_heldout_gain", "--min-gain", &DiagnoseOptions::min_heldout_gain},
+      {"max_seconds", "max_seconds", "--max-seconds", &DiagnoseOptions::max_seconds},
+      {"pairs", "pairs", "--no-pairs", &DiagnoseOptions::pairs, true},
+      {"max_passes", "max_passes", nullptr, &DiagnoseOptions::max_passes},
+  };
+  return kFields;
+}
+
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options) {
   Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();

@@ -1,8 +1,10 @@
-// The fit's options (fit.h): the model kind by name, and FitOptions' validation.
+// The fit's options (fit.h): the model kind by name, FitOptions' validation and its names in jobs and
+// on the command line (FitOptionFields).
 #include <cmath>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "fit_internal.h"
 #include "strokelab/base/errors.h"
@@ -33,5 +35,19 @@ std::optional<FieldError> FitOptions::IsValid() const {
     return FieldError{"spikes.threshold_sigmas", "must be a finite number > 0"};
   if (spikes.baseline_harmonics < 0) return FieldError{"spikes.baseline_harmonics", "must be >= 0"};
   return std::nullopt;
+}
+
+const std::vector<OptionInfo<FitOptions>>& FitOptionFields() {
+  static const std::vector<OptionInfo<FitOptions>> kFields = {
+      {"harmonic_orders", "harmonics", "--harmonics", &FitOptions::harmonic_orders},
+      {"mass_kg", "mass_kg", "--mass-kg", &FitOptions::mass_kg},
+      {"mains_frequency_hz", "mains_hz", "--mains-hz", &FitOptions::mains_frequency_hz},
+      {"max_clear_distortion", "max_distortion", "--max-distortion", &FitOptions::max_clear_distortion},
+      {"max_iterations", "max_iterations", "--max-iterations", &FitOptions::max_iterations},
+      {"fit_contact_damping", "fit_contact_damping", "--fit-contact-damping", &FitOptions::fit_contact_damping},
+      {"refine", "refine", "--no-refine", &FitOptions::refine, true},
+      {"max_refinement_seconds", "max_refinement_seconds", nullptr, &FitOptions::max_refinement_seconds},
+  };
+  return kFields;
 }
 }  // namespace strokelab

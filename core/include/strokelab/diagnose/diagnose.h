@@ -68,6 +68,9 @@ struct DiagnoseOptions {
   // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds".
   std::optional<FieldError> IsValid() const;
 };
+// The diagnosis's own options under their names (OptionInfo, fit.h), in the order the CLI reads its
+// flags; the base fit's are FitOptionFields(), applied to DiagnoseOptions::fit.
+const std::vector<OptionInfo<DiagnoseOptions>>& DiagnoseOptionFields();
 
 // How one model matches one record.
 struct RecordMatch {
