@@ -6,11 +6,13 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "commands.h"
 #include "format.h"
+#include "option_flags.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
 #include "strokelab/base/errors.h"
@@ -87,9 +89,9 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
 }  // namespace
 
 int RunDiagnose(const std::vector<std::string>& argv) {
-  std::vector<std::string> values = kFitValueFlags, switches = kFitSwitches;
-  values.insert(values.end(), {"--data", "--out", "--heldout-every", "--min-gain", "--max-seconds"});
-  switches.insert(switches.end(), {"--json", "--no-pairs", "--progress", "--help"});
+  std::vector<std::string> values = {"--data", "--out"}, switches = {"--json", "--progress", "--help"};
+  AddFitFlags(&values, &switches);
+  AddOptionFlags(DiagnoseOptionFields(), &values, &switches);
   const Args args(argv, {values.begin(), values.end()}, {switches.begin(), switches.end()});
   if (args.Has("--help")) {
     std::cout << kDiagnoseHelp;
@@ -101,18 +103,9 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   if (!data) throw InputError("--data", "is required (the campaign directory)");
   DiagnoseOptions options;
   options.fit = FitOptionsFromArgs(args);
-  options.heldout_every = args.Integer("--heldout-every", options.heldout_every);
-  options.min_heldout_gain = args.Number("--min-gain", options.min_heldout_gain);
-  options.max_seconds = args.Number("--max-seconds", options.max_seconds);
-  options.pairs = !args.Has("--no-pairs");
-  if (std::string error; !options.IsValid(&error)) {
-    const std::string field = error.substr(0, error.find(':'));
-    const std::string flag = field == "heldout_every"      ? "--heldout-every"
-                             : field == "min_heldout_gain" ? "--min-gain"
-                             : field == "max_seconds"      ? "--max-seconds"
-                                                           : field;
-    throw InputError(flag, error.substr(error.find(": ") + 2));
-  }
+  ReadOptionFlags(args, DiagnoseOptionFields(), &options);
+  if (const std::optional<FieldError> error = options.IsValid())
+    throw InputError(FlagOf(DiagnoseOptionFields(), error->field), error->message);
   if (args.Has("--progress")) options.progress = [](const std::string& stage) { std::cerr << stage << std::endl; };
 
   const Campaign campaign = ReadCampaign(*data);

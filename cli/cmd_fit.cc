@@ -3,11 +3,13 @@
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "commands.h"
 #include "format.h"
+#include "option_flags.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/data/recordings.h"
@@ -104,6 +106,11 @@ void PrintReport(const FitResult& r, std::ostream& out) {
 
 }  // namespace
 
+void AddFitFlags(std::vector<std::string>* valued, std::vector<std::string>* switches) {
+  valued->push_back("--model");
+  AddOptionFlags(FitOptionFields(), valued, switches);
+}
+
 FitOptions FitOptionsFromArgs(const Args& args) {
   FitOptions options;
   try {
@@ -111,31 +118,15 @@ FitOptions FitOptionsFromArgs(const Args& args) {
   } catch (const InputError& e) {
     throw InputError("--model", e.bare_message());
   }
-  options.harmonic_orders = args.Integer("--harmonics", options.harmonic_orders);
-  options.mass_kg = args.Number("--mass-kg", options.mass_kg);
-  options.mains_frequency_hz = args.Number("--mains-hz", options.mains_frequency_hz);
-  options.max_clear_distortion = args.Number("--max-distortion", options.max_clear_distortion);
-  options.max_iterations = args.Integer("--max-iterations", options.max_iterations);
-  options.fit_contact_damping = args.Has("--fit-contact-damping");
-  options.refine = !args.Has("--no-refine");
-  if (std::string error; !options.IsValid(&error)) {
-    // "harmonic_orders: must be >= 1" -> the flag that set it.
-    const std::string field = error.substr(0, error.find(':'));
-    const std::string flag = field == "harmonic_orders"        ? "--harmonics"
-                             : field == "mass_kg"              ? "--mass-kg"
-                             : field == "max_clear_distortion" ? "--max-distortion"
-                             : field == "max_iterations"       ? "--max-iterations"
-                                                               : "--mains-hz";
-    throw InputError(flag, error.substr(error.find(": ") + 2));
-  }
-
+  ReadOptionFlags(args, FitOptionFields(), &options);
+  if (const std::optional<FieldError> error = options.IsValid())
+    throw InputError(FlagOf(FitOptionFields(), error->field), error->message);
   return options;
 }
 
 int RunFit(const std::vector<std::string>& argv) {
-  std::vector<std::string> values = kFitValueFlags, switches = kFitSwitches;
-  values.push_back("--data");
-  switches.insert(switches.end(), {"--json", "--help"});
+  std::vector<std::string> values = {"--data"}, switches = {"--json", "--help"};
+  AddFitFlags(&values, &switches);
   const Args args(argv, {values.begin(), values.end()}, {switches.begin(), switches.end()});
   if (args.Has("--help")) {
     std::cout << kFitHelp;

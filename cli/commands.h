@@ -24,12 +24,9 @@ int RunSynth(const std::vector<std::string>& argv);
 int RunFit(const std::vector<std::string>& argv);
 int RunDiagnose(const std::vector<std::string>& argv);
 
-// The fit's options from --model, --harmonics, --mass-kg, --mains-hz, --max-distortion,
-// --max-iterations, --fit-contact-damping, --no-refine (shared by fit and diagnose); bad values
-// are thrown as InputError naming the flag.
-inline const std::vector<std::string> kFitValueFlags = {"--model", "--harmonics", "--mass-kg", "--mains-hz",
-                                                        "--max-distortion", "--max-iterations"};
-inline const std::vector<std::string> kFitSwitches = {"--fit-contact-damping", "--no-refine"};
+// The fit's options from --model and the flags of FitOptionFields() (shared by fit and diagnose,
+// which accept them with AddFitFlags); bad values are thrown as InputError naming the flag.
+void AddFitFlags(std::vector<std::string>* valued, std::vector<std::string>* switches);
 FitOptions FitOptionsFromArgs(const Args& args);
 int RunBackup(const std::vector<std::string>& argv);
 

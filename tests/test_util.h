@@ -1,4 +1,5 @@
-// Shared test helpers: relative comparisons with named tolerances, Eigen comparisons.
+// Shared test helpers: relative comparisons with named tolerances, Eigen comparisons, IsValid as text,
+// option tables.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -6,6 +7,11 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <optional>
+#include <string>
+#include <variant>
+
+#include "strokelab/base/errors.h"
 
 namespace strokelab::testing {
 
@@ -28,6 +34,43 @@ inline ::testing::AssertionResult NearRelative(std::complex<double> actual, std:
   if (std::isfinite(err) && err <= rel) return ::testing::AssertionSuccess();
   return ::testing::AssertionFailure() << "actual " << actual << " vs expected " << expected
                                        << ": relative error " << err << " > " << rel;
+}
+
+// What IsValid says of an options or model value: "field: message", or "" when it is valid.
+template <class T>
+std::string IsValidText(const T& value) {
+  const std::optional<FieldError> error = value.IsValid();
+  return error ? error->field + ": " + error->message : "";
+}
+
+// An option table (OptionInfo, fit.h) as "field job_name flag" entries joined by "; " (flag "-" for
+// none, "(clears)" after a switch that clears its bool): pins every name of the table at once.
+template <class Table>
+std::string OptionNames(const Table& table) {
+  std::string out;
+  for (const auto& info : table)
+    out += std::string(out.empty() ? "" : "; ") + info.field + " " + info.job_name + " " +
+           (info.flag ? info.flag : "-") + (info.flag_clears ? " (clears)" : "");
+  return out;
+}
+
+// Each number of an option table set to a wrong value in turn (-1000 for an int, NaN for a double;
+// a bool is never wrong): IsValid must name the table's field.
+template <class Options, class Table>
+void ExpectTableFieldsAreIsValidFields(const Table& table) {
+  for (const auto& info : table) {
+    SCOPED_TRACE(info.field);
+    Options options;
+    if (const auto* member = std::get_if<int Options::*>(&info.member))
+      options.**member = -1000;
+    else if (const auto* member = std::get_if<double Options::*>(&info.member))
+      options.**member = std::nan("");
+    else
+      continue;
+    const std::optional<FieldError> error = options.IsValid();
+    ASSERT_TRUE(error);
+    EXPECT_EQ(error->field, info.field);
+  }
 }
 
 }  // namespace strokelab::testing

@@ -3,7 +3,10 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
+#include <variant>
+#include <vector>
 
 #include "strokelab/engines/engine.h"
 #include "strokelab/model/model_json.h"
@@ -139,52 +142,43 @@ void CheckSimulateJob(const json& job) {
                                     " (use cvode or ode3)");
 }
 
-// A FitOptions or DiagnoseOptions field ("harmonic_orders", "fit.max_clear_distortion",
-// "heldout_every") as the pointer of the job option that sets it.
-std::string PointerForOptionField(std::string field) {
-  if (field.rfind("fit.", 0) == 0) field = field.substr(4);
-  static const std::pair<const char*, const char*> kRenamed[] = {
-      {"harmonic_orders", "harmonics"}, {"max_clear_distortion", "max_distortion"}, {"mains_frequency_hz", "mains_hz"}};
-  for (const auto& [core_name, job_name] : kRenamed)
-    if (field == core_name) return std::string("/options/") + job_name;
+// A FitOptions or DiagnoseOptions field ("harmonic_orders", "heldout_every") as the pointer of the
+// job option that sets it (FitOptionFields, DiagnoseOptionFields).
+std::string PointerForOptionField(const std::string& field) {
+  if (const OptionInfo<FitOptions>* info = FindOption(FitOptionFields(), field))
+    return std::string("/options/") + info->job_name;
+  if (const OptionInfo<DiagnoseOptions>* info = FindOption(DiagnoseOptionFields(), field))
+    return std::string("/options/") + info->job_name;
   return "/options/" + field;
 }
 
-// Throws InputError at the option's pointer when IsValid says no ("FIELD: message").
+// Throws InputError at the option's pointer when IsValid names a wrong field.
 template <typename Options>
 void CheckOptions(const Options& options) {
-  std::string error;
-  if (options.IsValid(&error)) return;
-  const size_t colon = error.find(": ");
-  if (colon == std::string::npos) throw InputError("/options", error);
-  throw InputError(PointerForOptionField(error.substr(0, colon)), error.substr(colon + 2));
+  if (const std::optional<FieldError> error = options.IsValid())
+    throw InputError(PointerForOptionField(error->field), error->message);
+}
+
+// The options of `table` that a job's (schema-valid) "options" object gives, into *out; the others
+// keep their defaults.
+template <typename Options>
+void ReadJobOptions(const json& options, const std::vector<OptionInfo<Options>>& table, Options* out) {
+  for (const OptionInfo<Options>& info : table)
+    std::visit([&](auto member) { out->*member = options.value(info.job_name, out->*member); }, info.member);
 }
 
 // The FitOptions of a fit or diagnose job that passed the schema.
 FitOptions FitFromSchemaValidJob(const json& job) {
   FitOptions fit;
   fit.model = ParseFitModel(job.value("model", std::string("paper")));
-  const json options = job.value("options", json::object());
-  fit.harmonic_orders = options.value("harmonics", fit.harmonic_orders);
-  fit.mass_kg = options.value("mass_kg", fit.mass_kg);
-  fit.fit_contact_damping = options.value("fit_contact_damping", fit.fit_contact_damping);
-  fit.mains_frequency_hz = options.value("mains_hz", fit.mains_frequency_hz);
-  fit.max_clear_distortion = options.value("max_distortion", fit.max_clear_distortion);
-  fit.max_iterations = options.value("max_iterations", fit.max_iterations);
-  fit.refine = options.value("refine", fit.refine);
-  fit.max_refinement_seconds = options.value("max_refinement_seconds", fit.max_refinement_seconds);
+  ReadJobOptions(job.value("options", json::object()), FitOptionFields(), &fit);
   return fit;
 }
 
 DiagnoseOptions DiagnoseFromSchemaValidJob(const json& job) {
   DiagnoseOptions diagnose;
   diagnose.fit = FitFromSchemaValidJob(job);
-  const json options = job.value("options", json::object());
-  diagnose.heldout_every = options.value("heldout_every", diagnose.heldout_every);
-  diagnose.min_heldout_gain = options.value("min_heldout_gain", diagnose.min_heldout_gain);
-  diagnose.pairs = options.value("pairs", diagnose.pairs);
-  diagnose.max_passes = options.value("max_passes", diagnose.max_passes);
-  diagnose.max_seconds = options.value("max_seconds", diagnose.max_seconds);
+  ReadJobOptions(job.value("options", json::object()), DiagnoseOptionFields(), &diagnose);
   return diagnose;
 }
 

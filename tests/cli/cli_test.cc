@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "strokelab/diagnose/diagnose.h"
+
 namespace {
 
 using ::testing::HasSubstr;
@@ -88,6 +90,38 @@ TEST(CliTest, WritesTheSeriesAsCsv) {
   size_t rows = 0;
   for (std::string line; std::getline(in, line);) ++rows;
   EXPECT_EQ(rows, 102400u);
+}
+
+// fit and diagnose check their options before they read the campaign: a wrong value is reported
+// under the flag that set it, in the words of FitOptions / DiagnoseOptions::IsValid.
+TEST(CliTest, FitAndDiagnoseOptionErrorsNameTheFlag) {
+  ExpectInputError("fit --data no-such-dir --harmonics 0", "strokelab: error: --harmonics: must be >= 1, got 0");
+  ExpectInputError("fit --data no-such-dir --mass-kg -1", "--mass-kg: must be a finite number > 0, got -1");
+  ExpectInputError("fit --data no-such-dir --max-distortion 0",
+                   "--max-distortion: must be a finite number > 0, got 0");
+  ExpectInputError("fit --data no-such-dir --max-iterations 0", "--max-iterations: must be >= 1, got 0");
+  ExpectInputError("fit --data no-such-dir --model cubic", "--model: unknown fit model 'cubic' (known: paper, linear)");
+  ExpectInputError("diagnose --data no-such-dir --heldout-every 1", "--heldout-every: must be >= 2, got 1");
+  ExpectInputError("diagnose --data no-such-dir --min-gain -1", "--min-gain: must be a finite number >= 0");
+  ExpectInputError("diagnose --data no-such-dir --max-seconds 0", "--max-seconds: must be > 0");
+  ExpectInputError("diagnose --data no-such-dir --harmonics 0", "--harmonics: must be >= 1, got 0");
+}
+
+// Every flag of the option tables (FitOptionFields, DiagnoseOptionFields) is in the help texts.
+TEST(CliTest, FitAndDiagnoseHelpListEveryOptionFlag) {
+  const Result fit = RunCli("fit --help"), diagnose = RunCli("diagnose --help");
+  ASSERT_EQ(fit.exit_code, 0);
+  ASSERT_EQ(diagnose.exit_code, 0);
+  for (const strokelab::OptionInfo<strokelab::FitOptions>& info : strokelab::FitOptionFields()) {
+    if (info.flag == nullptr) continue;
+    EXPECT_THAT(fit.stdout_text, HasSubstr(info.flag));
+    EXPECT_THAT(diagnose.stdout_text, HasSubstr(info.flag));
+  }
+  for (const strokelab::OptionInfo<strokelab::DiagnoseOptions>& info : strokelab::DiagnoseOptionFields()) {
+    if (info.flag != nullptr) {
+      EXPECT_THAT(diagnose.stdout_text, HasSubstr(info.flag));
+    }
+  }
 }
 
 }  // namespace

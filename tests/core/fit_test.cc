@@ -450,5 +450,34 @@ TEST(FitCampaign, RejectsBroadbandOnlyAndBrokenRecords) {
   EXPECT_THROW(ParseFitModel("cubic"), InputError);
 }
 
+TEST(FitOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {
+  using ::strokelab::testing::IsValidText;
+  FitOptions options;
+  EXPECT_EQ(IsValidText(options), "");
+  options.harmonic_orders = 0;
+  EXPECT_EQ(IsValidText(options), "harmonic_orders: must be >= 1, got 0");
+  options.mass_kg = -0.5;  // mass_kg is checked first
+  EXPECT_EQ(IsValidText(options), "mass_kg: must be a finite number > 0, got -0.5");
+  options = FitOptions{};
+  options.spikes.baseline_harmonics = -1;
+  EXPECT_EQ(IsValidText(options), "spikes.baseline_harmonics: must be >= 0");
+}
+
+// The one table of the fit's option names (fit.h): every name pinned, and each field named as IsValid
+// names it.
+TEST(FitOptionsTest, FieldTableNamesEachOptionInJobsAndOnTheCommandLine) {
+  EXPECT_EQ(::strokelab::testing::OptionNames(FitOptionFields()),
+            "harmonic_orders harmonics --harmonics; mass_kg mass_kg --mass-kg; mains_frequency_hz mains_hz --mains-hz; "
+            "max_clear_distortion max_distortion --max-distortion; max_iterations max_iterations --max-iterations; "
+            "fit_contact_damping fit_contact_damping --fit-contact-damping; refine refine --no-refine (clears); "
+            "max_refinement_seconds max_refinement_seconds -");
+  EXPECT_EQ(FindOption(FitOptionFields(), "mass_kg"), &FitOptionFields()[1]);
+  EXPECT_EQ(FindOption(FitOptionFields(), "model"), nullptr);
+}
+
+TEST(FitOptionsTest, FieldTableUsesTheFieldNamesOfIsValid) {
+  ::strokelab::testing::ExpectTableFieldsAreIsValidFields<FitOptions>(FitOptionFields());
+}
+
 }  // namespace
 }  // namespace strokelab

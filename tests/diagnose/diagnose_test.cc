@@ -18,6 +18,7 @@
 
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/data/synth.h"
+#include "test_util.h"
 
 namespace strokelab {
 namespace {
@@ -151,6 +152,28 @@ INSTANTIATE_TEST_SUITE_P(
                       EffectCase{"dry_friction", "friction_n", 0.001, false, 1007},
                       EffectCase{"amplifier_saturation", "amplifier_limit_v", 0.45, false, 1008}),
     [](const ::testing::TestParamInfo<EffectCase>& info) { return info.param.name; });
+
+// The base fit's fields come first, under FitOptions' names; then the diagnosis's own.
+TEST(DiagnoseOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {
+  using ::strokelab::testing::IsValidText;
+  DiagnoseOptions options;
+  EXPECT_EQ(IsValidText(options), "");
+  options.fit.max_iterations = 0;
+  options.heldout_every = 1;
+  EXPECT_EQ(IsValidText(options), "max_iterations: must be >= 1, got 0");
+  options.fit = FitOptions{};
+  EXPECT_EQ(IsValidText(options), "heldout_every: must be >= 2, got 1");
+  options = DiagnoseOptions{};
+  options.max_seconds = 0;
+  EXPECT_EQ(IsValidText(options), "max_seconds: must be > 0");
+}
+
+TEST(DiagnoseOptionsTest, FieldTableNamesEachOptionAsIsValidDoes) {
+  EXPECT_EQ(::strokelab::testing::OptionNames(DiagnoseOptionFields()),
+            "heldout_every heldout_every --heldout-every; min_heldout_gain min_heldout_gain --min-gain; "
+            "max_seconds max_seconds --max-seconds; pairs pairs --no-pairs (clears); max_passes max_passes -");
+  ::strokelab::testing::ExpectTableFieldsAreIsValidFields<DiagnoseOptions>(DiagnoseOptionFields());
+}
 
 }  // namespace
 }  // namespace strokelab

@@ -1,7 +1,7 @@
 // The fit on a campaign with a record on the contacting branch where the model's response is bistable
 // (14 Hz / 0.5 V: the paper model's jump region): the start model has no contacting orbit matching it,
 // so its anchor starts on the free branch; between refinement passes the record must move to the
-// contacting orbit of the current iterate (fit.cc, reselect_branches). Before that move existed this
+// contacting orbit of the current iterate (fit_refine.cc, reselect_branches). Before that move existed this
 // campaign ended with residual variance 7959 and the record at nrmse 0.85.
 #include <gtest/gtest.h>
 

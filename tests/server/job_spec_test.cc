@@ -431,5 +431,52 @@ TEST(SweepSpecFromJobTest, NullStopsAndLimitMeanAbsent) {
   EXPECT_EQ(limited.model.upper_stop_m, 2e-3);
 }
 
+// Each job option lands in its field (FitOptionFields, DiagnoseOptionFields); absent ones keep the
+// defaults.
+TEST(FitOptionsFromJobTest, ReadsEachOptionIntoItsField) {
+  const json fit = {{"kind", "fit"},
+                    {"campaign", {{"path", "campaign-a"}}},
+                    {"model", "linear"},
+                    {"options",
+                     {{"harmonics", 7},
+                      {"mass_kg", 0.05},
+                      {"fit_contact_damping", true},
+                      {"mains_hz", 60},
+                      {"max_distortion", 0.2},
+                      {"max_iterations", 9},
+                      {"refine", false},
+                      {"max_refinement_seconds", 30}}}};
+  const FitOptions options = FitOptionsFromJob(fit);
+  EXPECT_EQ(options.model, FitModelKind::kLinear);
+  EXPECT_EQ(options.harmonic_orders, 7);
+  EXPECT_EQ(options.mass_kg, 0.05);
+  EXPECT_TRUE(options.fit_contact_damping);
+  EXPECT_EQ(options.mains_frequency_hz, 60.0);
+  EXPECT_EQ(options.max_clear_distortion, 0.2);
+  EXPECT_EQ(options.max_iterations, 9);
+  EXPECT_FALSE(options.refine);
+  EXPECT_EQ(options.max_refinement_seconds, 30.0);
+
+  const json diagnose = {{"kind", "diagnose"},
+                         {"campaign", {{"id", "0123456789abcdef"}}},
+                         {"options",
+                          {{"harmonics", 6},
+                           {"heldout_every", 3},
+                           {"min_heldout_gain", 5},
+                           {"pairs", false},
+                           {"max_passes", 4},
+                           {"max_seconds", 60}}}};
+  const DiagnoseOptions d = DiagnoseOptionsFromJob(diagnose);
+  EXPECT_EQ(d.fit.harmonic_orders, 6);
+  EXPECT_EQ(d.fit.mass_kg, FitOptions{}.mass_kg);
+  EXPECT_EQ(d.heldout_every, 3);
+  EXPECT_EQ(d.min_heldout_gain, 5.0);
+  EXPECT_FALSE(d.pairs);
+  EXPECT_EQ(d.max_passes, 4);
+  EXPECT_EQ(d.max_seconds, 60.0);
+  EXPECT_EQ(DiagnoseOptionsFromJob({{"kind", "diagnose"}, {"campaign", {{"id", "0123456789abcdef"}}}}).max_passes,
+            DiagnoseOptions{}.max_passes);
+}
+
 }  // namespace
 }  // namespace strokelab::jobs

@@ -11,7 +11,10 @@
 #include <limits>
 #include <set>
 #include <string>
+#include <utility>
 
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/identify/fit.h"
 #include "strokelab/model/model.h"
 
 namespace strokelab::jobs {
@@ -435,6 +438,22 @@ TEST(BuiltInSchemaTest, ResultSchemaDescribesPointsAndStatus) {
   // The whole document: any of the entries.
   EXPECT_EQ(Outcome(BuiltInSchema("result"), error), "ok");
   EXPECT_EQ(Outcome(BuiltInSchema("result"), status), "ok");
+}
+
+// The job options of fit and diagnose jobs are exactly the job names of the option tables (fit.h,
+// diagnose.h): an option added to one and not the other fails here.
+TEST(BuiltInSchemaTest, FitAndDiagnoseOptionsAreTheOptionTables) {
+  std::set<std::string> fit_names, diagnose_names;
+  for (const OptionInfo<FitOptions>& info : FitOptionFields()) fit_names.insert(info.job_name);
+  diagnose_names = fit_names;
+  for (const OptionInfo<DiagnoseOptions>& info : DiagnoseOptionFields()) diagnose_names.insert(info.job_name);
+  for (const auto& [kind, expected] : {std::pair{"fit", fit_names}, std::pair{"diagnose", diagnose_names}}) {
+    SCOPED_TRACE(kind);
+    std::set<std::string> actual;
+    const json& options = BuiltInSchema("job").at("$defs").at(kind).at("properties").at("options");
+    for (const auto& [name, unused] : options.at("properties").items()) actual.insert(name);
+    EXPECT_EQ(actual, expected);
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "diagnose_internal.h"
@@ -181,28 +182,29 @@ bool BeatsNoise(const CandidateFit& c, size_t extra_parameters, double min_heldo
 
 }  // namespace
 
-bool DiagnoseOptions::IsValid(std::string* error) const {
-  std::string message;
-  if (!fit.IsValid(&message)) {
-  } else if (heldout_every < 2) {
-    message = "heldout_every: must be >= 2, got " + std::to_string(heldout_every);
-  } else if (!std::isfinite(min_heldout_gain) || min_heldout_gain < 0) {
-    message = "min_heldout_gain: must be a finite number >= 0";
-  } else if (max_passes < 1) {
-    message = "max_passes: must be >= 1, got " + std::to_string(max_passes);
-  } else if (!(max_seconds > 0)) {
-    message = "max_seconds: must be > 0";
-  }
-  if (!message.empty() && error != nullptr) *error = message;
-  return message.empty();
+std::optional<FieldError> DiagnoseOptions::IsValid() const {
+  if (std::optional<FieldError> error = fit.IsValid()) return error;
+  if (heldout_every < 2) return FieldError{"heldout_every", "must be >= 2, got " + std::to_string(heldout_every)};
+  if (!std::isfinite(min_heldout_gain) || min_heldout_gain < 0)
+    return FieldError{"min_heldout_gain", "must be a finite number >= 0"};
+  if (max_passes < 1) return FieldError{"max_passes", "must be >= 1, got " + std::to_string(max_passes)};
+  if (!(max_seconds > 0)) return FieldError{"max_seconds", "must be > 0"};
+  return std::nullopt;
+}
+
+const std::vector<OptionInfo<DiagnoseOptions>>& DiagnoseOptionFields() {
+  static const std::vector<OptionInfo<DiagnoseOptions>> kFields = {
+      {"heldout_every", "heldout_every", "--heldout-every", &DiagnoseOptions::heldout_every},
+      {"min_heldout_gain", "min_heldout_gain", "--min-gain", &DiagnoseOptions::min_heldout_gain},
+      {"max_seconds", "max_seconds", "--max-seconds", &DiagnoseOptions::max_seconds},
+      {"pairs", "pairs", "--no-pairs", &DiagnoseOptions::pairs, true},
+      {"max_passes", "max_passes", nullptr, &DiagnoseOptions::max_passes},
+  };
+  return kFields;
 }
 
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options) {
-  std::string error;
-  if (!options.IsValid(&error)) {
-    const size_t colon = error.find(": ");
-    throw InputError(error.substr(0, colon), error.substr(colon + 2));
-  }
+  Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();
   auto seconds_left = [&] {
     return options.max_seconds -

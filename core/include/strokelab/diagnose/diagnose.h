@@ -24,10 +24,12 @@
 #include <complex>
 #include <functional>
 #include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "strokelab/base/errors.h"  // FieldError
 #include "strokelab/identify/campaign.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/model/model.h"
@@ -62,8 +64,13 @@ struct DiagnoseOptions {
   int max_passes = 12;           // defect-correction passes of an extended fit
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
   std::function<void(const std::string&)> progress;  // one line per stage (may be empty)
-  bool IsValid(std::string* error) const;
+  // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,
+  // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds".
+  std::optional<FieldError> IsValid() const;
 };
+// The diagnosis's own options under their names (OptionInfo, fit.h), in the order the CLI reads its
+// flags; the base fit's are FitOptionFields(), applied to DiagnoseOptions::fit.
+const std::vector<OptionInfo<DiagnoseOptions>>& DiagnoseOptionFields();
 
 // How one model matches one record.
 struct RecordMatch {

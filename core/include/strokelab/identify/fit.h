@@ -43,11 +43,14 @@
 #include <complex>
 #include <cstddef>
 #include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
+#include "strokelab/base/errors.h"  // FieldError
 #include "strokelab/identify/campaign.h"
 #include "strokelab/identify/frf_fit.h"
 #include "strokelab/model/model.h"
@@ -78,9 +81,34 @@ struct FitOptions {
   bool refine = true;                     // step 4 (false: stop at the staged estimates of steps 2-3)
   int max_iterations = 50;                // Ceres iterations of the refinement, >= 1
   double max_refinement_seconds = 120.0;  // wall time of the refinement [s]; then reported as not converged
-  // False with "field: what is wrong" in *error (if not null).
-  bool IsValid(std::string* error) const;
+  // Nothing, or the first wrong field ("harmonic_orders", "spikes.threshold_sigmas", ...) and why.
+  std::optional<FieldError> IsValid() const;
 };
+
+// One option of the fit (Options = FitOptions) or of the diagnosis (DiagnoseOptions) under each of
+// its names, as ParameterInfo is for the model: the field as IsValid's FieldError names it, its key
+// under a job's "options" (schema/job.schema.json) and its flag in `strokelab fit` and `strokelab
+// diagnose`. Jobs read their options and point at their errors with it, the CLI parses its flags
+// and names the flag of a wrong field with it. The model kind is not in it: a job gives it at the
+// top ("/model"), the CLI as --model, both read by ParseFitModel.
+template <class Options>
+struct OptionInfo {
+  const char* field;     // "harmonic_orders"
+  const char* job_name;  // "harmonics"
+  const char* flag;      // "--harmonics" (a switch for a bool); nullptr: no flag
+  std::variant<int Options::*, double Options::*, bool Options::*> member;
+  bool flag_clears = false;  // the switch sets the bool false (--no-refine); else true
+};
+// The options a job or the CLI can set, in the order the CLI reads its flags.
+const std::vector<OptionInfo<FitOptions>>& FitOptionFields();
+
+// The entry of `table` for an IsValid field, or nullptr.
+template <class Options>
+const OptionInfo<Options>* FindOption(const std::vector<OptionInfo<Options>>& table, std::string_view field) {
+  for (const OptionInfo<Options>& info : table)
+    if (field == info.field) return &info;
+  return nullptr;
+}
 
 // ---- Step 1: one record ------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-// The fit's model side, shared by the fit (fit.cc) and the diagnosis (diagnose*.cc): a model's
+// The fit's model side, shared by the fit (fit_refine.cc) and the diagnosis (diagnose*.cc): a model's
 // periodic steady state at a record's estimated drive, its harmonics in the record's response units,
 // and what the record's sampling makes of them.
 #pragma once
@@ -80,7 +80,7 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
                                       ResponseKind kind);
 
 // What the record's sampling and least-squares fit make of the model's response, less the orbit's
-// continuous-time harmonics (see fit.cc). Zero for orbits of period other than 1 and for models that
+// continuous-time harmonics (see fit_refine.cc). Zero for orbits of period other than 1 and for models that
 // are not piecewise linear.
 std::vector<std::complex<double>> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a,
                                                      const ModelOrbit& orbit, ResponseKind kind, int orders);
