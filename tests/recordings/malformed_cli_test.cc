@@ -6,8 +6,8 @@
 // else the JSON pointer of the offending value, which locates it better than a line could) by
 // ReadCampaign, AND by `strokelab fit --data DIR`, which exits 2 with that error as one line.
 //
-// CRLF line ends and a UTF-8 byte-order mark are accepted (clients/recordings/include/strokelab/
-// recordings.h): spreadsheet tools on Windows write both, and neither makes a number ambiguous.
+// CRLF line ends and a UTF-8 byte-order mark are accepted (data/include/strokelab/
+// data/recordings.h): spreadsheet tools on Windows write both, and neither makes a number ambiguous.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
