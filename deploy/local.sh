@@ -12,7 +12,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-PACKAGES=(build-essential cmake ccache pkg-config libeigen3-dev libsundials-dev libceres-dev nlohmann-json3-dev
+PACKAGES=(build-essential cmake ninja-build ccache pkg-config libeigen3-dev libsundials-dev libceres-dev nlohmann-json3-dev
           libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy chromium
           clang libclang-rt-14-dev util-linux tar zlib1g-dev)
 # clang (+ clang-rt, libFuzzer): the sanitizer and fuzzing builds; util-linux (prlimit) and tar: the
@@ -34,9 +34,30 @@ install_missing() {
 }
 
 BUILD_DIR=${STROKELAB_BUILD_DIR:-build/release}
-build() {
+
+# ctest runs one test more than there are cores: many tests wait as much as they compute (killed
+# and restarted processes, expiring leases, a faulty proxy), and the extra one fills the idle core
+# time. On 2 cores, against -j 2: Release tests 89.7 -> 77.8 s, ASan tests 180 -> 159 s, TSan fault
+# tests 34.5 -> 23.4 s (TSan server tests 59 -> 61 s: they already keep both cores busy).
+TEST_JOBS=$(( $(nproc) + 1 ))
+
+# Every build directory uses Ninja: it compiles a library's sources without waiting for the
+# libraries it links to be built (Make builds target after target), so both cores stay busy: the
+# TSan build took 107 s against 130 s with Make, from an empty compiler cache. A directory that was
+# configured for another generator is configured anew (cmake refuses to switch).
+configure() {  # DIR CMAKE_ARGS...
+  local dir=$1
+  shift
   export CCACHE_DIR=${CCACHE_DIR:-$HOME/.cache/strokelab-ccache}
-  cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  if [ -f "$dir/CMakeCache.txt" ] && ! grep -q '^CMAKE_GENERATOR:INTERNAL=Ninja$' "$dir/CMakeCache.txt"; then
+    echo "$dir was configured for another generator: configuring it anew for Ninja"
+    rm -rf "$dir"
+  fi
+  cmake -S . -B "$dir" -G Ninja "$@" >/dev/null
+}
+
+build() {
+  configure "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
   cmake --build "$BUILD_DIR" -j "$(nproc)"
 }
 
@@ -46,9 +67,8 @@ build() {
 configure_clang() {  # DIR CMAKE_ARGS...
   local dir=$1
   shift
-  export CCACHE_DIR=${CCACHE_DIR:-$HOME/.cache/strokelab-ccache}
-  cmake -S . -B "$dir" -G "Unix Makefiles" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only" -DSTROKELAB_BUILD_BENCHMARKS=OFF "$@" >/dev/null
+  configure "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only" -DSTROKELAB_BUILD_BENCHMARKS=OFF "$@"
 }
 
 # A sanitizer report fails the test that caused it: ASan and TSan stop at the first report, UBSan
@@ -72,20 +92,21 @@ asan_build() {
 }
 asan_stage() {  # FUZZ_SECONDS
   asan_build
-  ctest --test-dir "$ASAN_DIR" --output-on-failure -j "$(nproc)" -E "$ASAN_EXCLUDE"
+  ctest --test-dir "$ASAN_DIR" --output-on-failure -j "$TEST_JOBS" -E "$ASAN_EXCLUDE"
   STROKELAB_FUZZ_DIR="$ASAN_DIR" tests/fuzz/run_fuzzers.sh "$1"
 }
 
 # TSan: the tests of the threaded parts, the job store's task queue, the service with its workers
-# and HTTP threads, remote workers, faults (tests/server, tests/fault). Only their targets are built.
+# and HTTP threads, remote workers, faults (tests/server, tests/fault). Only their targets (Ninja's
+# DIR/all) and what those need are built.
 TSAN_TEST_DIRS=(tests/server tests/fault)
 tsan_stage() {
   configure_clang build/tsan -DSTROKELAB_SANITIZE=thread
-  local dir
+  local dir targets=()
+  for dir in "${TSAN_TEST_DIRS[@]}"; do targets+=("$dir/all"); done
+  cmake --build build/tsan -j "$(nproc)" --target "${targets[@]}"
   for dir in "${TSAN_TEST_DIRS[@]}"; do
-    [ -d "build/tsan/$dir" ] || continue
-    make -C "build/tsan/$dir" --no-print-directory -j "$(nproc)" >/dev/null
-    ctest --test-dir "build/tsan/$dir" --output-on-failure -j "$(nproc)"
+    ctest --test-dir "build/tsan/$dir" --output-on-failure -j "$TEST_JOBS"
   done
 }
 
@@ -106,7 +127,7 @@ stage() {  # NAME COMMAND...
 # Tests labelled "slow" (long cases; tests/README.md) are left to `test-slow`.
 release_stages() {
   stage "release build" build
-  stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)" -LE slow
+  stage "release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$TEST_JOBS" -LE slow
 }
 sanitizer_stages() {
   stage "asan+ubsan build, tests, fuzz corpora and ${CI_FUZZ_SECONDS} s per harness" asan_stage "$CI_FUZZ_SECONDS"
@@ -142,7 +163,7 @@ case "${1:-}" in
   test-slow)
     install_missing
     stage "release build" build
-    stage "slow release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$(nproc)" -L slow
+    stage "slow release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$TEST_JOBS" -L slow
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
   sanitize)
