@@ -2,25 +2,26 @@
 // `strokelab serve` (tokens on, no workers of its own, so nothing changes under the requests). Each
 // must get its 4xx with the documented error object; the server must answer /v1/health after each
 // group, leave the two jobs it holds as they were, and not grow: its resident set is read after two
-// warm-up rounds of the whole table and again after kMeasuredRounds more.
+// warm-up rounds of the whole table and after each of kMeasuredRounds more.
 //
-// The memory bound: after the warm-up every code path has run and the allocator's arenas are sized
-// (the server runs with fixed malloc thresholds, kSteadyMalloc), so what the measured rounds add is
-// what requests keep. Measured without a leak: +32 KiB over 30 rounds (16,770 requests), flat after
-// the fifth. kMaxGrowthKib is 512 KiB: a leak of 128 bytes per request (one small string or JSON
-// node kept per request) adds 560 KiB over the 4,472 requests of 8 rounds and fails. Right after a
-// round the server may still hold a large body it is reading or discarding (5-7 MB for some tens of
-// milliseconds, seen once in eight runs), which a leak would not give back: so each reading is the
-// least of several over 200 ms (SettledRssKib).
+// The memory bound: after the warm-up every code path has run (the server runs with fixed malloc
+// thresholds, kSteadyMalloc), so what requests keep shows as growth round after round; the median
+// growth per round must stay below kMaxGrowthPerRoundKib, 64 KiB. The median, not the total, because
+// the allocator also moves in one-off steps that are no leak: seen without one, in 25 runs, a rise of
+// 1.7 or 4.9 MB in one round that then stays flat, and a body still held when RSS is read (+5-7 MB,
+// given back by the next round); either failed the former bound on the total over 8 rounds (512 KiB;
+// 2 runs in 25, and once in a clean-clone CI run). Without them a round grows 0-16 KiB.
+// What it catches, measured with a leak planted in the pre-routing handler: 4 KiB kept per request
+// fails (+2.2 MB a round); 1 KiB or 128 B per request goes into heap the warm-up freed and is not
+// seen in 8 rounds (nor was it by the total). Small unreachable leaks are LeakSanitizer's, which
+// checks the server at its exit in the ASan stage.
 // STROKELAB_RSS_TRACE=1 prints the RSS after every measured round.
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "bad_input_cases.h"
@@ -48,17 +49,16 @@ using nlohmann::json;
 
 constexpr int kWarmUpRounds = 2;
 constexpr int kMeasuredRounds = 8;
-constexpr long kMaxGrowthKib = 512;
+constexpr long kMaxGrowthPerRoundKib = 64;
 
-// The server's resident set once transient buffers are gone: the least of 11 readings 20 ms apart.
-long SettledRssKib(const ServeChild& server) {
-  long least = server.RssKib();
-  for (int i = 0; i < 10; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    least = std::min(least, server.RssKib());
-  }
-  return least;
+// The median of the growths from one reading to the next [KiB].
+long MedianGrowthKib(const std::vector<long>& readings_kib) {
+  std::vector<long> growth;
+  for (size_t i = 1; i < readings_kib.size(); ++i) growth.push_back(readings_kib[i] - readings_kib[i - 1]);
+  std::sort(growth.begin(), growth.end());
+  return growth[growth.size() / 2];
 }
+
 // glibc raises its mmap threshold after the first large free, after which the 1-2 MB bodies of the
 // table land in the per-thread heaps and RSS wanders by +-15 MB with the order the threads serve
 // them (measured). Fixed thresholds keep large blocks in mmap (returned on free) and one arena keeps
@@ -173,20 +173,22 @@ TEST_F(BadInputTest, EveryMalformedRequestGetsItsErrorAndTheServerNeitherFallsNo
 
   Round(cases, true);
   for (int i = 1; i < kWarmUpRounds; ++i) Round(cases, false);
-  const long warm_kib = SettledRssKib(*server_);
+  std::vector<long> readings_kib = {server_->RssKib()};
   for (int i = 0; i < kMeasuredRounds; ++i) {
     Round(cases, false);
-    if (std::getenv("STROKELAB_RSS_TRACE")) std::printf("round %d: %ld KiB\n", i, server_->RssKib());
+    readings_kib.push_back(server_->RssKib());
+    if (std::getenv("STROKELAB_RSS_TRACE")) std::printf("round %d: %ld KiB\n", i, readings_kib.back());
   }
-  const long after_kib = SettledRssKib(*server_);
-  std::printf("[          ] server RSS %ld KiB after %d warm-up rounds, %ld KiB after %d more (%zu requests): %+ld KiB\n",
-              warm_kib, kWarmUpRounds, after_kib, kMeasuredRounds, kMeasuredRounds * cases.size(),
-              after_kib - warm_kib);
+  const long median_growth_kib = MedianGrowthKib(readings_kib);
+  std::printf("[          ] server RSS %ld KiB after %d warm-up rounds, %ld KiB after %d more (%zu requests), "
+              "median growth a round %+ld KiB\n",
+              readings_kib.front(), kWarmUpRounds, readings_kib.back(), kMeasuredRounds,
+              kMeasuredRounds * cases.size(), median_growth_kib);
   // Under AddressSanitizer freed memory sits in its quarantine (up to 256 MB) and under
   // ThreadSanitizer its shadow and history grow: RSS grows by design there (200 MB and 9.5 MB over
   // these rounds), and LeakSanitizer checks the server for leaks at its exit instead.
   if (!kSanitizedBuild) {
-    EXPECT_LT(after_kib - warm_kib, kMaxGrowthKib);
+    EXPECT_LT(median_growth_kib, kMaxGrowthPerRoundKib);
   }
 
   EXPECT_EQ(JobState(jobs_.sweep), sweep_before) << "a refused request changed a job";
