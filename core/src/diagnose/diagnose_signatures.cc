@@ -15,7 +15,6 @@ namespace {
 
 using Complex = std::complex<double>;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kSignificant = 3.0;     // a figure this many standard errors from its null is evidence
 constexpr size_t kHotspots = 5;          // worst records listed
 constexpr double kWindowContactTimes = 2.0;  // half-width of a contact window, in contact times
@@ -144,8 +143,8 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
       frf.mass_kg = options.mass_kg;
       const FrfFitSummary fit = FitLinearFrf(samples, frf);
       if (fit.converged) {
-        level.resonance_hz = fit.natural_frequency_rad_s / kTwoPi;
-        level.resonance_se_hz = fit.natural_frequency_se / kTwoPi;
+        level.resonance_hz = fit.natural_frequency_rad_s / (2.0 * std::numbers::pi);
+        level.resonance_se_hz = fit.natural_frequency_se / (2.0 * std::numbers::pi);
         level_v.push_back(amplitude), level_f.push_back(level.resonance_hz), level_w.push_back(level.resonance_se_hz);
       }
     }

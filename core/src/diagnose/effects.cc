@@ -63,7 +63,7 @@ constexpr double kStopStarts[] = {0.95, 0.85, 0.75, 0.65};
 constexpr double kClipStarts[] = {0.95, 0.85, 0.75, 0.6};
 
 FreeParameter LogParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
-                           double range, bool smooth = false) {
+                           double range) {
   FreeParameter p;
   p.name = std::move(name);
   p.unit = std::move(unit);
@@ -72,7 +72,6 @@ FreeParameter LogParameter(std::string name, std::string unit, double ActuatorMo
   p.start = start;
   p.theta_min = 1.0 - std::log(range);
   p.theta_max = 1.0 + std::log(range);
-  p.smooth = smooth;
   return p;
 }
 
@@ -88,8 +87,6 @@ FreeParameter LinearParameter(std::string name, std::string unit, double Actuato
   p.scale = scale;
   p.theta_min = 1.0 + low;
   p.theta_max = 1.0 + high;
-  p.smooth = true;
-  p.max_step = 1.0;
   return p;
 }
 
@@ -140,16 +137,10 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
       const double hertz_start = start.contact_law == ContactLaw::kHertzian
                                      ? start.contact_stiffness
                                      : start.contact_stiffness / std::sqrt(std::max(context.penetration_m, 1e-9));
-      FreeParameter hertz_ks = LogParameter("k_s", "N/m^1.5", &ActuatorModel::contact_stiffness, hertz_start, kContactRange, true);
-      hertz_ks.max_step = 0.5;  // a factor 1.6 per pass
-      p.push_back(hertz_ks);
-    } else if (!Has(effects, Effect::kCubicStiffness) && !Has(effects, Effect::kQuadraticStiffness) &&
-               !Has(effects, Effect::kDryFriction)) {
+      p.push_back(LogParameter("k_s", "N/m^1.5", &ActuatorModel::contact_stiffness, hertz_start, kContactRange));
+    } else {
       p.push_back(LogParameter("k_s", "N/m", &ActuatorModel::contact_stiffness, start.contact_stiffness, kContactRange));
     }
-    // With a smooth suspension term k_s stays at the base fit's value: the impacts' contact times fix
-    // it, the term does not act in contact, and left free it drifts between the defect-correction
-    // passes (their Jacobian is the surrogate's), which slows them several times.
     if (start.contact_damping_n_s_per_m > 0 || Has(effects, Effect::kContactDamping)) {
       // Linear in c_s from 2 % of the contact's critical damping 2 sqrt(k_s m_p), down to 0 (no
       // damping is the null a log scale could not reach), up to 3 times critical.
@@ -160,7 +151,6 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
       const double scale = 0.1 * critical;
       FreeParameter cs = LinearParameter("c_s", "N s/m", &ActuatorModel::contact_damping_n_s_per_m, c0, scale,
                                          -c0 / scale, (3.0 * critical - c0) / scale);
-      cs.smooth = false;  // piecewise linear
       p.push_back(cs);
     }
   }

@@ -145,16 +145,6 @@ double SwitchingFunction(const Problem& problem, Surface surface, double t_s, do
   return 1.0;
 }
 
-// The mode at t = 0. ModeFromState needs p > 0; a state exactly on a stop's surface (p = 0) moving
-// into it would start pushing an instant later, and CVODE cannot report that root (a root function
-// that is exactly zero at t0 is skipped), so it is decided here.
-ContactMode InitialMode(const ActuatorModel& model, const State& state) {
-  ContactMode mode = ModeFromState(model, state.x_m, state.v_m_per_s);
-  if (model.HasLowerStop() && LowerPenetrationM(model, state.x_m) == 0.0 && state.v_m_per_s < 0) mode.lower = true;
-  if (model.HasUpperStop() && UpperPenetrationM(model, state.x_m) == 0.0 && state.v_m_per_s > 0) mode.upper = true;
-  return mode;
-}
-
 // ---- SUNDIALS callbacks -------------------------------------------------------------------------
 
 int RightHandSide(sunrealtype t_s, N_Vector y, N_Vector ydot, void* user_data) {
@@ -170,39 +160,16 @@ int RightHandSide(sunrealtype t_s, N_Vector y, N_Vector ydot, void* user_data) {
   return std::isfinite(force_n) ? 0 : 1;
 }
 
-// d(stop force)/d(penetration) [N/m]: k_s (linear) or 1.5 k_s |p|^(1/2) (Hertzian).
-double StopStiffnessNPerM(const ActuatorModel& model, double penetration_m) {
-  if (model.contact_law == ContactLaw::kLinear) return model.contact_stiffness;
-  return 1.5 * model.contact_stiffness * std::sqrt(std::abs(penetration_m));
-}
-
 // Analytic Jacobian of y' = [v, f/m]: cheaper and more accurate than CVODE's difference quotients.
-int Jacobian(sunrealtype /*t_s*/, N_Vector y, N_Vector /*fy*/, SUNMatrix jacobian, void* user_data, N_Vector /*tmp1*/,
+int Jacobian(sunrealtype t_s, N_Vector y, N_Vector /*fy*/, SUNMatrix jacobian, void* user_data, N_Vector /*tmp1*/,
              N_Vector /*tmp2*/, N_Vector /*tmp3*/) {
   const auto* problem = static_cast<const Problem*>(user_data);
-  const ActuatorModel& m = *problem->model;
-  const double x_m = NV_Ith_S(y, 0);
-  const double v_m_per_s = NV_Ith_S(y, 1);
-  double df_dx =
-      -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x_m - 3.0 * m.cubic_stiffness_n_per_m3 * x_m * x_m;
-  double df_dv = -m.damping_n_s_per_m;
-  if (m.friction_force_n != 0) {
-    const double th = std::tanh(v_m_per_s / m.friction_velocity_m_per_s);
-    df_dv -= m.friction_force_n / m.friction_velocity_m_per_s * (1.0 - th * th);
-  }
-  // Both stops oppose the displacement into them: d/dx and d/dv of the stop term are negative.
-  if (problem->mode.lower) {
-    df_dx -= StopStiffnessNPerM(m, LowerPenetrationM(m, x_m));
-    df_dv -= m.contact_damping_n_s_per_m;
-  }
-  if (problem->mode.upper) {
-    df_dx -= StopStiffnessNPerM(m, UpperPenetrationM(m, x_m));
-    df_dv -= m.contact_damping_n_s_per_m;
-  }
+  const ForceJacobian j = BlockedForceJacobian(*problem->model, problem->drive->Voltage(t_s), NV_Ith_S(y, 0),
+                                               NV_Ith_S(y, 1), problem->mode);
   SM_ELEMENT_D(jacobian, 0, 0) = 0.0;
   SM_ELEMENT_D(jacobian, 0, 1) = 1.0;
-  SM_ELEMENT_D(jacobian, 1, 0) = df_dx * problem->inverse_mass_per_kg;
-  SM_ELEMENT_D(jacobian, 1, 1) = df_dv * problem->inverse_mass_per_kg;
+  SM_ELEMENT_D(jacobian, 1, 0) = j.d_dx_n_per_m * problem->inverse_mass_per_kg;
+  SM_ELEMENT_D(jacobian, 1, 1) = j.d_dv_n_s_per_m * problem->inverse_mass_per_kg;
   return 0;
 }
 
@@ -329,7 +296,7 @@ class CvodeRun {
     problem_.drive = &drive;
     problem_.inverse_mass_per_kg = 1.0 / model.mass_kg;
     problem_.surfaces = SwitchingSurfaces(model, drive);
-    problem_.mode = InitialMode(model, options.initial);
+    problem_.mode = StartingMode(model, options.initial.x_m, options.initial.v_m_per_s);
     root_directions_.resize(problem_.surfaces.size());
     PrepareRecord();
   }

@@ -7,15 +7,16 @@
 #include <numbers>
 
 #include "strokelab/signal/harmonic_fit.h"
+#include "fit_internal.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/engines/pwl_system.h"
+#include "strokelab/engines/variational_flow.h"
 #include "strokelab/steady/steady_state.h"
 
 namespace strokelab::internal {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr int kSettlePeriods = 64;     // plain periods when Newton fails inside the cost function
 constexpr int kAperiodicPeriods = 16;  // periods over which an aperiodic response is averaged
 
@@ -63,7 +64,7 @@ std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAna
   orbit.anchor = Anchor{s->start, s->period};
   orbit.stable = s->stable;
   orbit.contacts_per_period = s->ContactsPerPeriod();
-  const double omega = kTwoPi * record.drive.frequency_hz;
+  const double omega = fit_internal::kTwoPi * record.drive.frequency_hz;
   orbit.harmonics.resize(orders);
   for (int h = 1; h <= orders; ++h) {
     orbit.harmonics[h - 1] = ResponseHarmonic(x[h - 1], h, omega, kind, model.mass_kg);
@@ -71,6 +72,48 @@ std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAna
       return std::nullopt;
   }
   return orbit;
+}
+
+OrbitSlopes OrbitHarmonicSlopes(const ActuatorModel& model, const RecordAnalysis& record, State start, int period,
+                                ResponseKind kind, int orders, const std::vector<double ActuatorModel::*>& parameters) {
+  const double f = record.drive.frequency_hz, omega = fit_internal::kTwoPi * f;
+  const int periods = period > 0 ? period : kAperiodicPeriods;
+  const double duration_s = periods / f;
+  FlowRequest request;
+  request.monodromy = true;
+  request.parameters = parameters;
+  request.harmonics = orders;
+  request.harmonic_sensitivities = true;
+  const FlowResult flow = Flow(model, SineDrive{record.drive.amplitude_v, f, 0.0}, start, 0.0, duration_s, request);
+  // dy*/dp_j = (I - M)^{-1} dP/dp_j on a periodic orbit; 0 on a fixed stretch of aperiodic motion.
+  const State mx = flow.columns[0], mv = flow.columns[1];
+  const double a = 1.0 - mx.x_m, b = -mv.x_m, c = -mx.v_m_per_s, d = 1.0 - mv.v_m_per_s;
+  const double det = a * d - b * c;
+  if (period > 0 && !(std::abs(det) > 0.0)) throw NumericalError("the orbit's monodromy has a multiplier of 1");
+  const double scale = 2.0 / duration_s;  // C_h = (2 / pT) int x e^{-jhwt} dt
+  OrbitSlopes out;
+  out.harmonics.resize(orders);
+  for (int h = 1; h <= orders; ++h)
+    out.harmonics[h - 1] = ResponseHarmonic(scale * flow.harmonic_integrals[h - 1], h, omega, kind, model.mass_kg);
+  for (size_t j = 0; j < parameters.size(); ++j) {
+    const State dp = flow.columns[2 + j];
+    double dx0 = 0.0, dv0 = 0.0;
+    if (period > 0) {
+      dx0 = (d * dp.x_m - b * dp.v_m_per_s) / det;
+      dv0 = (-c * dp.x_m + a * dp.v_m_per_s) / det;
+    }
+    std::vector<Complex> slopes(orders);
+    for (int h = 1; h <= orders; ++h) {
+      const Complex dx_h = scale * (flow.harmonic_sensitivities[2 + j][h - 1] + flow.harmonic_sensitivities[0][h - 1] * dx0 +
+                                    flow.harmonic_sensitivities[1][h - 1] * dv0);
+      slopes[h - 1] = ResponseHarmonic(dx_h, h, omega, kind, model.mass_kg);
+      // The force is m_p x'': its harmonics scale with the mass too.
+      if (parameters[j] == &ActuatorModel::mass_kg && kind == ResponseKind::kForce)
+        slopes[h - 1] += out.harmonics[h - 1] / model.mass_kg;
+    }
+    out.d_harmonics.push_back(std::move(slopes));
+  }
+  return out;
 }
 
 double MismatchSquared(const RecordAnalysis& record, const std::vector<Complex>& model) {
@@ -85,17 +128,6 @@ double PowerOf(const RecordAnalysis& record) {
   for (size_t h = 0; h < record.harmonics.size(); ++h)
     if (record.usable.empty() || record.usable[h]) sum += std::norm(record.harmonics[h]);
   return sum;
-}
-
-std::vector<Complex> SampledOrbitHarmonics(const ActuatorModel& model, const RecordAnalysis& record,
-                                           const Anchor& anchor, ResponseKind kind, int orders) {
-  const double f = record.drive.frequency_hz;
-  const int periods = anchor.period > 0 ? anchor.period : kAperiodicPeriods;
-  const PeriodMap map(model, f, record.drive.amplitude_v);
-  const std::vector<Complex> x = strokelab::SampledOrbitHarmonics(map, anchor.start, periods, orders);
-  std::vector<Complex> out(orders);
-  for (int h = 1; h <= orders; ++h) out[h - 1] = ResponseHarmonic(x[h - 1], h, kTwoPi * f, kind, model.mass_kg);
-  return out;
 }
 
 void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind, int orders,
@@ -150,7 +182,7 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
                                       ResponseKind kind) {
   if (orbit.anchor.period != 1) return {};
   const double f = a.drive.frequency_hz, period_s = 1.0 / f;
-  double phase_time_s = a.drive.phase_rad / (kTwoPi * f);  // model time at which the drive phase is phi
+  double phase_time_s = a.drive.phase_rad / (fit_internal::kTwoPi * f);  // model time at which the drive phase is phi
   if (phase_time_s < 0) phase_time_s += period_s;
   // The orbit's state at drive phase phi: the record's first sample.
   State y = orbit.anchor.start;

@@ -25,11 +25,17 @@ double ClippedVoltage(const ActuatorModel& model, double voltage_v) {
   return voltage_v > limit ? limit : (voltage_v < -limit ? -limit : voltage_v);
 }
 
+double StopForcePerContactStiffness(const ActuatorModel& model, double p) {
+  return model.contact_law == ContactLaw::kLinear ? p : std::copysign(std::abs(p) * std::sqrt(std::abs(p)), p);
+}
+
 double StopForceUnclamped(const ActuatorModel& model, double p, double p_rate) {
-  const double elastic = model.contact_law == ContactLaw::kLinear
-                             ? model.contact_stiffness * p
-                             : model.contact_stiffness * std::copysign(std::pow(std::abs(p), 1.5), p);
-  return elastic + model.contact_damping_n_s_per_m * p_rate;
+  return model.contact_stiffness * StopForcePerContactStiffness(model, p) + model.contact_damping_n_s_per_m * p_rate;
+}
+
+double StopStiffnessNPerM(const ActuatorModel& model, double p) {
+  if (model.contact_law == ContactLaw::kLinear) return model.contact_stiffness;
+  return 1.5 * model.contact_stiffness * std::sqrt(std::abs(p));
 }
 
 ContactMode ModeFromState(const ActuatorModel& model, double x, double v) {
@@ -45,6 +51,13 @@ ContactMode ModeFromState(const ActuatorModel& model, double x, double v) {
   return mode;
 }
 
+ContactMode StartingMode(const ActuatorModel& model, double x, double v) {
+  ContactMode mode = ModeFromState(model, x, v);
+  if (model.HasLowerStop() && model.lower_stop_m - x == 0.0 && v < 0) mode.lower = true;
+  if (model.HasUpperStop() && x - model.upper_stop_m == 0.0 && v > 0) mode.upper = true;
+  return mode;
+}
+
 double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, double v, ContactMode mode) {
   double force = m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - m.stiffness_n_per_m * x -
                  m.damping_n_s_per_m * v;
@@ -55,6 +68,57 @@ double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, do
   if (mode.lower) force += StopForceUnclamped(m, m.lower_stop_m - x, -v);
   if (mode.upper) force -= StopForceUnclamped(m, x - m.upper_stop_m, v);
   return force;
+}
+
+ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_v, double x, double v,
+                                   ContactMode mode) {
+  ForceJacobian j;
+  j.force_n = BlockedForce(m, drive_voltage_v, x, v, mode);
+  j.d_dx_n_per_m = -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x - 3.0 * m.cubic_stiffness_n_per_m3 * x * x;
+  j.d_dv_n_s_per_m = -m.damping_n_s_per_m;
+  if (m.friction_force_n != 0) {
+    const double th = std::tanh(v / m.friction_velocity_m_per_s);
+    j.d_dv_n_s_per_m -= m.friction_force_n / m.friction_velocity_m_per_s * (1.0 - th * th);
+  }
+  // Both stops oppose the displacement into them: d/dx and d/dv of the stop term are negative.
+  if (mode.lower) {
+    j.d_dx_n_per_m -= StopStiffnessNPerM(m, m.lower_stop_m - x);
+    j.d_dv_n_s_per_m -= m.contact_damping_n_s_per_m;
+  }
+  if (mode.upper) {
+    j.d_dx_n_per_m -= StopStiffnessNPerM(m, x - m.upper_stop_m);
+    j.d_dv_n_s_per_m -= m.contact_damping_n_s_per_m;
+  }
+  return j;
+}
+
+double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorModel::*parameter,
+                                       double drive_voltage_v, double x, double v, ContactMode mode) {
+  using M = ActuatorModel;
+  // Each stop term enters with its sign: + F_lower(p = d - x, p' = -v), - F_upper(p = x - d_upper, p' = v).
+  const double p_lower = m.lower_stop_m - x, p_upper = x - m.upper_stop_m;
+  if (parameter == &M::damping_n_s_per_m) return -v;
+  if (parameter == &M::stiffness_n_per_m) return -x;
+  if (parameter == &M::quadratic_stiffness_n_per_m2) return -x * x;
+  if (parameter == &M::cubic_stiffness_n_per_m3) return -x * x * x;
+  if (parameter == &M::gain_n_per_v) return ClippedVoltage(m, drive_voltage_v);
+  if (parameter == &M::friction_force_n) return -std::tanh(v / m.friction_velocity_m_per_s);
+  if (parameter == &M::friction_velocity_m_per_s) {
+    const double vs = m.friction_velocity_m_per_s, th = std::tanh(v / vs);
+    return m.friction_force_n * (1.0 - th * th) * v / (vs * vs);
+  }
+  if (parameter == &M::amplifier_limit_v) {
+    if (drive_voltage_v > m.amplifier_limit_v) return m.gain_n_per_v;
+    if (drive_voltage_v < -m.amplifier_limit_v) return -m.gain_n_per_v;
+    return 0.0;
+  }
+  if (parameter == &M::lower_stop_m) return mode.lower ? StopStiffnessNPerM(m, p_lower) : 0.0;
+  if (parameter == &M::upper_stop_m) return mode.upper ? StopStiffnessNPerM(m, p_upper) : 0.0;
+  if (parameter == &M::contact_stiffness)
+    return (mode.lower ? StopForcePerContactStiffness(m, p_lower) : 0.0) -
+           (mode.upper ? StopForcePerContactStiffness(m, p_upper) : 0.0);
+  if (parameter == &M::contact_damping_n_s_per_m) return (mode.lower ? -v : 0.0) - (mode.upper ? v : 0.0);
+  return 0.0;  // the mass (see the header) and fields that are not forces
 }
 
 }  // namespace strokelab

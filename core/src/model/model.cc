@@ -48,6 +48,12 @@ std::string ActuatorModel::NonlinearTerms() const {
 
 ActuatorModel PaperModel() { return ActuatorModel{}; }
 
+double LengthScaleM(const ActuatorModel& model) {
+  if (model.HasLowerStop() && model.lower_stop_m != 0.0) return std::abs(model.lower_stop_m);
+  if (model.HasUpperStop() && model.upper_stop_m != 0.0) return std::abs(model.upper_stop_m);
+  return 1e-3;
+}
+
 std::vector<std::string> PresetNames() { return {"paper", "linear"}; }
 
 ActuatorModel PresetModel(std::string_view name) {

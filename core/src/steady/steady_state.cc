@@ -9,7 +9,7 @@
 
 #include "strokelab/base/errors.h"
 #include "strokelab/engines/pwl_system.h"
-#include "strokelab/signal/signal.h"
+#include "strokelab/engines/variational_flow.h"
 
 namespace strokelab {
 namespace {
@@ -103,22 +103,14 @@ std::array<std::complex<double>, 2> Matrix2::Eigenvalues() const {
   return {trace / 2.0 + root, trace / 2.0 - root};
 }
 
-double LengthScaleM(const ActuatorModel& model) {
-  if (model.HasLowerStop() && model.lower_stop_m != 0.0) return std::abs(model.lower_stop_m);
-  if (model.HasUpperStop() && model.upper_stop_m != 0.0) return std::abs(model.upper_stop_m);
-  return 1e-3;
-}
-
-// The closed-form path for piecewise-linear models, CVODE with finite differences otherwise.
+// The closed-form path for piecewise-linear models, the variational flow otherwise.
 struct PeriodMap::Impl {
   ActuatorModel model;
   SineDrive drive;
   std::optional<PiecewiseLinearSystem> system;
-  std::unique_ptr<Engine> cvode;
 
   OrbitFigures TraceClosedForm(State y0, int periods, bool with_figures) const;
-  OrbitFigures TraceCvode(State y0, int periods) const;
-  State ApplyCvode(State y0, int periods) const;
+  OrbitFigures TraceFlow(State y0, int periods, bool with_figures) const;
 };
 
 PeriodMap::PeriodMap(const ActuatorModel& model, double frequency_hz, double amplitude_v)
@@ -127,11 +119,7 @@ PeriodMap::PeriodMap(const ActuatorModel& model, double frequency_hz, double amp
   impl_->model = model;
   impl_->drive = SineDrive{amplitude_v, frequency_hz, 0.0};
   Validate(impl_->drive);
-  if (model.IsPiecewiseLinear()) {
-    impl_->system.emplace(model, impl_->drive);
-  } else {
-    impl_->cvode = MakeCvodeEngine();
-  }
+  if (model.IsPiecewiseLinear()) impl_->system.emplace(model, impl_->drive);
 }
 
 PeriodMap::~PeriodMap() = default;
@@ -140,7 +128,7 @@ PeriodMap::PeriodMap(PeriodMap&&) noexcept = default;
 const ActuatorModel& PeriodMap::model() const { return impl_->model; }
 
 State PeriodMap::Apply(State y) const {
-  if (!impl_->system) return impl_->ApplyCvode(y, 1);
+  if (!impl_->system) return Flow(impl_->model, impl_->drive, y, 0.0, period_s(), {}).end;
   double t = 0.0;
   PwlMode mode = impl_->system->InitialMode(0.0, y);
   impl_->system->Advance(&t, &y, &mode, period_s(), [](const SwitchEvent&) {});
@@ -148,12 +136,11 @@ State PeriodMap::Apply(State y) const {
 }
 
 OrbitFigures PeriodMap::Trace(State y, int periods) const {
-  return impl_->system ? impl_->TraceClosedForm(y, periods, true) : impl_->TraceCvode(y, periods);
+  return impl_->system ? impl_->TraceClosedForm(y, periods, true) : impl_->TraceFlow(y, periods, true);
 }
 
 OrbitFigures PeriodMap::Linearize(State y, int periods) const {
-  // (CVODE's figures come from the samples its Jacobian needs anyway.)
-  return impl_->system ? impl_->TraceClosedForm(y, periods, false) : impl_->TraceCvode(y, periods);
+  return impl_->system ? impl_->TraceClosedForm(y, periods, false) : impl_->TraceFlow(y, periods, false);
 }
 
 OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_figures) const {
@@ -210,41 +197,25 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_f
   return figures;
 }
 
-State PeriodMap::Impl::ApplyCvode(State y0, int periods) const {
-  SimulationOptions options;
-  options.duration_s = periods / drive.frequency_hz;
-  options.sample_rate_hz = 64 * drive.frequency_hz;
-  options.initial = y0;
-  options.record_velocity = false;
-  return cvode->Simulate(model, drive, options).final_state;
-}
-
-OrbitFigures PeriodMap::Impl::TraceCvode(State y0, int periods) const {
-  // 2048 samples per period resolve x (smooth) for its first harmonic by least squares; contacts
-  // and extrema from the samples and the engine's located contacts.
-  SimulationOptions options;
-  options.duration_s = periods / drive.frequency_hz;
-  options.sample_rate_hz = 2048 * drive.frequency_hz;
-  options.initial = y0;
-  const Record record = cvode->Simulate(model, drive, options);
+OrbitFigures PeriodMap::Impl::TraceFlow(State y0, int periods, bool with_figures) const {
+  FlowRequest request;
+  request.monodromy = true;
+  request.harmonics = with_figures ? 1 : 0;
+  request.figures = with_figures;
+  const double t_end = periods / drive.frequency_hz;
+  const FlowResult flow = Flow(model, drive, y0, 0.0, t_end, request);
   OrbitFigures figures;
-  figures.end = record.final_state;
-  const auto [lo, hi] = std::minmax_element(record.displacement_m.begin(), record.displacement_m.end());
-  figures.min_displacement_m = std::min(*lo, figures.end.x_m);
-  figures.max_displacement_m = std::max(*hi, figures.end.x_m);
-  for (double f : record.force_n) figures.peak_force_n = std::max(figures.peak_force_n, std::abs(f));
-  for (const ContactInterval& c : record.contacts)
-    if (c.start_s > 0.0) ++figures.contacts;
-  const SampleWindow window{0, record.size(), static_cast<double>(periods)};
-  figures.x1 = FirstHarmonic(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window);
-  // Jacobian by central differences on each state component.
-  const double h_x = 1e-7 * LengthScaleM(model), h_v = h_x * drive.AngularFrequency();
-  const State xp = ApplyCvode({y0.x_m + h_x, y0.v_m_per_s}, periods);
-  const State xm = ApplyCvode({y0.x_m - h_x, y0.v_m_per_s}, periods);
-  const State vp = ApplyCvode({y0.x_m, y0.v_m_per_s + h_v}, periods);
-  const State vm = ApplyCvode({y0.x_m, y0.v_m_per_s - h_v}, periods);
-  figures.monodromy = {(xp.x_m - xm.x_m) / (2 * h_x), (vp.x_m - vm.x_m) / (2 * h_v),
-                       (xp.v_m_per_s - xm.v_m_per_s) / (2 * h_x), (vp.v_m_per_s - vm.v_m_per_s) / (2 * h_v)};
+  figures.end = flow.end;
+  figures.monodromy = {flow.columns[0].x_m, flow.columns[1].x_m, flow.columns[0].v_m_per_s, flow.columns[1].v_m_per_s};
+  figures.contacts = flow.contacts;
+  if (!with_figures) {
+    figures.min_displacement_m = figures.max_displacement_m = figures.peak_force_n = NAN;  // not computed
+    return figures;
+  }
+  figures.min_displacement_m = flow.min_displacement_m;
+  figures.max_displacement_m = flow.max_displacement_m;
+  figures.peak_force_n = flow.peak_force_n;
+  figures.x1 = 2.0 * flow.harmonic_integrals[0] / t_end;
   return figures;
 }
 
@@ -259,26 +230,19 @@ State PeriodMap::ClippedLinearStart() const {
   return y;
 }
 
-std::vector<std::complex<double>> SampledOrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
-  constexpr double kSamplesPerPeriod = 2048;  // resolve x (smooth) for its harmonics by least squares
-  const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
-  SimulationOptions options;
-  options.duration_s = period / drive.frequency_hz;
-  options.sample_rate_hz = kSamplesPerPeriod * drive.frequency_hz;
-  options.initial = start;
-  options.record_velocity = false;
-  const Record record = MakeCvodeEngine()->Simulate(map.model(), drive, options);
-  const SampleWindow window{0, record.size(), static_cast<double>(period)};
-  return HarmonicAmplitudes(record.displacement_m, options.sample_rate_hz, drive.frequency_hz, window, orders);
-}
-
 std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders) {
   if (period < 1) throw InputError("period", "must be >= 1 (got " + std::to_string(period) + ")");
   if (orders < 1) throw InputError("orders", "must be >= 1 (got " + std::to_string(orders) + ")");
   const ActuatorModel& model = map.model();
   const SineDrive drive{map.amplitude_v(), map.frequency_hz(), 0.0};
   const double t_end = period / drive.frequency_hz;
-  if (!model.IsPiecewiseLinear()) return SampledOrbitHarmonics(map, start, period, orders);
+  if (!model.IsPiecewiseLinear()) {
+    FlowRequest request;
+    request.harmonics = orders;
+    std::vector<Complex> integral = Flow(model, drive, start, 0.0, t_end, request).harmonic_integrals;
+    for (Complex& c : integral) c *= 2.0 / t_end;
+    return integral;
+  }
   // The same segments as PeriodMap's closed-form trace, each integrated at every harmonic.
   const PiecewiseLinearSystem sys(model, drive);
   const double omega = drive.AngularFrequency();

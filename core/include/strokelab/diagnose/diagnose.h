@@ -9,9 +9,8 @@
 //      versus amplitude, contact times and spike polarity versus impact strength, and the time-domain
 //      residual in windows around contacts against the rest of the period.
 //   4. Candidates (EffectLibrary): the base model extended by each effect (and the best pair when two
-//      effects each beat noise), fitted with the base parameters free (k_s held at the base fit's
-//      value with a smooth suspension term: the impacts fix it), by the defect-corrected refinement
-//      of identify/extended_fit.h for terms the closed-form engine cannot take.
+//      effects each beat noise), fitted with every base parameter free by identify/extended_fit.h
+//      (one least-squares problem on the variational flow's exact Jacobians).
 //   5. Choice: by the held-out chi-square (harmonic residuals over their standard errors, scaled by
 //      the candidate's residual variance on the fit records): an effect is named only when it lowers
 //      the held-out chi-square by more than `min_heldout_gain` and the fit records' chi-square by more
@@ -61,7 +60,7 @@ struct DiagnoseOptions {
   int heldout_every = 4;        // every n-th record is held out (>= 2)
   double min_heldout_gain = 10; // held-out chi-square drop (in residual variances) an effect must beat
   bool pairs = true;            // try the best pair when two effects each beat noise
-  int max_passes = 12;           // defect-correction passes of an extended fit
+  int max_passes = 8;           // solves of an extended fit (sampling corrections refreshed between)
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
   std::function<void(const std::string&)> progress;  // one line per stage (may be empty)
   // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,

@@ -2,20 +2,13 @@
 // free: Levenberg-Marquardt (Ceres) on the records' harmonics 1..N over their standard errors, as
 // the fit's step 4 (fit.h), for any list of free parameters.
 //
-// Terms the closed-form engine cannot take (k2, k3, dry friction, Hertzian contact: "smooth" terms)
-// would need CVODE at every evaluation, ~1000 times slower. Instead each evaluation uses the model's
-// piecewise-linear stand-in (the surrogate: smooth terms removed, Hertzian contact replaced by a linear
-// one) plus a defect correction refreshed once per outer pass at the pass's start theta0:
-//
-//   C_model(theta) = C_surrogate(theta) + [C_full(theta0) - C_surrogate(theta0)]
-//                    + sum_j S_j (theta_j - theta0_j),     S_j = dC_full / dtheta_j at theta0
-//
-// over the smooth parameters j (forward differences on the full model). At theta = theta0 this is the
-// full model's harmonics exactly, so passes are repeated until theta stops moving and the fixed point
-// is a model whose own steady states (CVODE) are the prediction; the derivatives with respect to the
-// base parameters are the surrogate's, which differ from the full model's by the effect's small share
-// (defect correction; e.g. Deuflhard, "Newton Methods for Nonlinear Problems", Springer 2004, 1.4).
-// Standard errors come from the last pass's Jacobian.
+// Every evaluation solves each record's periodic steady state of the full model (Newton from the
+// record's anchor on the period map, engines/variational_flow.h for models that are not piecewise
+// linear) and takes the residuals' Jacobian from the flow's exact sensitivities (fit_orbit.h,
+// OrbitHarmonicSlopes): one nonlinear least-squares problem, converged when Ceres' own convergence
+// test holds, with standard errors from the true Jacobian at the solution. The records' sampling
+// correction (fit_orbit.h, SamplingCorrection: what a record's sampling makes of the piecewise-linear
+// surrogate's response) is frozen during a solve and refreshed between solves.
 #pragma once
 
 #include <complex>
@@ -40,11 +33,8 @@ struct FreeParameter {
   double start = 0.0;
   double scale = 1.0;                       // linear scale: [unit] per unit of theta
   double theta_min = 0.0, theta_max = 2.0;  // bounds on theta
-  bool smooth = false;                      // a term the closed-form engine cannot take
-  // Largest move of theta per defect-correction pass (smooth terms: their slope is exact only near
-  // the pass's start, so the pass is a trust region around it) [theta units].
-  double max_step = 1e300;
   double Value(double theta) const;
+  double ValuePerTheta(double theta) const;  // d Value / d theta
   double StandardError(double theta, double theta_variance) const;  // delta method
 };
 
@@ -60,8 +50,8 @@ struct ExtendedProblem {
 
 struct ExtendedFitOptions {
   int orders = 10;         // harmonics N
-  int max_passes = 8;      // defect-correction passes
-  int max_iterations = 30; // Ceres iterations per pass
+  int max_passes = 8;      // solves, each with the sampling corrections refreshed at its start
+  int max_iterations = 30; // Ceres iterations per solve
   double max_seconds = 120.0;
 };
 

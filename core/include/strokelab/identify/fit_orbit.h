@@ -51,11 +51,18 @@ std::complex<double> ResponseHarmonic(std::complex<double> x_h, int h, double om
 std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAnalysis& record, const Anchor& anchor,
                                      ResponseKind kind, int orders, OrbitSearch search);
 
-// The orbit's response harmonics by strokelab::SampledOrbitHarmonics (steady_state.h), in the
-// record's response units: a defect between a smooth model and its piecewise-linear stand-in taken
-// this way on both sides leaves out the sampling's own error.
-std::vector<std::complex<double>> SampledOrbitHarmonics(const ActuatorModel& model, const RecordAnalysis& record,
-                                                        const Anchor& anchor, ResponseKind kind, int orders);
+// A periodic orbit's response harmonics with their exact derivatives in model parameters, from the
+// variational flow (engines/variational_flow.h) over `period` periods from `start` (on the orbit):
+// the orbit y* solves P(y*, p) = y*, so dy*/dp = (I - M)^{-1} dP/dp (M the monodromy), and
+//   dC_h/dp = dC_h/dy0 . dy*/dp + dC_h/dp|y0.
+// With period = 0 (no periodic orbit: `start` on a settled aperiodic motion, harmonics over
+// kAperiodicPeriods) only the second term: the derivative of a fixed stretch of the motion.
+struct OrbitSlopes {
+  std::vector<std::complex<double>> harmonics;               // response units, relative to the drive
+  std::vector<std::vector<std::complex<double>>> d_harmonics;  // [j][h - 1]: d C_h / d parameters[j]
+};
+OrbitSlopes OrbitHarmonicSlopes(const ActuatorModel& model, const RecordAnalysis& record, State start, int period,
+                                ResponseKind kind, int orders, const std::vector<double ActuatorModel::*>& parameters);
 
 // sum_h |C_h - model_h|^2 and sum_h |C_h|^2 over the record's usable harmonics.
 double MismatchSquared(const RecordAnalysis& record, const std::vector<std::complex<double>>& model);

@@ -41,8 +41,32 @@ double StopForceUnclamped(const ActuatorModel& model, double penetration_m, doub
 // The mode a state is in, judged from the state alone (used where no mode is tracked: ode3).
 ContactMode ModeFromState(const ActuatorModel& model, double x_m, double v_m_per_s);
 
+// The mode at the start of a run where the mode is tracked from then on: ModeFromState, and a state
+// exactly on a stop's surface (p = 0) moving into it counts as pushing (it would an instant later,
+// and a switching function that is exactly zero at the start shows no crossing).
+ContactMode StartingMode(const ActuatorModel& model, double x_m, double v_m_per_s);
+
 // m_p x'' [N]: the blocked force f (model.h) for a given contact mode and drive voltage.
 double BlockedForce(const ActuatorModel& model, double drive_voltage_v, double x_m, double v_m_per_s,
                     ContactMode mode);
+
+// BlockedForce with its partial derivatives in the state, for Jacobians and variational equations.
+struct ForceJacobian {
+  double force_n = 0.0;
+  double d_dx_n_per_m = 0.0;
+  double d_dv_n_s_per_m = 0.0;
+};
+ForceJacobian BlockedForceJacobian(const ActuatorModel& model, double drive_voltage_v, double x_m,
+                                   double v_m_per_s, ContactMode mode);
+
+// d BlockedForce / d parameter at a fixed state, drive and mode, for a parameter named by its field in
+// ActuatorModel [N per the parameter's unit]. The mass gives 0: f does not depend on m_p, x'' = f / m_p does.
+double BlockedForceParameterDerivative(const ActuatorModel& model, double ActuatorModel::*parameter,
+                                       double drive_voltage_v, double x_m, double v_m_per_s, ContactMode mode);
+
+// d(stop force)/d(penetration) [N/m] at penetration p: k_s (linear) or 1.5 k_s |p|^(1/2) (Hertzian).
+double StopStiffnessNPerM(const ActuatorModel& model, double penetration_m);
+// d(stop force)/d k_s at penetration p: p (linear) or sign(p) |p|^(3/2) (Hertzian) [m or m^1.5].
+double StopForcePerContactStiffness(const ActuatorModel& model, double penetration_m);
 
 }  // namespace strokelab

@@ -66,6 +66,9 @@ struct ActuatorModel {
   std::optional<FieldError> IsValid() const;
 };
 
+// The model's length scale [m], used to scale residuals and tolerances: |d| or the upper stop, else 1 mm.
+double LengthScaleM(const ActuatorModel& model);
+
 // Paper Table 2 with the one-sided stop at d = -1 mm.
 ActuatorModel PaperModel();
 

@@ -12,11 +12,13 @@
 // (Mueller, "Calculation of Lyapunov exponents for dynamic systems with discontinuities", Chaos,
 // Solitons & Fractals 5(9), 1995; Leine & Nijmeijer, "Dynamics and Bifurcations of Non-smooth
 // Mechanical Systems", Springer 2004, ch. 7). Its eigenvalues are the Floquet multipliers. Other
-// models use CVODE and a finite-difference Jacobian.
+// models use the variational flow (engines/variational_flow.h): the same monodromy, from the
+// variational equations integrated with the state and the same saltation matrices at located switches.
 //
 // Harmonics of an orbit are exact: x(t) is a sum of complex exponentials in each region, so
-// C_1(x) = (2 / T) int x e^{-jwt} dt is integrated in closed form, and the blocked force has
-// C_1(f) = -m_p w^2 C_1(x) (f = m_p x'' and x, x' are continuous and periodic).
+// C_1(x) = (2 / T) int x e^{-jwt} dt is integrated in closed form (by the flow's quadratures for other
+// models), and the blocked force has C_1(f) = -m_p w^2 C_1(x) (f = m_p x'' and x, x' are continuous
+// and periodic).
 #pragma once
 
 #include <array>
@@ -117,19 +119,11 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
 // nullopt when the settled motion has no stable period up to max_period.
 std::optional<SteadyState> SettledAttractor(const PeriodMap& map, State guess, const ShootingOptions& options = {});
 
-// The length scale of the model used to scale residuals [m]: |d| or the upper stop, else 1 mm.
-double LengthScaleM(const ActuatorModel& model);
-
 // Harmonics C_h, h = 1..orders, of x over `period` drive periods from `start` (on the orbit at phase 0):
 // x(t) ~ c_0 + sum_h Re(C_h e^{jhwt}), C_h = (2 / pT) int_0^{pT} x e^{-jhwt} dt [m], phases relative to
-// the drive. Closed form for piecewise-linear models (as OrbitFigures::x1, which equals C_1), 2048
-// samples per period and least squares otherwise. The blocked force has C_h(f) = -m_p (hw)^2 C_h(x)
+// the drive. Closed form for piecewise-linear models (as OrbitFigures::x1, which equals C_1), the
+// variational flow's quadratures otherwise. The blocked force has C_h(f) = -m_p (hw)^2 C_h(x)
 // over a periodic orbit (x and x' are continuous). Throws InputError if period < 1 or orders < 1.
 std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State start, int period, int orders);
-
-// The same harmonics as OrbitHarmonics takes them for models that are not piecewise linear (CVODE,
-// 2048 samples per period, least squares), for any model: a difference of two orbits taken this way
-// on both sides leaves out the sampling's own error (an impact's high harmonics alias onto C_1..C_N).
-std::vector<std::complex<double>> SampledOrbitHarmonics(const PeriodMap& map, State start, int period, int orders);
 
 }  // namespace strokelab

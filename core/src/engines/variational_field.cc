@@ -1,0 +1,127 @@
+#include "variational_field.h"
+
+#include <cmath>
+
+namespace strokelab::variational {
+
+Layout::Layout(const FlowRequest& request)
+    : state_columns(request.monodromy ? 2 : 0),
+      columns(state_columns + static_cast<int>(request.parameters.size())),
+      harmonics(request.harmonics),
+      harmonic_sensitivities(request.harmonic_sensitivities) {
+  size = 2 + 2 * columns + 2 * harmonics + (harmonic_sensitivities ? 2 * columns * harmonics : 0);
+}
+
+Field::Field(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request)
+    : model_(model),
+      drive_(drive),
+      parameters_(request.parameters),
+      layout_(request),
+      inverse_mass_per_kg_(1.0 / model.mass_kg),
+      omega_rad_per_s_(drive.AngularFrequency()),
+      cos_phase_(std::cos(drive.phase_rad)),
+      sin_phase_(std::sin(drive.phase_rad)) {}
+
+double Field::Force(double t_s, double x_m, double v_m_per_s, ContactMode mode) const {
+  return BlockedForce(model_, drive_.Voltage(t_s), x_m, v_m_per_s, mode);
+}
+
+void SmallAngleCosSin(double theta, double* cos_theta, double* sin_theta) {
+  const double t2 = theta * theta;
+  double c = 1.0 / 6402373705728000.0, s = 1.0 / 355687428096000.0;  // 1/18!, 1/17!
+  // Horner in theta^2 over the factorials (2k)! and (2k+1)!, k = 8 .. 0.
+  constexpr double kEven[] = {1.0 / 20922789888000.0, 1.0 / 87178291200.0, 1.0 / 479001600.0, 1.0 / 3628800.0,
+                              1.0 / 40320.0,          1.0 / 720.0,         1.0 / 24.0,        1.0 / 2.0,
+                              1.0};
+  constexpr double kOdd[] = {1.0 / 1307674368000.0, 1.0 / 6227020800.0, 1.0 / 39916800.0, 1.0 / 362880.0,
+                             1.0 / 5040.0,          1.0 / 120.0,        1.0 / 6.0,        1.0};
+  c = -c * t2 + kEven[0];  // 1/16! - theta^2/18!
+  for (int k = 1; k < 9; ++k) c = -c * t2 + kEven[k];
+  for (int k = 0; k < 8; ++k) s = -s * t2 + kOdd[k];
+  *cos_theta = c;
+  *sin_theta = s * theta;
+}
+
+double Field::Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const {
+  return Evaluate(std::cos(omega_rad_per_s_ * t_s), std::sin(omega_rad_per_s_ * t_s), y, dy, mode);
+}
+
+double Field::Evaluate(double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
+  const double x = y[0], v = y[1];
+  // sin/cos of w t serve the drive (angle addition with its phase) and the quadratures.
+  const double voltage_v = drive_.amplitude_v * (sin_wt * cos_phase_ + cos_wt * sin_phase_);
+  const Layout& l = layout_;
+  const double m = inverse_mass_per_kg_;
+  double force_n;
+  if (l.columns == 0) {
+    force_n = BlockedForce(model_, voltage_v, x, v, mode);
+  } else {
+    const ForceJacobian j = BlockedForceJacobian(model_, voltage_v, x, v, mode);
+    force_n = j.force_n;
+    for (int c = 0; c < l.columns; ++c) {
+      const int i = l.Column(c);
+      dy[i] = y[i + 1];
+      double acceleration = (j.d_dx_n_per_m * y[i] + j.d_dv_n_s_per_m * y[i + 1]) * m;
+      if (c >= l.state_columns) {
+        double ActuatorModel::*p = parameters_[c - l.state_columns];
+        // x'' = f / m_p: the mass enters through 1 / m_p (d/dm_p = -f / m_p^2), the rest through f.
+        acceleration += p == &ActuatorModel::mass_kg
+                            ? -force_n * m * m
+                            : BlockedForceParameterDerivative(model_, p, voltage_v, x, v, mode) * m;
+      }
+      dy[i + 1] = acceleration;
+    }
+  }
+  dy[0] = v;
+  dy[1] = force_n * m;
+  // e^{-jhwt} by repeated multiplication with e^{-jwt}.
+  double re = 1.0, im = 0.0;
+  for (int k = 0; k < l.harmonics; ++k) {
+    const double next_re = re * cos_wt + im * sin_wt;
+    im = im * cos_wt - re * sin_wt;
+    re = next_re;
+    dy[l.Quadrature(k)] = x * re;
+    dy[l.Quadrature(k) + 1] = x * im;
+    if (!l.harmonic_sensitivities) continue;
+    for (int c = 0; c < l.columns; ++c) {
+      const double sx = y[l.Column(c)];
+      dy[l.QuadratureSensitivity(c, k)] = sx * re;
+      dy[l.QuadratureSensitivity(c, k) + 1] = sx * im;
+    }
+  }
+  return force_n;
+}
+
+// Lower stop: p = d - x, p' = -v; upper stop: p = x - d_upper, p' = v (dynamics.h).
+double StopSurface::Value(const ActuatorModel& m, double x, double v) const {
+  const double p = upper ? x - m.upper_stop_m : m.lower_stop_m - x;
+  if (!force) return p;
+  return StopForceUnclamped(m, p, upper ? v : -v);
+}
+
+void StopSurface::Gradient(const ActuatorModel& m, double x, double /*v*/, double* dh_dx, double* dh_dv) const {
+  const double dp_dx = upper ? 1.0 : -1.0;  // and dp'/dv the same
+  if (!force) {
+    *dh_dx = dp_dx;
+    *dh_dv = 0.0;
+    return;
+  }
+  const double p = upper ? x - m.upper_stop_m : m.lower_stop_m - x;
+  *dh_dx = StopStiffnessNPerM(m, p) * dp_dx;
+  *dh_dv = m.contact_damping_n_s_per_m * dp_dx;
+}
+
+double StopSurface::ParameterDerivative(const ActuatorModel& m, double ActuatorModel::*parameter, double x,
+                                    double v) const {
+  const double p = upper ? x - m.upper_stop_m : m.lower_stop_m - x;
+  // dp/d(stop position): +1 for the lower stop's d, -1 for the upper stop's.
+  double dp = 0.0;
+  if (!upper && parameter == &ActuatorModel::lower_stop_m) dp = 1.0;
+  if (upper && parameter == &ActuatorModel::upper_stop_m) dp = -1.0;
+  if (!force) return dp;
+  if (parameter == &ActuatorModel::contact_stiffness) return StopForcePerContactStiffness(m, p);
+  if (parameter == &ActuatorModel::contact_damping_n_s_per_m) return upper ? v : -v;
+  return StopStiffnessNPerM(m, p) * dp;
+}
+
+}  // namespace strokelab::variational

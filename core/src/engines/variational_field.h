@@ -1,0 +1,74 @@
+// The vector field of variational_flow.h: the equation of motion (dynamics.h) with its variational
+// equations and quadratures packed into one flat vector, and the switching surfaces with the
+// derivatives that the jump of the sensitivities at a switch needs.
+//
+// Layout of the packed vector y (n components):
+//   y[0], y[1]                   x [m], v [m/s]
+//   y[2 + 2c], y[3 + 2c]         column c of the sensitivities: d(x, v)/d(x0, v0) first when the
+//                                monodromy is asked for, then d(x, v)/d(parameter)
+//   quadrature(k)                Re, Im of int x e^{-j(k+1)wt} dt, k = 0 .. N-1
+//   quadrature_sensitivity(c, k) Re, Im of int (column c's x) e^{-j(k+1)wt} dt
+// Only y[0], y[1] take part in the error control.
+#pragma once
+
+#include <vector>
+
+#include "strokelab/engines/variational_flow.h"
+#include "strokelab/model/dynamics.h"
+#include "strokelab/model/model.h"
+
+namespace strokelab::variational {
+
+struct Layout {
+  int state_columns = 0;  // 2 with the monodromy, else 0
+  int columns = 0;        // state columns + parameters
+  int harmonics = 0;
+  bool harmonic_sensitivities = false;
+  int size = 2;
+
+  explicit Layout(const FlowRequest& request);
+  int Column(int c) const { return 2 + 2 * c; }
+  int Quadrature(int k) const { return 2 + 2 * columns + 2 * k; }
+  int QuadratureSensitivity(int c, int k) const { return Quadrature(harmonics) + 2 * (c * harmonics + k); }
+};
+
+class Field {
+ public:
+  Field(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request);
+  const Layout& layout() const { return layout_; }
+  const ActuatorModel& model() const { return model_; }
+
+  // dy/dt at t in `mode`, given cos(wt) and sin(wt) (a step rotates them from its start instead of
+  // calling sin and cos at every stage: they were a third of the time). Returns the blocked force [N].
+  double Evaluate(double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
+  double Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const;
+  double omega_rad_per_s() const { return omega_rad_per_s_; }
+  double Force(double t_s, double x_m, double v_m_per_s, ContactMode mode) const;
+
+ private:
+  ActuatorModel model_;
+  SineDrive drive_;
+  std::vector<double ActuatorModel::*> parameters_;
+  Layout layout_;
+  double inverse_mass_per_kg_;
+  double omega_rad_per_s_, cos_phase_, sin_phase_;
+};
+
+// (cos theta, sin theta) for |theta| <= 0.5 by their Taylor series to theta^17 (error < 1e-20).
+void SmallAngleCosSin(double theta, double* cos_theta, double* sin_theta);
+
+// One switching surface h(x, v) = 0 of one stop: its penetration p, or its stop force before the
+// clamp (dynamics.h, StopForceUnclamped).
+struct StopSurface {
+  bool upper = false;  // which stop
+  bool force = false;  // the stop force; else the penetration
+
+  double Value(const ActuatorModel& m, double x_m, double v_m_per_s) const;
+  // grad(h) = (dh/dx, dh/dv).
+  void Gradient(const ActuatorModel& m, double x_m, double v_m_per_s, double* dh_dx, double* dh_dv) const;
+  // dh/dp at a fixed state for a parameter named by its field.
+  double ParameterDerivative(const ActuatorModel& m, double ActuatorModel::*parameter, double x_m,
+                             double v_m_per_s) const;
+};
+
+}  // namespace strokelab::variational

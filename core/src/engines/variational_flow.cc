@@ -1,0 +1,440 @@
+// The DOP853 integration of variational_flow.h: steps with error control on (x, v), switching
+// surfaces located on the dense output, the step cut at each switch and the sensitivities' jump
+// applied there.
+#include "strokelab/engines/variational_flow.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <string>
+
+#include "dop853_tableau.h"
+#include "strokelab/base/errors.h"
+#include "variational_field.h"
+
+namespace strokelab {
+namespace {
+
+
+// Step size control of Hairer, Norsett and Wanner, Sec. II.4 (as in their DOP853 code): the error
+// estimate is of order 8 in h, the factor is bounded to [0.2, 10] with a safety factor of 0.9.
+constexpr double kStepSafety = 0.9, kMinStepFactor = 0.2, kMaxStepFactor = 10.0, kErrorExponent = -1.0 / 8.0;
+// The longest step, as a fraction of the shortest period of drive and suspension: at most one extremum
+// of x per step, so that an apex shows a grazing contact the step's ends do not.
+constexpr double kFlowMaxStepFraction = 1.0 / 20.0;
+
+// Instants in (t0, t1) where the drive crosses the amplifier's limit: sin(w t + phi) = +-r, r = limit / V.
+std::vector<double> ClippingKinks(const ActuatorModel& model, const SineDrive& drive, double t0, double t1) {
+  std::vector<double> kinks;
+  if (!model.HasAmplifierLimit() || drive.amplitude_v <= model.amplifier_limit_v) return kinks;
+  const double omega = drive.AngularFrequency(), r = model.amplifier_limit_v / drive.amplitude_v;
+  const double a = std::asin(r), two_pi = 2.0 * std::numbers::pi;
+  const double angles[] = {a, std::numbers::pi - a, std::numbers::pi + a, two_pi - a};
+  const double first_turn = std::floor((omega * t0 + drive.phase_rad) / two_pi);
+  for (double turn = first_turn;; turn += 1.0) {
+    bool past_end = false;
+    for (double angle : angles) {
+      const double t = (turn * two_pi + angle - drive.phase_rad) / omega;
+      if (t >= t1) past_end = true;
+      else if (t > t0) kinks.push_back(t);
+    }
+    if (past_end) break;
+  }
+  return kinks;
+}
+
+// A root of g on the step's [0, 1] by the Illinois method, g(1) of the sign after the crossing and g(0)
+// of the other sign or 0. Returns the end of the final bracket on g(1)'s side: the state there has
+// crossed, so the new mode holds.
+//
+// g(0) = 0 happens where the step starts on the surface (a switch's state can be exactly on it, at the
+// resolution of x). The crossing then is where g leaves the side it takes first: e.g. right after a
+// grazing entry the stop force rises from 0 before it falls through 0 as the mass leaves, and a root
+// at 0 would let go at once, enter again at once, and never advance. So the side g leaves 0 to is
+// looked up at geometrically growing theta first.
+template <typename G>
+double LocateRootOnStep(const G& g, double g_start, double g_end) {
+  double a = 0.0, b = 1.0, ga = g_start, gb = g_end;
+  if (ga == 0.0) {
+    for (double theta = 0x1p-50; theta < 1.0; theta *= 2.0) {
+      const double value = g(theta);
+      if (value == 0.0) continue;
+      if ((value > 0) == (gb > 0)) return 0.0;  // it leaves 0 to the far side: the crossing is at the start
+      a = theta;
+      ga = value;
+      break;
+    }
+    if (ga == 0.0) return 0.0;
+  }
+  int side = 0;
+  for (int iteration = 0; iteration < 200 && b - a > 1e-15; ++iteration) {
+    const double c = (a * gb - b * ga) / (gb - ga);
+    const double gc = g(c);
+    if (gc == 0.0 || (gc > 0) == (gb > 0)) {
+      b = c;
+      gb = gc;
+      if (side == 1) ga *= 0.5;
+      side = 1;
+      if (gc == 0.0) break;
+    } else {
+      a = c;
+      ga = gc;
+      if (side == -1) gb *= 0.5;
+      side = -1;
+    }
+  }
+  return b;
+}
+
+class FlowIntegrator {
+ public:
+  FlowIntegrator(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request,
+             const FlowOptions& options)
+      : field_(model, drive, request), drive_(drive), request_(request), options_(options), n_(field_.layout().size) {
+    k_.assign(static_cast<size_t>(dop853::kExtendedStages) * n_, 0.0);
+    y_.assign(n_, 0.0);
+    y_new_.assign(n_, 0.0);
+    stage_.assign(n_, 0.0);
+    dense_.assign(static_cast<size_t>(dop853::kDenseTerms) * n_, 0.0);
+    double shortest_s = 1.0 / drive.frequency_hz;
+    if (model.stiffness_n_per_m > 0)
+      shortest_s = std::min(shortest_s, 2.0 * std::numbers::pi * std::sqrt(model.mass_kg / model.stiffness_n_per_m));
+    max_step_s_ = kFlowMaxStepFraction * shortest_s;
+    // A column's absolute tolerances are the state's over the size of its perturbation: the length
+    // scale for x0, the length scale times w for v0, |p| for a parameter (1 where p = 0).
+    const variational::Layout& l = field_.layout();
+    controlled_ = 2 + 2 * l.columns;
+    const double length_m = LengthScaleM(model), speed_m_per_s = length_m * drive.AngularFrequency();
+    absolute_tolerance_ = {options.absolute_tolerance_m, options.absolute_tolerance_m_per_s};
+    for (int c = 0; c < l.columns; ++c) {
+      double size = c < l.state_columns ? (c == 0 ? length_m : speed_m_per_s)
+                                        : std::abs(model.*request.parameters[c - l.state_columns]);
+      if (!(size > 0) || !std::isfinite(size)) size = 1.0;
+      const double looser = options.sensitivity_relative_tolerance / options.relative_tolerance;
+      absolute_tolerance_.push_back(looser * options.absolute_tolerance_m / size);
+      absolute_tolerance_.push_back(looser * options.absolute_tolerance_m_per_s / size);
+    }
+  }
+
+  FlowResult Run(State start, double t0, double t1);
+
+ private:
+  const ActuatorModel& model() const { return field_.model(); }
+  double* K(int stage) { return &k_[static_cast<size_t>(stage) * n_]; }
+  double* DenseTerm(int i) { return &dense_[static_cast<size_t>(i) * n_]; }
+  // Stage s's argument y + h sum_j a_sj k_j into stage_, and the field there into dy.
+  void StageState(int s, double h);
+  void EvaluateStage(int s, double t, double h, const double* y, double* dy);
+  // One DOP853 step of size h from (t, y_) with K(0) = f(t, y_); y_new_, K(12) = f(t + h, y_new_).
+  // Returns the scaled error norm.
+  double Step(double t, double h);
+  // The dense output's coefficients over the step just taken (three more stages).
+  void PrepareDense(double t, double h);
+  // The interpolated component i at theta in [0, 1] of the step.
+  double Interpolate(int i, double theta) const;
+  void Note(double t, double x, double v);
+  // Cuts the step at theta, switches the mode across `surface`, applies the jump.
+  void Switch(double t, double h, double theta, const variational::StopSurface& surface, bool entry);
+  // Locates the first switch in the step just taken (and notes its apex); if there is one, cuts the
+  // step there (Switch) and returns true.
+  bool HandleEvents(double t, double h);
+
+  variational::Field field_;
+  SineDrive drive_;
+  const FlowRequest& request_;
+  const FlowOptions& options_;
+  int n_;
+  std::vector<double> k_, y_, y_new_, stage_, dense_;
+  double max_step_s_ = 0.0;
+  int controlled_ = 2;                      // components under error control: (x, v) and the columns
+  std::vector<double> absolute_tolerance_;  // per controlled component
+  ContactMode mode_;
+  std::vector<variational::StopSurface> stops_;  // the penetration surface of each stop present
+  double switch_time_ = 0.0;    // the instant of the last switch [s]
+  double step_cos_ = 1.0, step_sin_ = 0.0;  // cos(wt), sin(wt) at the start of the step being taken
+  FlowResult result_;
+};
+
+void FlowIntegrator::EvaluateStage(int s, double t, double h, const double* y, double* dy) {
+  // One sin and cos at the step's start (Step), rotated to the stage's node.
+  const double theta = field_.omega_rad_per_s() * dop853::kC[s] * h;
+  if (!(std::abs(theta) <= 0.5)) {
+    field_.Evaluate(t + dop853::kC[s] * h, y, dy, mode_);
+    return;
+  }
+  double c, sn;
+  variational::SmallAngleCosSin(theta, &c, &sn);
+  field_.Evaluate(step_cos_ * c - step_sin_ * sn, step_sin_ * c + step_cos_ * sn, y, dy, mode_);
+}
+
+void FlowIntegrator::StageState(int s, double h) {
+  // y + h sum_j a_sj k_j over the nonzero a_sj (half of DOP853's are zero).
+  std::copy(y_.begin(), y_.end(), stage_.begin());
+  for (int j = 0; j < s; ++j) {
+    const double a = dop853::kA[s][j];
+    if (a == 0.0) continue;
+    const double* k = K(j);
+    const double ha = h * a;
+    for (int i = 0; i < n_; ++i) stage_[i] += ha * k[i];
+  }
+}
+
+double FlowIntegrator::Step(double t, double h) {
+  step_cos_ = std::cos(field_.omega_rad_per_s() * t);
+  step_sin_ = std::sin(field_.omega_rad_per_s() * t);
+  for (int s = 1; s < dop853::kStages; ++s) {
+    StageState(s, h);
+    EvaluateStage(s, t, h, stage_.data(), K(s));
+  }
+  StageState(dop853::kStages, h);  // row 12 of a holds the weights b: the 8th-order solution
+  y_new_.swap(stage_);
+  EvaluateStage(dop853::kStages, t, h, y_new_.data(), K(dop853::kStages));  // c = 1: the step's end
+  // Error norm over (x, v) and the sensitivity columns (Hairer, Norsett and Wanner, Sec. II.10, the
+  // DOP853 estimate): a column is less smooth than the state where a force's derivative is (Hertzian
+  // contact's p^(1/2) at entry), and controlling the state alone left 0.1 % errors in the monodromy.
+  double err5 = 0.0, err3 = 0.0;
+  for (int i = 0; i < controlled_; ++i) {
+    const double relative = i < 2 ? options_.relative_tolerance : options_.sensitivity_relative_tolerance;
+    const double scale = absolute_tolerance_[i] + relative * std::max(std::abs(y_[i]), std::abs(y_new_[i]));
+    double e5 = 0.0, e3 = 0.0;
+    for (int j = 0; j <= dop853::kStages; ++j) {
+      e5 += dop853::kE5[j] * K(j)[i];
+      e3 += dop853::kE3[j] * K(j)[i];
+    }
+    err5 += (e5 / scale) * (e5 / scale);
+    err3 += (e3 / scale) * (e3 / scale);
+  }
+  if (err5 == 0.0 && err3 == 0.0) return 0.0;
+  const double error = std::abs(h) * err5 / std::sqrt((err5 + 0.01 * err3) * controlled_);
+  return std::isfinite(error) ? error : std::numeric_limits<double>::infinity();
+}
+
+void FlowIntegrator::PrepareDense(double t, double h) {
+  // (step_cos_, step_sin_ still hold the step's start: Step set them.)
+  for (int s = dop853::kStages + 1; s < dop853::kExtendedStages; ++s) {
+    StageState(s, h);
+    EvaluateStage(s, t, h, stage_.data(), K(s));
+  }
+  for (int i = 0; i < n_; ++i) {
+    const double delta = y_new_[i] - y_[i];
+    DenseTerm(0)[i] = delta;
+    DenseTerm(1)[i] = h * K(0)[i] - delta;
+    DenseTerm(2)[i] = 2.0 * delta - h * (K(dop853::kStages)[i] + K(0)[i]);
+    for (int d = 0; d < dop853::kDenseTerms - 3; ++d) {
+      double sum = 0.0;
+      for (int j = 0; j < dop853::kExtendedStages; ++j) sum += dop853::kD[d][j] * K(j)[i];
+      DenseTerm(3 + d)[i] = h * sum;
+    }
+  }
+}
+
+double FlowIntegrator::Interpolate(int i, double theta) const {
+  // y_old + F0 th + F1 th (1-th) + F2 th^2 (1-th) + ..., nested as in the DOP853 code's CONTD8.
+  double value = 0.0;
+  for (int term = dop853::kDenseTerms - 1; term >= 0; --term) {
+    value += dense_[static_cast<size_t>(term) * n_ + i];
+    value *= term % 2 == 0 ? theta : 1.0 - theta;
+  }
+  return y_[i] + value;
+}
+
+void FlowIntegrator::Note(double t, double x, double v) {
+  result_.min_displacement_m = std::min(result_.min_displacement_m, x);
+  result_.max_displacement_m = std::max(result_.max_displacement_m, x);
+  if (request_.figures) result_.peak_force_n = std::max(result_.peak_force_n, std::abs(field_.Force(t, x, v, mode_)));
+}
+
+void FlowIntegrator::Switch(double t, double h, double theta, const variational::StopSurface& surface, bool entry) {
+  const double t_switch = t + theta * h;
+  switch_time_ = t_switch;
+  for (int i = 0; i < n_; ++i) y_new_[i] = Interpolate(i, theta);
+  const double x = y_new_[0], v = y_new_[1];
+  const ActuatorModel& m = model();
+  const ContactMode before = mode_;
+  ContactMode after = mode_;
+  (surface.upper ? after.upper : after.lower) = entry;
+  const double a_before = field_.Force(t_switch, x, v, before) / m.mass_kg;
+  const double jump = field_.Force(t_switch, x, v, after) / m.mass_kg - a_before;  // only x'' can jump
+  double dh_dx, dh_dv;
+  surface.Gradient(m, x, v, &dh_dx, &dh_dv);
+  const double rate = dh_dx * v + dh_dv * a_before;  // dh/dt along the flow before the switch
+  const variational::Layout& l = field_.layout();
+  if (jump != 0.0 && std::abs(rate) > 0.0) {
+    for (int c = 0; c < l.columns; ++c) {
+      const int i = l.Column(c);
+      double dh = dh_dx * y_new_[i] + dh_dv * y_new_[i + 1];
+      if (c >= l.state_columns)
+        dh += surface.ParameterDerivative(m, request_.parameters[c - l.state_columns], x, v);
+      const double dtau = -dh / rate;
+      y_new_[i + 1] -= jump * dtau;
+    }
+  }
+  mode_ = after;
+  if (entry) ++result_.contacts;
+  y_.swap(y_new_);
+  field_.Evaluate(t_switch, y_.data(), K(0), mode_);
+  Note(t_switch, x, v);
+}
+
+bool FlowIntegrator::HandleEvents(double t, double h) {
+  bool dense_ready = false;
+  auto interpolated = [&](const variational::StopSurface& surface, double theta) {
+    if (!dense_ready) PrepareDense(t, h);
+    dense_ready = true;
+    return surface.Value(model(), Interpolate(0, theta), Interpolate(1, theta));
+  };
+  double best_theta = 2.0;
+  variational::StopSurface best_surface;
+  bool best_entry = false;
+  auto consider = [&](double theta, const variational::StopSurface& surface, bool entry) {
+    if (theta >= best_theta) return;
+    best_theta = theta;
+    best_surface = surface;
+    best_entry = entry;
+  };
+  const double x0 = y_[0], v0 = y_[1], x1 = y_new_[0], v1 = y_new_[1];
+  for (const variational::StopSurface& penetration : stops_) {
+    const variational::StopSurface force{penetration.upper, true};
+    auto root = [&](const variational::StopSurface& surface, double g0, double g1) {
+      return LocateRootOnStep([&](double theta) { return interpolated(surface, theta); }, g0, g1);
+    };
+    const double p0 = penetration.Value(model(), x0, v0), p1 = penetration.Value(model(), x1, v1);
+    const double f0 = force.Value(model(), x0, v0), f1 = force.Value(model(), x1, v1);
+    if (penetration.upper ? mode_.upper : mode_.lower) {
+      if (f0 >= 0 && f1 < 0) consider(root(force, f0, f1), force, false);  // the stop lets go
+      continue;
+    }
+    if (p0 <= 0 && p1 > 0) consider(root(penetration, p0, p1), penetration, true);  // the mass enters
+    // A damped stop that let go while p > 0 is pressed again when its force rises through 0.
+    // (Approaching from outside, k_s p + c_s p' turns positive while p < 0: that is not a press.)
+    if (model().contact_damping_n_s_per_m != 0.0 && f0 <= 0 && f1 > 0 && p1 > 0) {
+      const double theta = root(force, f0, f1);
+      if (interpolated(penetration, theta) > 0) consider(theta, force, true);
+    }
+  }
+  // An apex of x: an extremum for the figures, and a grazing contact that entered and left a stop
+  // within the step if the stop's penetration is positive there.
+  const bool watch_apex = request_.figures || !stops_.empty();
+  if (watch_apex && ((v0 < 0 && v1 >= 0) || (v0 > 0 && v1 <= 0))) {
+    auto velocity = [&](double theta) {
+      if (!dense_ready) PrepareDense(t, h);
+      dense_ready = true;
+      return Interpolate(1, theta);
+    };
+    const double theta_apex = v1 == 0.0 ? 1.0 : LocateRootOnStep(velocity, v0, v1);
+    if (theta_apex < best_theta) {
+      const double x_apex = Interpolate(0, theta_apex), v_apex = Interpolate(1, theta_apex);
+      Note(t + theta_apex * h, x_apex, v_apex);
+      for (const variational::StopSurface& penetration : stops_) {
+        if (penetration.upper ? mode_.upper : mode_.lower) continue;
+        const double p0 = penetration.Value(model(), x0, v0), p_apex = penetration.Value(model(), x_apex, v_apex);
+        if (!(p0 <= 0 && p_apex > 0)) continue;
+        const double theta = theta_apex * LocateRootOnStep([&](double u) { return interpolated(penetration, u * theta_apex); },
+                                                     p0, p_apex);
+        consider(theta, penetration, true);
+      }
+    }
+  }
+  if (best_theta > 1.0) return false;
+  Switch(t, h, best_theta, best_surface, best_entry);
+  return true;
+}
+
+FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
+  const variational::Layout& l = field_.layout();
+  y_[0] = start.x_m;
+  y_[1] = start.v_m_per_s;
+  for (int c = 0; c < l.state_columns; ++c) y_[l.Column(c) + c] = 1.0;  // s(t0) = I
+  mode_ = StartingMode(model(), start.x_m, start.v_m_per_s);
+  if (model().HasLowerStop()) stops_.push_back({false, false});
+  if (model().HasUpperStop()) stops_.push_back({true, false});
+  result_.min_displacement_m = result_.max_displacement_m = start.x_m;
+  Note(t0, start.x_m, start.v_m_per_s);
+  field_.Evaluate(t0, y_.data(), K(0), mode_);
+
+  std::vector<double> boundaries = ClippingKinks(model(), drive_, t0, t1);
+  boundaries.push_back(t1);
+  size_t next_boundary = 0;
+  double t = t0;
+  double h = options_.initial_step_s > 0 ? options_.initial_step_s : 0.25 * max_step_s_;
+  bool rejected_last = false;
+  while (t < t1) {
+    const double boundary = boundaries[next_boundary];
+    double h_try = std::min(h, max_step_s_);
+    const bool to_boundary = t + h_try >= boundary;
+    if (to_boundary) h_try = boundary - t;
+    if (++result_.steps > options_.max_steps)
+      throw NumericalError("the variational flow spent its budget of " + std::to_string(options_.max_steps) +
+                           " steps at t = " + std::to_string(t) + " s of " + std::to_string(t1) + " s (drive " +
+                           std::to_string(drive_.frequency_hz) + " Hz, " + std::to_string(drive_.amplitude_v) +
+                           " V; from x = " + std::to_string(start.x_m) + " m, v = " + std::to_string(start.v_m_per_s) +
+                           " m/s)");
+    if (!(h_try > 1e-14 * std::max(std::abs(t), max_step_s_)))
+      throw NumericalError("the variational flow's step fell below the resolution of t at t = " + std::to_string(t) +
+                           " s (the solution is not finite or not resolvable)");
+    const double error = Step(t, h_try);
+    if (!(error <= 1.0)) {
+      ++result_.rejected_steps;
+      h = h_try * (std::isfinite(error) ? std::max(kMinStepFactor, kStepSafety * std::pow(error, kErrorExponent)) : kMinStepFactor);
+      rejected_last = true;
+      continue;
+    }
+    double factor = error == 0.0 ? kMaxStepFactor : std::min(kMaxStepFactor, kStepSafety * std::pow(error, kErrorExponent));
+    if (rejected_last) factor = std::min(factor, 1.0);
+    rejected_last = false;
+    h = to_boundary ? std::max(h, h_try * factor) : h_try * factor;
+    if (HandleEvents(t, h_try)) {
+      t = switch_time_;  // Switch moved y_ to the switch instant
+      continue;
+    }
+    t = to_boundary ? boundary : t + h_try;
+    if (to_boundary) ++next_boundary;
+    y_.swap(y_new_);
+    std::copy_n(K(dop853::kStages), n_, K(0));  // first same as last
+  }
+  Note(t1, y_[0], y_[1]);
+  result_.end = {y_[0], y_[1]};
+  for (int c = 0; c < l.columns; ++c) result_.columns.push_back({y_[l.Column(c)], y_[l.Column(c) + 1]});
+  for (int k = 0; k < l.harmonics; ++k) result_.harmonic_integrals.emplace_back(y_[l.Quadrature(k)], y_[l.Quadrature(k) + 1]);
+  if (l.harmonic_sensitivities) {
+    result_.harmonic_sensitivities.resize(l.columns);
+    for (int c = 0; c < l.columns; ++c)
+      for (int k = 0; k < l.harmonics; ++k)
+        result_.harmonic_sensitivities[c].emplace_back(y_[l.QuadratureSensitivity(c, k)],
+                                                       y_[l.QuadratureSensitivity(c, k) + 1]);
+  }
+  result_.last_step_s = h;
+  return result_;
+}
+
+}  // namespace
+
+FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start, double t0_s, double t1_s,
+                const FlowRequest& request, const FlowOptions& options) {
+  Validate(model);
+  Validate(drive);
+  Validate(options);
+  if (!std::isfinite(start.x_m) || !std::isfinite(start.v_m_per_s)) throw InputError("initial", "must be finite");
+  if (!std::isfinite(t0_s) || !std::isfinite(t1_s) || !(t1_s >= t0_s))
+    throw InputError("t1_s", "the interval must be finite with t1 >= t0");
+  if (request.harmonics < 0) throw InputError("harmonics", "must be >= 0");
+  return FlowIntegrator(model, drive, request, options).Run(start, t0_s, t1_s);
+}
+
+std::optional<FieldError> FlowOptions::IsValid() const {
+  if (!(relative_tolerance > 0) || !(relative_tolerance < 1))
+    return FieldError{"relative_tolerance", "must lie in (0, 1)"};
+  if (!(sensitivity_relative_tolerance > 0) || !(sensitivity_relative_tolerance < 1))
+    return FieldError{"sensitivity_relative_tolerance", "must lie in (0, 1)"};
+  if (!(absolute_tolerance_m > 0) || !std::isfinite(absolute_tolerance_m))
+    return FieldError{"absolute_tolerance_m", "must be a finite number > 0"};
+  if (!(absolute_tolerance_m_per_s > 0) || !std::isfinite(absolute_tolerance_m_per_s))
+    return FieldError{"absolute_tolerance_m_per_s", "must be a finite number > 0"};
+  if (!(initial_step_s >= 0) || !std::isfinite(initial_step_s))
+    return FieldError{"initial_step_s", "must be a finite number >= 0"};
+  if (max_steps < 1) return FieldError{"max_steps", "must be >= 1"};
+  return std::nullopt;
+}
+
+}  // namespace strokelab

@@ -1,0 +1,236 @@
+// The variational flow (engines/variational_flow.h) against two independent references: the closed
+// form on piecewise-linear models (steady/steady_state.h's PeriodMap::Trace: exact propagation and
+// saltation matrices), and central finite differences of the flow itself for every force term's
+// monodromy, parameter sensitivities and harmonic sensitivities.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <string>
+#include <vector>
+
+#include "strokelab/engines/variational_flow.h"
+#include "strokelab/model/model.h"
+#include "strokelab/steady/steady_state.h"
+
+namespace strokelab {
+namespace {
+
+using Field = double ActuatorModel::*;
+
+// x / L and v / (w L): the sweep's scaling (steady_state.h), so that both components count alike.
+struct Scale {
+  double length_m, speed_m_per_s;
+  double Norm(State s) const { return std::hypot(s.x_m / length_m, s.v_m_per_s / speed_m_per_s); }
+};
+
+Scale ScaleOf(const ActuatorModel& model, double frequency_hz) {
+  const double length = LengthScaleM(model);
+  return {length, length * 2.0 * std::numbers::pi * frequency_hz};
+}
+
+State Difference(State a, State b) { return {a.x_m - b.x_m, a.v_m_per_s - b.v_m_per_s}; }
+
+// A start on or near the orbit (a few periods from the linear start), so that the pass has contacts.
+State SettledStart(const ActuatorModel& model, const SineDrive& drive) {
+  const PeriodMap map(model, drive.frequency_hz, drive.amplitude_v);
+  State y = map.ClippedLinearStart();
+  for (int i = 0; i < 5; ++i) y = Flow(model, drive, y, 0.0, 1.0 / drive.frequency_hz, {}).end;
+  return y;
+}
+
+struct PwlCase {
+  std::string name;
+  ActuatorModel model;
+  double frequency_hz, amplitude_v;
+};
+
+std::vector<PwlCase> PiecewiseLinearCases() {
+  ActuatorModel two_stops = PaperModel();
+  two_stops.upper_stop_m = 1.2e-3;
+  ActuatorModel damped = PaperModel();
+  damped.contact_damping_n_s_per_m = 15.0;  // the stop force jumps at entry: a non-trivial saltation
+  ActuatorModel clipped = PaperModel();
+  clipped.amplifier_limit_v = 0.35;
+  return {{"paper_8Hz_0.5V", PaperModel(), 8.0, 0.5},   {"paper_13Hz_0.3V", PaperModel(), 13.0, 0.3},
+          {"paper_free_30Hz", PaperModel(), 30.0, 0.1}, {"two_stops_10Hz_0.8V", two_stops, 10.0, 0.8},
+          {"damped_stop_8Hz_0.5V", damped, 8.0, 0.5},   {"clipped_8Hz_0.6V", clipped, 8.0, 0.6}};
+}
+
+TEST(VariationalFlowTest, MatchesTheClosedFormOnPiecewiseLinearModels) {
+  for (const PwlCase& c : PiecewiseLinearCases()) {
+    SCOPED_TRACE(c.name);
+    const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
+    const Scale scale = ScaleOf(c.model, c.frequency_hz);
+    const PeriodMap map(c.model, c.frequency_hz, c.amplitude_v);
+    const State start = SettledStart(c.model, drive);
+    const OrbitFigures closed = map.Trace(start, 1);
+    FlowRequest request;
+    request.monodromy = true;
+    request.harmonics = 1;
+    request.figures = true;
+    const FlowResult flow = Flow(c.model, drive, start, 0.0, map.period_s(), request);
+    EXPECT_LT(scale.Norm(Difference(flow.end, closed.end)), 1e-9);
+    // Monodromy in the scaled coordinates, elementwise against its largest element.
+    const Matrix2& m = closed.monodromy;
+    const double r = scale.speed_m_per_s / scale.length_m;  // d(v/V)/d(x/L) = dv/dx / r
+    const double closed_scaled[4] = {m.a, m.b * r, m.c / r, m.d};
+    const double flow_scaled[4] = {flow.columns[0].x_m, flow.columns[1].x_m * r, flow.columns[0].v_m_per_s / r,
+                                   flow.columns[1].v_m_per_s};
+    double largest = 0.0;
+    for (double e : closed_scaled) largest = std::max(largest, std::abs(e));
+    for (int i = 0; i < 4; ++i) EXPECT_NEAR(flow_scaled[i], closed_scaled[i], 1e-9 * largest) << "element " << i;
+    const std::complex<double> x1 = 2.0 * flow.harmonic_integrals[0] / map.period_s();
+    EXPECT_LT(std::abs(x1 - closed.x1), 1e-9 * std::abs(closed.x1));
+    EXPECT_EQ(flow.contacts, closed.contacts);
+    EXPECT_NEAR(flow.min_displacement_m, closed.min_displacement_m, 1e-9 * scale.length_m);
+    EXPECT_NEAR(flow.max_displacement_m, closed.max_displacement_m, 1e-9 * scale.length_m);
+  }
+}
+
+struct SmoothCase {
+  std::string name;
+  ActuatorModel model;
+  double frequency_hz, amplitude_v;
+  std::vector<Field> parameters;
+};
+
+std::vector<SmoothCase> ForceTermCases() {
+  using M = ActuatorModel;
+  const std::vector<Field> linear_part = {&M::mass_kg, &M::damping_n_s_per_m, &M::stiffness_n_per_m,
+                                          &M::gain_n_per_v, &M::lower_stop_m, &M::contact_stiffness};
+  std::vector<SmoothCase> cases;
+  auto add = [&](std::string name, ActuatorModel model, double f, double v, std::vector<Field> extra) {
+    std::vector<Field> parameters = linear_part;
+    parameters.insert(parameters.end(), extra.begin(), extra.end());
+    cases.push_back({std::move(name), model, f, v, parameters});
+  };
+  ActuatorModel k2 = PaperModel();
+  k2.quadratic_stiffness_n_per_m2 = 3e4;
+  add("quadratic_stiffness", k2, 8.0, 0.5, {&M::quadratic_stiffness_n_per_m2});
+  ActuatorModel k3 = PaperModel();
+  k3.cubic_stiffness_n_per_m3 = 4e7;
+  add("cubic_stiffness", k3, 8.0, 0.5, {&M::cubic_stiffness_n_per_m3});
+  ActuatorModel hertz = PaperModel();
+  hertz.contact_law = ContactLaw::kHertzian;
+  hertz.contact_stiffness = 2.65e8;
+  add("hertzian_contact", hertz, 8.0, 0.5, {});
+  ActuatorModel friction = PaperModel();
+  friction.friction_force_n = 0.01;
+  friction.friction_velocity_m_per_s = 2e-3;
+  add("dry_friction", friction, 8.0, 0.5, {&M::friction_force_n, &M::friction_velocity_m_per_s});
+  ActuatorModel damped = PaperModel();
+  damped.contact_damping_n_s_per_m = 15.0;
+  damped.cubic_stiffness_n_per_m3 = 2e7;
+  add("contact_damping", damped, 8.0, 0.5, {&M::contact_damping_n_s_per_m, &M::cubic_stiffness_n_per_m3});
+  ActuatorModel clipped = PaperModel();
+  clipped.amplifier_limit_v = 0.35;
+  clipped.cubic_stiffness_n_per_m3 = 2e7;
+  add("clipping", clipped, 8.0, 0.6, {&M::amplifier_limit_v});
+  ActuatorModel upper = PaperModel();
+  upper.upper_stop_m = 1.2e-3;
+  upper.contact_law = ContactLaw::kHertzian;
+  upper.contact_stiffness = 2.65e8;
+  add("upper_stop", upper, 10.0, 0.8, {&M::upper_stop_m});
+  return cases;
+}
+
+// Central difference of the flow's end (and first harmonics) in one perturbation.
+struct Perturbed {
+  State end;
+  std::vector<std::complex<double>> harmonics;
+};
+
+template <typename Perturb>
+Perturbed CentralDifference(const SmoothCase& c, State start, double step, int harmonics, Perturb perturb) {
+  const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
+  FlowRequest request;
+  request.harmonics = harmonics;
+  auto run = [&](double sign) {
+    ActuatorModel model = c.model;
+    State y = start;
+    perturb(&model, &y, sign * step);
+    return Flow(model, drive, y, 0.0, 1.0 / c.frequency_hz, request);
+  };
+  const FlowResult plus = run(1.0), minus = run(-1.0);
+  Perturbed d;
+  d.end = {(plus.end.x_m - minus.end.x_m) / (2 * step), (plus.end.v_m_per_s - minus.end.v_m_per_s) / (2 * step)};
+  for (int k = 0; k < harmonics; ++k)
+    d.harmonics.push_back((plus.harmonic_integrals[k] - minus.harmonic_integrals[k]) / (2 * step));
+  return d;
+}
+
+// |analytic - difference| against the column's own size, in the sweep's scaling. A harmonic's
+// sensitivity can be much smaller than the harmonic (friction's smoothing velocity barely moves C_1):
+// the difference quotient then carries the integrator's error over the step, `harmonic_noise`.
+void ExpectColumn(const Scale& scale, State analytic, State difference, const std::vector<std::complex<double>>& h_analytic,
+                  const std::vector<std::complex<double>>& h_difference, double tolerance, double harmonic_noise) {
+  EXPECT_LE(scale.Norm(Difference(analytic, difference)), tolerance * scale.Norm(difference))
+      << "analytic (" << analytic.x_m << ", " << analytic.v_m_per_s << ") difference (" << difference.x_m << ", "
+      << difference.v_m_per_s << ")";
+  double size = 0.0, error = 0.0;
+  for (size_t k = 0; k < h_difference.size(); ++k) {
+    size = std::max(size, std::abs(h_difference[k]));
+    error = std::max(error, std::abs(h_analytic[k] - h_difference[k]));
+  }
+  EXPECT_LE(error, tolerance * size + harmonic_noise) << "harmonic sensitivities";
+}
+
+TEST(VariationalFlowTest, EveryForceTermsSensitivitiesAreTheFlowsFiniteDifferences) {
+  constexpr int kHarmonics = 3;
+  // Central differences at a relative step of 1e-4: truncation ~1e-8, the integrator's tolerance
+  // (1e-12) over the step ~1e-8; the analytic sensitivities must agree to 1e-6.
+  constexpr double kRelativeStep = 1e-4, kTolerance = 1e-6;
+  for (const SmoothCase& c : ForceTermCases()) {
+    SCOPED_TRACE(c.name);
+    const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
+    const Scale scale = ScaleOf(c.model, c.frequency_hz);
+    const State start = SettledStart(c.model, drive);
+    FlowRequest request;
+    request.monodromy = true;
+    request.parameters = c.parameters;
+    request.harmonics = kHarmonics;
+    request.harmonic_sensitivities = true;
+    const FlowResult flow = Flow(c.model, drive, start, 0.0, 1.0 / c.frequency_hz, request);
+    ASSERT_GT(flow.contacts, 0) << "the case must exercise its stop";
+    const double h_x = kRelativeStep * scale.length_m, h_v = kRelativeStep * scale.speed_m_per_s;
+    double harmonic_size = 0.0;
+    for (std::complex<double> q : flow.harmonic_integrals) harmonic_size = std::max(harmonic_size, std::abs(q));
+    // Ten times the flow's relative tolerance (1e-12) on the harmonics, over the difference's step.
+    auto noise = [&](double step) { return 10 * 1e-12 * harmonic_size / step; };
+    const Perturbed dx = CentralDifference(c, start, h_x, kHarmonics, [](ActuatorModel*, State* y, double e) { y->x_m += e; });
+    ExpectColumn(scale, flow.columns[0], dx.end, flow.harmonic_sensitivities[0], dx.harmonics, kTolerance, noise(h_x));
+    const Perturbed dv =
+        CentralDifference(c, start, h_v, kHarmonics, [](ActuatorModel*, State* y, double e) { y->v_m_per_s += e; });
+    ExpectColumn(scale, flow.columns[1], dv.end, flow.harmonic_sensitivities[1], dv.harmonics, kTolerance, noise(h_v));
+    for (size_t p = 0; p < c.parameters.size(); ++p) {
+      const Field field = c.parameters[p];
+      SCOPED_TRACE("parameter " + std::to_string(p));
+      const double step = kRelativeStep * std::abs(c.model.*field);
+      const Perturbed dp = CentralDifference(c, start, step, kHarmonics,
+                                             [field](ActuatorModel* m, State*, double e) { m->*field += e; });
+      ExpectColumn(scale, flow.columns[2 + p], dp.end, flow.harmonic_sensitivities[2 + p], dp.harmonics, kTolerance, noise(step));
+    }
+  }
+}
+
+TEST(VariationalFlowTest, BadOptionsAndIntervalsNameTheField) {
+  FlowOptions options;
+  options.relative_tolerance = 0.0;
+  try {
+    Flow(PaperModel(), {0.5, 8.0, 0.0}, {}, 0.0, 0.1, {}, options);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "relative_tolerance");
+  }
+  EXPECT_THROW(Flow(PaperModel(), {0.5, 8.0, 0.0}, {}, 0.1, 0.0, {}), InputError);
+}
+
+TEST(VariationalFlowTest, ASpentStepBudgetIsANumericalError) {
+  FlowOptions options;
+  options.max_steps = 10;
+  EXPECT_THROW(Flow(PaperModel(), {0.5, 8.0, 0.0}, {}, 0.0, 1.0, {}, options), NumericalError);
+}
+
+}  // namespace
+}  // namespace strokelab
