@@ -118,7 +118,7 @@ void CheckBaseline(const nlohmann::json& baseline, const std::string& file);
 inline constexpr const char* kLedgerFile = "results-ledger.txt";
 
 struct LedgerEntry {
-  std::string code_version;  // "strokelab-0.3.0"
+  std::string code_version;  // "strokelab-0.4.0"
   std::string job_key;       // JobKey of the baseline's job
   std::string tables_key;    // TablesKey of its tables
   std::string file;          // the baseline's file name, for the reader
