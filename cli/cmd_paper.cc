@@ -37,7 +37,7 @@ constexpr const char* kPaperHelp = R"(usage: strokelab paper --out DIR [options]
   --out DIR              folder for the figures (SVG), tables (CSV) and summary.txt   (required)
   --model NAME|FILE      preset or JSON model file                                    [paper]
   --set KEY=VALUE        override a model parameter (repeatable)
-  --method M             exact | cvode | ode3 for the time histories                  [exact]
+  --method M             auto | exact | cvode | ode3 for the time histories           [auto]
   --step-duration-s T    length of each stepped-sine step [s]                          [10]
   --threads N            threads for the FRF sweeps                                    [2]
 )";
@@ -49,7 +49,7 @@ const std::vector<double> kFrfAmplitudesV = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
 
 struct Study {
   ActuatorModel model;
-  Method method = Method::kExact;
+  MethodChoice method;  // of the time histories and spectra
   double step_duration_s = 10.0;
   int threads = 2;
   std::filesystem::path out;
@@ -78,11 +78,11 @@ std::string FormatHz(double f) {
 
 // Fig. 2/9: the last 0.4 s of each 10 s record, from rest.
 void TimeHistories(Study& study) {
-  const auto engine = MakeEngine(study.method);
+  const auto engine = MakeEngine(study.method.method);
   SimulationOptions options;
   options.duration_s = study.step_duration_s;
   options.sample_rate_hz = kSampleRateHz;
-  study.summary << "Time histories (Fig. 2/9), " << ToString(study.method) << ", 10 s from rest, last second:\n";
+  study.summary << "Time histories (Fig. 2/9), " << study.method.Describe() << ", 10 s from rest, last second:\n";
   for (double f_hz : kFigure2FrequenciesHz) {
     CsvTable table({"time_s"});
     std::vector<plot::Series> series;
@@ -122,7 +122,7 @@ void TimeHistories(Study& study) {
 
 // Fig. 3: Hann spectra of the last second, (8 Hz, 0.3 V) and (13 Hz, 0.5 V).
 void Spectra(Study& study) {
-  const auto engine = MakeEngine(study.method);
+  const auto engine = MakeEngine(study.method.method);
   SimulationOptions options;
   options.duration_s = study.step_duration_s;
   options.sample_rate_hz = kSampleRateHz;
@@ -212,7 +212,7 @@ struct SweepPoint {
 
 // A stepped-sine up-sweep at one amplitude, the state carried from step to step as on the rig.
 std::vector<SweepPoint> UpSweep(const Study& study, double amplitude_v, const std::vector<double>& grid_hz) {
-  const auto engine = MakeEngine(study.model.IsPiecewiseLinear() ? Method::kExact : Method::kCvode);
+  const auto engine = MakeEngine(ChooseMethod("auto", study.model).method);
   SimulationOptions options;
   options.duration_s = study.step_duration_s;
   options.sample_rate_hz = kSampleRateHz;
@@ -312,7 +312,7 @@ bool ContactsFromRest(const Engine& engine, const ActuatorModel& model, double f
 // the lowest amplitude at which a record from rest touches the stop, by bisection to 1e-4 V.
 void SaturationOnset(Study& study) {
   if (!study.model.HasLowerStop()) return;
-  const auto engine = MakeEngine(study.model.IsPiecewiseLinear() ? Method::kExact : Method::kCvode);
+  const auto engine = MakeEngine(ChooseMethod("auto", study.model).method);
   const std::vector<double> grid_hz = PaperFrequencyGridHz();
   std::vector<double> closed_form, from_rest(grid_hz.size(), NAN);
   for (double f : grid_hz) closed_form.push_back(LinearSaturationThresholdV(study.model, 2 * std::numbers::pi * f));
@@ -376,7 +376,7 @@ int RunPaper(const std::vector<std::string>& argv) {
   study.out = *out;
   study.model = LoadModel(args);
   try {
-    study.method = ParseMethod(args.GetOr("--method", "exact"));
+    study.method = ChooseMethod(args.GetOr("--method", "auto"), study.model);
   } catch (const InputError& e) {
     throw InputError("--method", e.bare_message());
   }

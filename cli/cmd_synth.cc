@@ -42,7 +42,7 @@ not mention. Each record is simulated from rest for settle + duration and the la
   --perturb K=R,...        relative perturbations, value x (1 + R u), u uniform in [-1, 1] from
                            the seed; keys: model parameters or 'sensitivity' (true sensor vs written)
   --seed N                 random seed (perturbations, noise, hum phases)            [1]
-  --method M               exact | cvode | ode3                  [exact if piecewise linear, else cvode]
+  --method M               auto | exact | cvode | ode3           [auto: exact if piecewise linear, else cvode]
   --actuator TEXT          the manifest's actuator description
   --threads N              records simulated side by side; 0: one per core           [0]
 )";
@@ -142,8 +142,9 @@ int RunSynth(const std::vector<std::string>& argv) {
       throw InputError("--seed", "expected a non-negative integer, got '" + *seed + "'");
   }
   if (const auto method = args.Get("--method")) {
-    try {
-      options.method = ParseMethod(*method);
+    try {  // perturbations keep a zero term zero, so the nominal model has the simulated model's terms
+      const MethodChoice choice = ChooseMethod(*method, model);
+      if (*method != "auto") options.method = choice.method;
     } catch (const InputError& e) {
       throw InputError("--method", e.bare_message());
     }
@@ -167,7 +168,8 @@ int RunSynth(const std::vector<std::string>& argv) {
                                                               {"hum_v", "--hum-v"},
                                                               {"hum_hz", "--hum-hz"},
                                                               {"perturb", "--perturb"},
-                                                              {"threads", "--threads"}};
+                                                              {"threads", "--threads"},
+                                                              {"method", "--method"}};
     const auto flag = kFlags.find(e.field());
     if (flag == kFlags.end()) throw;
     throw InputError(flag->second, e.bare_message());

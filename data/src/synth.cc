@@ -163,7 +163,7 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   } catch (const InputError& e) {
     throw InputError("perturb", "the perturbed model is not valid: " + std::string(e.what()));
   }
-  out.method = options.method ? *options.method : (out.model.IsPiecewiseLinear() ? Method::kExact : Method::kCvode);
+  out.method = ChooseMethod(options.method ? ToString(*options.method) : "auto", out.model).method;
 
   SimulationOptions simulation;
   simulation.duration_s = options.settle_s + options.duration_s;

@@ -135,11 +135,11 @@ void CheckSimulateJob(const json& job) {
   } catch (const InputError& e) {
     throw InputError("/" + e.field(), e.bare_message());
   }
-  const std::string method = job.value("method", std::string("exact"));
-  if (method == "exact" && !model.IsPiecewiseLinear())
-    throw InputError("/method", std::string(job.contains("method") ? "exact" : "the default method, exact,") +
-                                    " needs a piecewise-linear model; this one has " + model.NonlinearTerms() +
-                                    " (use cvode or ode3)");
+  try {
+    (void)ChooseMethod(job.value("method", std::string("auto")), model);
+  } catch (const InputError& e) {
+    throw InputError("/method", e.bare_message());
+  }
 }
 
 // A FitOptions or DiagnoseOptions field ("harmonic_orders", "heldout_every") as the pointer of the

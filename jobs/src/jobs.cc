@@ -155,13 +155,13 @@ std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<boo
     options.duration_s = task.value("duration_s", 10.0);
     options.sample_rate_hz = task.value("sample_rate_hz", 51200.0);
     options.record_velocity = false;
-    const Method method = ParseMethod(task.value("method", std::string("exact")));
-    const Record record = MakeEngine(method)->Simulate(model, drive, options);
+    const MethodChoice method = ChooseMethod(task.value("method", std::string("auto")), model);
+    const Record record = MakeEngine(method.method)->Simulate(model, drive, options);
     const RecordSummary s = Summarize(record, drive);
     rows.push_back({"records",
                     {{"frequency_hz", drive.frequency_hz},
                      {"amplitude_v", drive.amplitude_v},
-                     {"method", ToString(method)},
+                     {"method", method.Describe()},
                      {"min_displacement_m", s.min_displacement_m},
                      {"max_displacement_m", s.max_displacement_m},
                      {"contacts", s.contacts},

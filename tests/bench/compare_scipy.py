@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Times strokelab against scipy's solve_ivp on the paper's record and on steady states; checks accuracy.
 
-Two sections, both run by default (--no-record / --no-sweep skip one; --sweep = --no-record).
+Three sections, all run by default (--no-record / --no-sweep / --no-smooth skip one; --sweep or
+--smooth runs that section alone).
 
 Record section.
 
@@ -30,27 +31,38 @@ output, so |F1| = m w^2 |C1(x)| as the sweep computes it (steady_state.h: the ex
 harmonic of f = m x'', not a fit to sampled force); min x at the x' = 0 events. At a bistable point
 scipy's from-rest run lands on one branch: the table compares with the up branch and says which
 branch it reached; a short stepped sine from the nearest monostable grid frequency below (above) is
-run too and compared with the up (down) branch.
+run too and compared with the up (down) branch. (The brute force is scipy_steady.py's, shared with
+the smooth section.)
+
+Smooth section (scipy_smooth.py says it in full). The same comparison on a model that is not
+piecewise linear: the paper's with k3 = 4e7 N/m^3 by default (--smooth-set KEY=VALUE, repeatable,
+goes to `strokelab sweep --set`), default 20 frequencies 5 .. 20 Hz x 6 amplitudes 0.1 .. 0.6 V,
+grid points per second per core against scipy's seconds per point on a random subset, every timed
+|F1| (strokelab's and scipy's) checked against a DOP853 reference at rtol 1e-12 from scipy's
+converged state.
 
 Usage: /usr/bin/python3 tests/bench/compare_scipy.py [--strokelab build/release/strokelab] [--repeats 5]
-                        [--no-record | --no-sweep | --sweep] [--sweep-samples 12] [--seed 1]
-Uses numpy, scipy and the standard library only. Both sections take ~17 s on a 2-core machine (the
-sweep section ~3.5 s).
+                        [--no-record | --no-sweep | --no-smooth | --sweep | --smooth]
+                        [--sweep-samples 12] [--smooth-samples 12] [--smooth-set k3=4e7] [--seed 1]
+Uses numpy, scipy and the standard library only. The record and sweep sections take ~17 s on a
+2-core machine (the sweep section ~3.5 s); the smooth section took ~50 s (its two sweeps ~45 s) with
+the CVODE period map of the code before issue 12.
 """
 import argparse
-import json
 import math
 import os
 import pathlib
 import random
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
+
+import scipy_smooth
+from scipy_steady import relative, run_cli, settle, timed_sweep
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
 FREQUENCY_HZ = 8.0
@@ -63,16 +75,6 @@ def simulate_args(binary, method):
     return [str(binary), "simulate", "--model", "paper", "--frequency-hz", str(FREQUENCY_HZ),
             "--amplitude-v", str(AMPLITUDE_V), "--duration-s", str(DURATION_S),
             "--sample-rate-hz", str(SAMPLE_RATE_HZ), "--method", method, "--json"]
-
-
-def run_cli(args):
-    """Runs the CLI once; returns (parsed JSON, whole-process wall time [s])."""
-    start = time.perf_counter()
-    done = subprocess.run(args, capture_output=True, text=True)
-    elapsed = time.perf_counter() - start
-    if done.returncode != 0:
-        sys.exit(f"compare_scipy: '{' '.join(args)}' failed ({done.returncode}): {done.stderr.strip()}")
-    return json.loads(done.stdout), elapsed
 
 
 def time_cli(binary, method, repeats, csv_path):
@@ -250,7 +252,6 @@ def record_section(args, binary):
 
 SWEEP_FREQUENCY_HZ = (5.0, 50.0)
 SWEEP_AMPLITUDE_V = (0.1, 0.6)
-GAUSS_NODES, GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(8)  # exact for LSODA's <= 12th-order steps
 
 
 def sweep_args(binary, frequency_points, amplitude_points):
@@ -272,86 +273,6 @@ def check_plain_piecewise(model_json):
                      f"only integrates the plain piecewise-linear paper model")
     if model_json.get("lower_stop_m") is None:
         sys.exit("compare_scipy: the sweep's model has no lower stop")
-
-
-def advance_periods(model, t0, y0, contact, periods, rtol, atol, measure):
-    """Integrates `periods` drive periods from (t0, y0) region by region, as solve_scipy does. With
-    `measure`: also C1(x) over them (Gauss-Legendre on every LSODA step of the dense output), the
-    extrema of x (at the x' = 0 events and the ends) and the stop entries. Returns (y, contact, figures)."""
-    w = model.w
-    t_end = t0 + periods / model.frequency_hz
-    integral, x_min, x_max, contacts = 0j, y0[0], y0[0], 0
-    t, y = t0, list(y0)
-
-    def extremum(_, yy):
-        return yy[1]
-
-    while True:
-        def hit_stop(_, yy):
-            return yy[0] - model.d
-        hit_stop.terminal = True
-        hit_stop.direction = 1.0 if contact else -1.0
-        sol = solve_ivp(model.rhs(contact), (t, t_end), y, method="LSODA", rtol=rtol, atol=atol,
-                        jac=model.jacobian(contact), events=[hit_stop, extremum] if measure else hit_stop,
-                        dense_output=measure)
-        if sol.status < 0:
-            sys.exit(f"compare_scipy: solve_ivp LSODA failed at {model.frequency_hz:g} Hz / "
-                     f"{model.amplitude_v:g} V: {sol.message}")
-        t_stop = sol.t_events[0][0] if sol.status == 1 else t_end
-        if measure:
-            if sol.y_events[1].size:
-                x_min = min(x_min, sol.y_events[1][:, 0].min())
-                x_max = max(x_max, sol.y_events[1][:, 0].max())
-            edges = sol.t[sol.t <= t_stop]
-            if edges[-1] < t_stop:
-                edges = np.append(edges, t_stop)
-            half, mid = 0.5 * np.diff(edges), 0.5 * (edges[1:] + edges[:-1])
-            nodes = (mid[:, None] + half[:, None] * GAUSS_NODES).ravel()
-            weights = (half[:, None] * GAUSS_WEIGHTS).ravel()
-            integral += np.sum(weights * sol.sol(nodes)[0] * np.exp(-1j * w * nodes))
-        if sol.status != 1:
-            y = [sol.y[0, -1], sol.y[1, -1]]
-            break
-        t, y, contact = t_stop, [model.d, sol.y_events[0][0][1]], not contact
-        contacts += contact
-    if not measure:
-        return y, contact, None
-    x_min, x_max = min(x_min, y[0]), max(x_max, y[0])
-    x1 = 2.0 * integral * model.frequency_hz / periods
-    return y, contact, {"f1": model.m * w * w * abs(x1), "x_min": x_min, "x_max": x_max,
-                        "contacts_per_period": contacts / periods}
-
-
-def settle(model, y0, contact, args):
-    """Brute-force steady state: whole drive periods from y0 at t = 0 (drive phase 0) until the
-    Poincare section repeats after p = 1 or 2 periods (scaled as the sweep scales its residual), then
-    the figures over p more periods. Period 2 is accepted only where period 1 is clearly not converging
-    (its residual > 1000 tol), so a slow alternating approach to a period-1 orbit is not taken for it."""
-    length = abs(model.d)
-    speed = length * model.w
-    history, y, p, periods = [list(y0)], list(y0), 0, 0
-    residual = [math.inf, math.inf]
-    while periods < args.sweep_max_periods:
-        y, contact, _ = advance_periods(model, 0.0, y, contact, 1, args.sweep_rtol, args.sweep_atol, False)
-        periods += 1
-        history.append(y)
-        for lag in (1, 2):
-            if len(history) > lag:
-                back = history[-1 - lag]
-                residual[lag - 1] = math.hypot((y[0] - back[0]) / length, (y[1] - back[1]) / speed)
-        if residual[0] < args.sweep_tol:
-            p = 1
-        elif residual[1] < args.sweep_tol and residual[0] > 1e3 * args.sweep_tol:
-            p = 2
-        if p:
-            break
-        del history[:-3]
-    measure_periods = p or (2 if residual[1] < residual[0] else 1)
-    y_end, contact_end, figures = advance_periods(model, 0.0, y, contact, measure_periods,
-                                                  args.sweep_rtol, args.sweep_atol, True)
-    figures.update(periods=periods + measure_periods, period=p, converged=p > 0,
-                   residual=min(residual))
-    return figures, y_end, contact_end
 
 
 def steady_from_rest(model_json, f_hz, amplitude_v, args):
@@ -376,26 +297,9 @@ def stepped(model_json, frequencies_hz, amplitude_v, args):
     return figures
 
 
-def index_sweep(result):
-    """{(frequency index, amplitude index): {branch: [points]}} on the result's grid."""
-    freqs, amps = result["grid"]["frequency_hz"], result["grid"]["amplitude_v"]
-    table = {}
-    for point in result["points"]:
-        i = min(range(len(freqs)), key=lambda n: abs(freqs[n] - point["frequency_hz"]))
-        j = min(range(len(amps)), key=lambda n: abs(amps[n] - point["amplitude_v"]))
-        if abs(freqs[i] - point["frequency_hz"]) > 1e-9 * freqs[i] or abs(amps[j] - point["amplitude_v"]) > 1e-12:
-            sys.exit(f"compare_scipy: sweep point {point['frequency_hz']} Hz / {point['amplitude_v']} V is off the grid")
-        table.setdefault((i, j), {}).setdefault(point["branch"], []).append(point)
-    return table
-
-
 def is_bistable(branches):
     up, down = branches["up"][0], branches["down"][0]
     return abs(up["first_harmonic_force_n"] - down["first_harmonic_force_n"]) > 1e-9 * up["first_harmonic_force_n"]
-
-
-def relative(a, b):
-    return abs(a - b) / abs(b) if b else abs(a - b)
 
 
 def landed_on(figures, branches):
@@ -410,18 +314,11 @@ def landed_on(figures, branches):
 
 def sweep_section(args, binary):
     cli_args = sweep_args(binary, args.sweep_frequency_points, args.sweep_amplitude_points)
-    sim_s, process_s = [], []
-    for _ in range(args.sweep_repeats):
-        result, elapsed = run_cli(cli_args)
-        sim_s.append(result["wall_time_s"])
-        process_s.append(elapsed)
+    result, sim_s, process_s, table = timed_sweep(cli_args, args.sweep_repeats)
     model_json = result["model"]
     check_plain_piecewise(model_json)
     freqs, amps = result["grid"]["frequency_hz"], result["grid"]["amplitude_v"]
     grid_points = len(freqs) * len(amps)
-    table = index_sweep(result)
-    if len(table) != grid_points:
-        sys.exit(f"compare_scipy: the sweep reported {len(table)} of {grid_points} grid points")
 
     rng = random.Random(args.seed)
     keys = sorted(table)
@@ -505,7 +402,9 @@ def main():
                         help="the strokelab binary (default: build/release/strokelab under the repo root)")
     parser.add_argument("--no-record", action="store_true", help="skip the record section")
     parser.add_argument("--no-sweep", action="store_true", help="skip the sweep section")
-    parser.add_argument("--sweep", action="store_true", help="only the sweep section (same as --no-record)")
+    parser.add_argument("--no-smooth", action="store_true", help="skip the smooth section")
+    parser.add_argument("--sweep", action="store_true", help="only the sweep section")
+    parser.add_argument("--smooth", action="store_true", help="only the smooth section")
     record = parser.add_argument_group("record section")
     record.add_argument("--repeats", type=int, default=5, help="CLI runs per engine (default 5)")
     record.add_argument("--scipy-repeats", type=int, default=2, help="runs per LSODA output mode (default 2)")
@@ -528,11 +427,15 @@ def main():
                        help="convergence of the Poincare section, scaled |P^p(y) - y| (default 1e-9)")
     sweep.add_argument("--sweep-max-periods", type=int, default=2000,
                        help="give up converging after this many periods (default 2000)")
+    scipy_smooth.add_arguments(parser)
     args = parser.parse_args()
-    if args.sweep:
-        args.no_record = True
-    if args.no_record and args.no_sweep:
-        sys.exit("compare_scipy: --no-record and --no-sweep leave nothing to do")
+    if args.sweep and args.smooth:
+        sys.exit("compare_scipy: --sweep and --smooth each run one section alone; give one")
+    if args.sweep or args.smooth:
+        args.no_record, args.no_sweep, args.no_smooth = True, not args.sweep, not args.smooth
+    if args.no_record and args.no_sweep and args.no_smooth:
+        sys.exit("compare_scipy: --no-record, --no-sweep and --no-smooth leave nothing to do")
+    scipy_smooth.check_arguments(args)
     if args.repeats < 1 or args.scipy_repeats < 1 or args.sweep_repeats < 1:
         sys.exit("compare_scipy: --repeats, --scipy-repeats and --sweep-repeats must be >= 1")
     if args.sweep_frequency_points < 2 or args.sweep_amplitude_points < 1 or args.sweep_samples < 0:
@@ -544,14 +447,14 @@ def main():
                  f"  build it (cmake -S . -B build/release -DCMAKE_BUILD_TYPE=Release && "
                  f"cmake --build build/release) or pass --strokelab PATH")
 
-    if not args.no_record:
-        record_section(args, binary)
-    if not args.no_sweep:
-        if not args.no_record:
+    sections = [(args.no_record, record_section), (args.no_sweep, sweep_section),
+                 (args.no_smooth, scipy_smooth.smooth_section)]
+    for n, run in enumerate([run for skip, run in sections if not skip]):
+        if n:
             print()
             print("=" * 110)
             print()
-        sweep_section(args, binary)
+        run(args, binary)
 
 
 if __name__ == "__main__":

@@ -31,13 +31,15 @@ TEST(CliTest, BadInputNamesTheField) {
   ExpectInputError("simulate --frequency-hz 8 --amplitude-v nan", "--amplitude-v: must not be NaN");
   ExpectInputError(kSimulate + "--set k9=1", "--set k9: unknown model parameter");
   ExpectInputError(kSimulate + "--sample-rate-hz 0", "--sample-rate-hz: must be a finite number > 0");
-  ExpectInputError(kSimulate + "--method rk4", "--method: unknown method 'rk4' (known: exact, cvode, ode3)");
+  ExpectInputError(kSimulate + "--method rk4", "--method: unknown method 'rk4' (known: auto, exact, cvode, ode3)");
   ExpectInputError(kSimulate + "--model papr", "--model: unknown model preset 'papr'");
   ExpectInputError(kSimulate + "--frobnicate 1", "--frobnicate: unknown option");
   ExpectInputError("simulate --amplitude-v 0.3", "--frequency-hz: is required");
   ExpectInputError("simulate --frequency-hz -3 --amplitude-v 0.3", "--frequency-hz: must be a finite number > 0");
   ExpectInputError("simulate --frequency-hz 8 --amplitude-v 0.4 --duration-s abc", "--duration-s: expected a number, got 'abc'");
-  ExpectInputError(kSimulate + "--set k3=4e7 --method exact", "method: the exact engine needs a piecewise-linear model");
+  ExpectInputError(kSimulate + "--set k3=4e7 --method exact",
+                   "--method: the exact engine needs a piecewise-linear model; this one has k3 (cubic stiffness) "
+                   "(use auto, the default, or cvode)");
   ExpectInputError(kSimulate + "--duration-s 3", "--duration-s: given more than once");
   ExpectInputError("frobnicate", "unknown command 'frobnicate'");
 }
@@ -65,6 +67,29 @@ TEST(CliTest, JsonSummaryHasThePromisedFields) {
   EXPECT_EQ(j["contacts"], 8);  // one impact per period over the last second at 8 Hz
   EXPECT_NEAR(j["min_displacement_m"].get<double>(), -1.008e-3, 0.001e-3);  // just inside d = -1 mm
   EXPECT_NEAR(j["mean_contact_ms"].get<double>(), 0.49, 0.01);
+}
+
+// Without --method the engine follows the model, and both outputs say which and why.
+TEST(CliTest, TheDefaultMethodTakesAnEngineTheModelAllows) {
+  const Result paper = RunCli(kSimulate + "--json");
+  ASSERT_EQ(paper.exit_code, 0) << paper.stderr_text;
+  EXPECT_EQ(nlohmann::json::parse(paper.stdout_text)["method"], "exact (auto: the model is piecewise linear)");
+
+  const std::string model_path = ::testing::TempDir() + "/hertzian_model.json";
+  std::ofstream(model_path) << R"({"preset": "paper", "contact_law": "hertzian", "contact_stiffness": 2.65e8})";
+  const Result hertzian = RunCli(kSimulate + "--json --model " + model_path);
+  ASSERT_EQ(hertzian.exit_code, 0) << hertzian.stderr_text;
+  const nlohmann::json j = nlohmann::json::parse(hertzian.stdout_text);
+  EXPECT_EQ(j["method"], "cvode (auto: the model has Hertzian contact, which the exact engine cannot take)");
+  EXPECT_GT(j["contacts"].get<int>(), 0);
+
+  const Result cubic = RunCli(kSimulate + "--set k3=4e7 --method auto");
+  ASSERT_EQ(cubic.exit_code, 0) << cubic.stderr_text;
+  EXPECT_THAT(cubic.stdout_text,
+              HasSubstr("method cvode (auto: the model has k3 (cubic stiffness), which the exact engine cannot take)\n"));
+  const Result named = RunCli(kSimulate + "--set k3=4e7 --method ode3 --json");
+  ASSERT_EQ(named.exit_code, 0) << named.stderr_text;
+  EXPECT_EQ(nlohmann::json::parse(named.stdout_text)["method"], "ode3");
 }
 
 TEST(CliTest, OverridesChangeTheModel) {

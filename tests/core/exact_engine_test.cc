@@ -1,10 +1,13 @@
 // The exact engine against closed forms: paper Eq. 3 below saturation, free decay, the contact
-// half-period, and switching instants on the located surfaces.
+// half-period, and switching instants on the located surfaces; which models it takes (ChooseMethod).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "strokelab/engines/engine.h"
 #include "strokelab/model/linear_response.h"
@@ -121,6 +124,55 @@ TEST(ExactEngineTest, RefusesModelsThatAreNotPiecewiseLinear) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.field(), "method");
     EXPECT_NE(std::string(e.what()).find("k3"), std::string::npos);
+  }
+}
+
+// "auto" gives the exact engine every piecewise-linear model (stops on both sides, contact damping,
+// clipping) and cvode every model with a smooth term, naming the term; a named engine is taken as
+// named, except exact on a model it cannot take.
+TEST(ChooseMethodTest, AutoTakesTheExactEngineWhereItCanAndCvodeElsewhere) {
+  ActuatorModel piecewise = PaperModel();
+  piecewise.upper_stop_m = 2e-3;
+  piecewise.contact_damping_n_s_per_m = 5.0;
+  piecewise.amplifier_limit_v = 0.4;
+  for (const ActuatorModel& model : {PaperModel(), PresetModel("linear"), piecewise}) {
+    const MethodChoice choice = ChooseMethod("auto", model);
+    EXPECT_EQ(choice.method, Method::kExact);
+    EXPECT_EQ(choice.Describe(), "exact (auto: the model is piecewise linear)");
+  }
+  ActuatorModel k2 = PaperModel(), k3 = PaperModel(), hertz = PaperModel(), friction = PaperModel();
+  k2.quadratic_stiffness_n_per_m2 = 1e4;
+  k3.cubic_stiffness_n_per_m3 = 4e7;
+  hertz.contact_law = ContactLaw::kHertzian;
+  friction.friction_force_n = 0.01;
+  const std::vector<std::pair<ActuatorModel, std::string>> smooth = {
+      {k2, "k2"}, {k3, "k3"}, {hertz, "Hertzian"}, {friction, "friction"}};
+  for (const auto& [model, term] : smooth) {
+    SCOPED_TRACE(term);
+    const MethodChoice choice = ChooseMethod("auto", model);
+    EXPECT_EQ(choice.method, Method::kCvode);
+    EXPECT_EQ(choice.reason.find("the model has "), 0u) << choice.reason;
+    EXPECT_NE(choice.reason.find(term), std::string::npos) << choice.reason;
+    EXPECT_NE(choice.reason.find("which the exact engine cannot take"), std::string::npos) << choice.reason;
+    EXPECT_EQ(choice.Describe(), "cvode (auto: " + choice.reason + ")");
+    EXPECT_EQ(ChooseMethod("ode3", model).Describe(), "ode3");
+  }
+  EXPECT_EQ(ChooseMethod("cvode", PaperModel()).Describe(), "cvode");
+  EXPECT_EQ(ChooseMethod("exact", PaperModel()).Describe(), "exact");
+  try {
+    (void)ChooseMethod("exact", k3);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "method");
+    EXPECT_EQ(e.bare_message(), "the exact engine needs a piecewise-linear model; this one has k3 (cubic stiffness) "
+                                "(use auto, the default, or cvode)");
+  }
+  try {
+    (void)ChooseMethod("rk4", PaperModel());
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "method");
+    EXPECT_EQ(e.bare_message(), "unknown method 'rk4' (known: auto, exact, cvode, ode3)");
   }
 }
 

@@ -295,7 +295,8 @@ TEST(SynthCli, ChoosesCvodeForSmoothNonlinearModelsAndNamesBadFlags) {
   expect_error("synth --out " + dir.string() + " --noise-rms -1", "--noise-rms: must be a finite number >= 0");
   expect_error("synth --out " + dir.string() + " --seed -3", "--seed: expected a non-negative integer");
   expect_error("synth --out " + dir.string() + " --set k3=4e7 --method exact",
-               "the exact engine needs a piecewise-linear model");
+               "--method: the exact engine needs a piecewise-linear model");
+  expect_error("synth --out " + dir.string() + " --method rk4", "--method: unknown method 'rk4' (known: auto, exact,");
   fs::remove_all(dir);
 }
 

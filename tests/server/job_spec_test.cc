@@ -1,5 +1,6 @@
 // Job specs at the edge: ValidateJob on generated malformed documents (each with the exact JSON
-// pointer and a fragment of the message), valid documents, and the conversion to core types.
+// pointer and a fragment of the message), valid documents, the conversion to core types, and the
+// engine a simulate job runs.
 #include "strokelab/jobs/job_spec.h"
 
 #include <gmock/gmock.h>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include "strokelab/model/model_json.h"
+#include "strokelab/jobs/jobs.h"
 #include "strokelab/jobs/json_schema.h"
 #include "strokelab/signal/signal.h"
 #include "test_util.h"
@@ -91,7 +93,7 @@ std::string TypeMessage(const std::string& pointer) {
   if (field == "thresholds") return "must be a boolean";
   if (field == "points") return "must be an integer";
   if (field == "spacing") return "must be one of: linear, geometric, eq1";
-  if (field == "method") return "must be one of: exact, cvode, ode3";
+  if (field == "method") return "must be one of: auto, exact, cvode, ode3";
   if (field == "preset") return "must be one of: paper, linear";
   if (field == "contact_law") return "must be one of: linear, hertzian";
   if (field == "model") return "must be a string or an object";
@@ -207,7 +209,7 @@ std::vector<MalformedCase> MalformedCases() {
   add("kind Sweep (case)", With(BaseSweep(), "/kind", "Sweep"), "/kind", "must be one of: sweep, simulate");
   add("spacing log", With(BaseSweep(), "/grid/frequency_hz/spacing", "log"), "/grid/frequency_hz/spacing",
       "must be one of: linear, geometric, eq1");
-  add("method rk4", With(BaseSimulate(), "/method", "rk4"), "/method", "must be one of: exact, cvode, ode3");
+  add("method rk4", With(BaseSimulate(), "/method", "rk4"), "/method", "must be one of: auto, exact, cvode, ode3");
   add("preset name papr", With(BaseSweep(), "/model", "papr"), "/model", "must be one of: paper, linear");
   add("preset key papr", With(BaseSweep(), "/model/preset", "papr"), "/model/preset", "must be one of: paper, linear");
   add("contact law hertz", With(BaseSweep(), "/model/contact_law", "hertz"), "/model/contact_law",
@@ -240,10 +242,10 @@ std::vector<MalformedCase> MalformedCases() {
   add("mass given twice", With(BaseSimulate(), "/model", {{"m_p", 0.03}, {"mass_kg", 0.03}}), "/model/mass_kg",
       "gives the same parameter as m_p");
   add("exact with cubic stiffness", With(BaseSimulate(), "/model", {{"k3", 4e7}}), "/method",
-      "exact needs a piecewise-linear model; this one has k3 (cubic stiffness)");
-  add("default method with Hertzian contact",
-      Without(With(BaseSimulate(), "/model", {{"contact_law", "hertzian"}, {"k_s", 4e9}}), "/method"), "/method",
-      "the default method, exact, needs a piecewise-linear model");
+      "the exact engine needs a piecewise-linear model; this one has k3 (cubic stiffness) (use auto, the default, "
+      "or cvode)");
+  add("exact with Hertzian contact", With(BaseSimulate(), "/model", {{"contact_law", "hertzian"}, {"k_s", 4e9}}),
+      "/method", "this one has Hertzian contact (use auto");
   add("record under 2 samples", With(With(BaseSimulate(), "/duration_s", 1e-5), "/sample_rate_hz", 100), "/duration_s",
       "at least 2 samples");
 
@@ -339,8 +341,11 @@ TEST(ValidJobTest, ValidDocumentsPass) {
       json::parse(R"({"kind": "simulate", "model": {"upper_stop_m": 2e-3, "contact_law": "hertzian",
                       "contact_stiffness": 4e9}, "frequency_hz": 8, "amplitude_v": 0.5, "method": "ode3",
                       "duration_s": 60, "sample_rate_hz": 100000})"),
-      // Minimal simulate: duration, rate and method take their defaults (10 s, 51.2 kHz, exact).
+      // Minimal simulate: duration, rate and method take their defaults (10 s, 51.2 kHz, auto).
       json::parse(R"({"kind": "simulate", "model": "linear", "frequency_hz": 0.001, "amplitude_v": 1000})"),
+      // The default method, auto, takes a model the exact engine cannot (it runs cvode), and auto by name.
+      Without(With(BaseSimulate(), "/model", {{"contact_law", "hertzian"}, {"k_s", 4e9}}), "/method"),
+      With(With(BaseSimulate(), "/model", {{"k3", 4e7}}), "/method", "auto"),
       // One point per axis, to == from; whole numbers written as floats; thresholds off; a name at the cap.
       {{"kind", "sweep"},
        {"model", "linear"},
@@ -429,6 +434,25 @@ TEST(SweepSpecFromJobTest, NullStopsAndLimitMeanAbsent) {
   const SweepSpec limited = SweepSpecFromJob(job);
   EXPECT_EQ(limited.model.amplifier_limit_v, 0.3);
   EXPECT_EQ(limited.model.upper_stop_m, 2e-3);
+}
+
+// A simulate job without a method runs the engine its model allows, and its record says which and
+// why; a named method is written as named.
+TEST(SimulateJobTest, TheDefaultMethodFollowsTheModel) {
+  const auto method_of = [](const json& job) {
+    const std::vector<TaskSpec> tasks = PlanTasks(job);
+    EXPECT_EQ(tasks.size(), 1u);
+    const std::vector<ResultRow> rows = RunTask(tasks.at(0).spec);
+    EXPECT_EQ(rows.size(), 1u);
+    return rows.at(0).values.at("method").get<std::string>();
+  };
+  const json simulate = With(With(BaseSimulate(), "/duration_s", 1), "/sample_rate_hz", 8192);
+  const json cubic = With(simulate, "/model", {{"k3", 4e7}});
+  EXPECT_EQ(method_of(Without(cubic, "/method")),
+            "cvode (auto: the model has k3 (cubic stiffness), which the exact engine cannot take)");
+  EXPECT_EQ(method_of(Without(simulate, "/method")), "exact (auto: the model is piecewise linear)");
+  EXPECT_EQ(method_of(With(cubic, "/method", "ode3")), "ode3");
+  EXPECT_EQ(method_of(simulate), "exact");
 }
 
 // Each job option lands in its field (FitOptionFields, DiagnoseOptionFields); absent ones keep the

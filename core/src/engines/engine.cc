@@ -20,6 +20,25 @@ const char* ToString(Method method) {
   return "?";
 }
 
+MethodChoice ChooseMethod(std::string_view text, const ActuatorModel& model) {
+  const std::string nonlinear = model.NonlinearTerms();
+  if (text == "auto") {
+    if (nonlinear.empty()) return {Method::kExact, "the model is piecewise linear"};
+    return {Method::kCvode, "the model has " + nonlinear + ", which the exact engine cannot take"};
+  }
+  if (text != "exact" && text != "cvode" && text != "ode3")
+    throw InputError("method", "unknown method '" + std::string(text) + "' (known: auto, exact, cvode, ode3)");
+  const Method method = ParseMethod(text);
+  if (method == Method::kExact && !nonlinear.empty())
+    throw InputError("method", "the exact engine needs a piecewise-linear model; this one has " + nonlinear +
+                                   " (use auto, the default, or cvode)");
+  return {method, ""};
+}
+
+std::string MethodChoice::Describe() const {
+  return reason.empty() ? ToString(method) : std::string(ToString(method)) + " (auto: " + reason + ")";
+}
+
 void Engine::Simulate(const ActuatorModel& model, const SineDrive& drive, const SimulationOptions& options,
                       Record* out) const {
   Validate(model);

@@ -94,7 +94,7 @@ std::vector<SteppedSinePoint> SteppedSineSweep(const ActuatorModel& model, doubl
                                                const std::vector<double>& frequencies_hz,
                                                const SteppedSineOptions& options) {
   ValidateInput(model, amplitude_v, frequencies_hz, options);
-  const std::unique_ptr<Engine> engine = MakeEngine(model.IsPiecewiseLinear() ? Method::kExact : Method::kCvode);
+  const std::unique_ptr<Engine> engine = MakeEngine(ChooseMethod("auto", model).method);
 
   const size_t samples_per_period = static_cast<size_t>(options.samples_per_period);
   const size_t analyse_count = static_cast<size_t>(options.analyse_periods) * samples_per_period;

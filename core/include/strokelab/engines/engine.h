@@ -3,6 +3,7 @@
 //          closed form; piecewise-linear models only. The fast path.
 //   cvode  SUNDIALS CVODE with root-finding on every switching surface; any model.
 //   ode3   fixed-step Bogacki-Shampine at the output rate, as the paper's Simulink run (section 4.1).
+// "auto" (ChooseMethod) takes one of them by the model: the default wherever a caller need not name one.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +20,16 @@ namespace strokelab {
 enum class Method { kExact, kCvode, kOde3 };
 Method ParseMethod(std::string_view text);  // throws InputError("method", ...)
 const char* ToString(Method method);
+
+// The engine for a model, named ("exact", "cvode", "ode3") or "auto": exact for a piecewise-linear
+// model, else cvode, the best engine that takes any model. Throws InputError("method", ...) for an
+// unknown name and for exact on a model it cannot take, saying what to use instead.
+struct MethodChoice {
+  Method method = Method::kExact;
+  std::string reason;            // why auto chose it ("the model is piecewise linear"); empty when named
+  std::string Describe() const;  // "exact", or "cvode (auto: the model has k3 ..., which the exact ...)"
+};
+MethodChoice ChooseMethod(std::string_view text, const ActuatorModel& model);
 
 struct State {
   double x_m = 0.0;          // displacement [m]

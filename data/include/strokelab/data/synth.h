@@ -60,7 +60,7 @@ struct SynthOptions {
   // [dimensionless]. A zero or infinite parameter stays so.
   std::vector<std::pair<std::string, double>> perturb;
   std::uint64_t seed = 1;
-  std::optional<Method> method;  // none: exact for piecewise-linear models, cvode otherwise
+  std::optional<Method> method;  // none: ChooseMethod's auto (exact for piecewise-linear models, else cvode)
   std::string actuator = "inertial actuator, test rig";
   int threads = 0;  // records simulated side by side; 0: one thread per core
 

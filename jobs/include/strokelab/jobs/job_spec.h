@@ -13,8 +13,8 @@
 //             spacing "eq1": "to" must be left out, and the last frequency must be <= 10 kHz;
 //             frequency points x amplitude points <= kMaxGridPoints (pointer: /grid);
 //   simulate  duration_s x sample_rate_hz >= 2 samples and <= kMaxRecordSamples (pointer:
-//             /duration_s); method "exact" (the default) needs a piecewise-linear model
-//             (pointer: /method);
+//             /duration_s); method "exact" needs a piecewise-linear model (pointer: /method;
+//             the default, "auto", takes exact or cvode by the model: ChooseMethod, engine.h);
 //   both      the model makes physical sense (core Validate; pointer /model/KEY with KEY as the job
 //             wrote it, short key or JSON name), and no parameter is given twice (as m_p and mass_kg).
 //   fit,      campaign: exactly one of path and id (pointer /campaign); options: FitOptions::IsValid
