@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "commands.h"
@@ -15,6 +16,7 @@
 #include "option_flags.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/report/diagnosis_maps.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/data/recordings.h"
 
@@ -33,21 +35,48 @@ amplifier_saturation) and names the one that improves the held-out records beyon
   --data DIR               campaign directory                                         (required)
   --model NAME             paper | linear                                             [paper]
   --json                   one JSON object on stdout instead of the text report
-  --out DIR                also write the HTML report (index.html, CSV tables, diagnosis.json)
+  --out DIR                also write the report folder (below)
   --heldout-every N        every N-th record is held out of the fits                  [4]
   --min-gain G             held-out chi-square drop (residual variances) to name an effect [10]
   --no-pairs               do not try pairs of effects
-  --max-seconds T          wall-time budget; candidates past it are skipped           [600]
+  --max-seconds T          wall-time budget; candidates past it are skipped, and the
+                           report's maps are cut off once it is spent                 [600]
+  --map-frequency-points N the report's saturation maps: frequencies over the
+                           campaign's range (geometric); 0: no maps                   [40]
+  --map-amplitude-points N amplitudes over the campaign's range (linear); 0: no maps  [12]
   --progress               one line per stage on stderr
   (and the fit's options: --harmonics, --mass-kg, --mains-hz, --max-distortion, --max-iterations,
    --fit-contact-damping, --no-refine; see strokelab fit --help)
+
+The diagnosed model is the base fit's model when nothing is missing, else the base model extended by
+the named effects with every parameter as fitted with them. The JSON result carries it as "model"
+(with "model_note"), in the format of model files; the fitted parameters with their standard errors
+are in "base_parameters" and "missing_physics" as before.
+
+--out DIR writes:
+  model.json           the diagnosed model: strokelab sweep --model DIR/model.json and
+                       strokelab simulate --model DIR/model.json take it as it is, a sweep job
+                       takes its content as "model"; simulate a smooth model (k2, k3, Hertzian
+                       contact, friction) with --method cvode
+  index.html           the report: verdict, fit before and after, parameters, the saturation maps of
+                       the base and the diagnosed model side by side with the saturation threshold
+                       per frequency of both and its shift (V and %), the jump intervals of both,
+                       candidates, evidence, figures, records
+  threshold_shift.csv  per map frequency: grazing and lowest contacting amplitude, base and
+                       diagnosed, and the shifts
+  jump_intervals.csv   the jump (bistable) intervals of both models
+  records.csv, candidates.csv, levels.csv, diagnosis.json (the JSON result)
+The maps sweep both models over the campaign's frequency x amplitude range after the diagnosis; a
+smooth model's map costs ~0.1 s per grid point today (40 x 12: a minute or two), so
+--map-frequency-points 0 skips them.
 
 Exit codes: 0 diagnosed (including "nothing missing"), 2 bad input (the message names the file and
 line or the flag), 3 numerical failure.
 )";
 
 void PrintReport(const Diagnosis& d, std::ostream& out) {
-  out << d.conclusion << "\n\n";
+  out << d.conclusion << "\n";
+  out << "diagnosed model: " << d.model_note << "\n\n";
   out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse, 4) << ", after "
       << General(d.fit_after.nrmse, 4) << "; held-out records (" << d.heldout.size() << "): before "
       << General(d.fit_before.heldout_nrmse, 4) << ", after " << General(d.fit_after.heldout_nrmse, 4) << "\n";
@@ -86,6 +115,27 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
   out << "\n" << General(d.seconds, 3) << " s\n";
 }
 
+// What the maps of the report show, in a few lines: the threshold's shift, or why a map is missing.
+void PrintMaps(const report::DiagnosisMaps& maps, std::ostream& out) {
+  out << "\nsaturation maps: ";
+  if (!maps.note.empty()) {
+    out << maps.note << "\n";
+    return;
+  }
+  out << maps.frequency_hz.points << " x " << maps.amplitude_v.points << " grid, " << General(maps.seconds, 3)
+      << " s\n";
+  for (const auto& [name, result, note] : {std::tuple{"base model", &maps.base, &maps.base_note},
+                                          std::tuple{"diagnosed model", &maps.diagnosed, &maps.diagnosed_note}}) {
+    if (maps.same_model && result == &maps.diagnosed) continue;
+    if (!*result) out << "  " << name << ": no map, " << *note << "\n";
+    else if (!(*result)->failures.empty())
+      out << "  " << name << ": " << (*result)->failures.size() << " rows and columns failed and are left blank, the first: "
+          << (*result)->failures.front() << "\n";
+  }
+  if (maps.base && maps.diagnosed && !maps.same_model)
+    out << "  " << report::ThresholdShiftSummary(report::ThresholdShifts(*maps.base, *maps.diagnosed)) << "\n";
+}
+
 }  // namespace
 
 int RunDiagnose(const std::vector<std::string>& argv) {
@@ -111,8 +161,11 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   const Campaign campaign = ReadCampaign(*data);
   const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
   const nlohmann::json json = DiagnosisToJson(diagnosis);
-  if (const auto out = args.Get("--out")) {
-    report::WriteDiagnosisReport(diagnosis, *out);
+  const auto out = args.Get("--out");
+  std::optional<report::DiagnosisMaps> maps;
+  if (out) {
+    maps = report::SweepDiagnosisMaps(diagnosis, options);
+    report::WriteDiagnosisReport(diagnosis, *out, &*maps);
     std::ofstream file(std::filesystem::path(*out) / "diagnosis.json");
     file << json.dump(2) << "\n";
     if (!file) throw InputError("--out", "cannot write " + (std::filesystem::path(*out) / "diagnosis.json").string());
@@ -121,7 +174,11 @@ int RunDiagnose(const std::vector<std::string>& argv) {
     std::cout << json.dump(2) << "\n";
   } else {
     PrintReport(diagnosis, std::cout);
-    if (const auto out = args.Get("--out")) std::cout << "report: " << (std::filesystem::path(*out) / "index.html").string() << "\n";
+    if (maps) PrintMaps(*maps, std::cout);
+    if (out) {
+      std::cout << "report: " << (std::filesystem::path(*out) / "index.html").string() << "\n";
+      std::cout << "model file: " << (std::filesystem::path(*out) / "model.json").string() << "\n";
+    }
   }
   return 0;
 }

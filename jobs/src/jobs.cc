@@ -6,6 +6,7 @@
 #include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/report/diagnosis_maps.h"
 #include "strokelab/report/sweep_tables.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
@@ -34,16 +35,18 @@ std::string ContentTypeOf(const std::string& name) {
   if (name.ends_with(".html")) return "text/html; charset=utf-8";
   if (name.ends_with(".csv")) return "text/csv; charset=utf-8";
   if (name.ends_with(".svg")) return "image/svg+xml";
+  if (name.ends_with(".json")) return "application/json";
   return "text/plain; charset=utf-8";
 }
 
-// The HTML report of a diagnosis (WriteDiagnosisReport into a scratch directory) as result rows. The
-// report's files are UTF-8 text (an HTML page, CSV tables), stored as JSON strings.
-std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis) {
+// The HTML report of a diagnosis with its maps (WriteDiagnosisReport into a scratch directory) as
+// result rows. The report's files are UTF-8 text (an HTML page, CSV tables, the model file), stored
+// as JSON strings.
+std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis, const report::DiagnosisMaps& maps) {
   const fs::path dir = fs::temp_directory_path() / ("strokelab-report-" + NewCampaignId());
   std::vector<ResultRow> rows;
   try {
-    report::WriteDiagnosisReport(diagnosis, dir);
+    report::WriteDiagnosisReport(diagnosis, dir, &maps);
     for (const std::string& name : report::DiagnosisReportFiles())
       rows.push_back({"report_files",
                       {{"name", name}, {"content_type", ContentTypeOf(name)}, {"text", ReadFileBytes(dir / name)}}});
@@ -67,9 +70,12 @@ std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
   const Campaign campaign = ReadCampaign(dir);
   const nlohmann::json& job = task.at("job");
   if (type == "fit") return {{"fit", FitResultToJson(FitCampaign(campaign, FitOptionsFromJob(job)))}};
-  const Diagnosis diagnosis = DiagnoseCampaign(campaign, DiagnoseOptionsFromJob(job));
+  const DiagnoseOptions options = DiagnoseOptionsFromJob(job);
+  const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
   std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
-  for (ResultRow& row : DiagnosisReportRows(diagnosis)) rows.push_back(std::move(row));
+  // The report's maps of the base and the diagnosed model, within what is left of max_seconds.
+  const report::DiagnosisMaps maps = report::SweepDiagnosisMaps(diagnosis, options);
+  for (ResultRow& row : DiagnosisReportRows(diagnosis, maps)) rows.push_back(std::move(row));
   return rows;
 }
 

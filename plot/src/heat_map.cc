@@ -8,6 +8,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "strokelab/plot/svg_plot.h"
@@ -37,8 +38,6 @@ constexpr std::array<std::array<int, 3>, 17> kViridis = {{
     {213, 226, 26},
     {253, 231, 37},
 }};
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string Hex(const std::array<double, 3>& rgb) {
   char buf[8];
@@ -77,6 +76,11 @@ void CheckHeatMap(const HeatMap& map, const Axes& axes) {
   if (map.z.size() != map.y.size()) {
     throw std::invalid_argument("HeatMap.z: has " + std::to_string(map.z.size()) + " rows but y has " +
                                 std::to_string(map.y.size()) + " values");
+  }
+  for (const auto& [limit, name] : {std::pair{map.z_min, "z_min"}, std::pair{map.z_max, "z_max"}}) {
+    if (!std::isnan(limit) && (!std::isfinite(limit) || (map.log_z && limit <= 0)))
+      throw std::invalid_argument(std::string("HeatMap.") + name + ": must be finite" +
+                                  (map.log_z ? " and positive with log_z" : "") + " (or NaN: from the data)");
   }
   for (size_t iy = 0; iy < map.z.size(); ++iy) {
     if (map.z[iy].size() != map.x.size()) {
@@ -121,7 +125,7 @@ ColorScale MakeColorScale(const HeatMap& map) {
       if (std::isfinite(z) && (!map.log_z || z > 0)) Extend(r, z);
     }
   }
-  return {ResolveRange(kNaN, kNaN, r, map.log_z, Fit::kExact, 1, 1), map.log_z};
+  return {ResolveRange(map.z_min, map.z_max, r, map.log_z, Fit::kExact, 1, 1), map.log_z};
 }
 
 // Pixel positions of cell edges, rounded as written so that neighbouring cells share an edge exactly.

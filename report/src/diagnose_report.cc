@@ -9,6 +9,23 @@
 #include "strokelab/plot/svg_plot.h"
 
 namespace strokelab::report {
+namespace diagnose_internal {
+
+std::string Esc(const std::string& text) { return plot::EscapeXml(text); }
+
+std::string Td(const std::string& text, const char* css_class) {
+  return css_class ? Format("<td class=\"%s\">", css_class) + Esc(text) + "</td>" : "<td>" + Esc(text) + "</td>";
+}
+std::string NumTd(double value, int digits) { return Td(Num(value, digits), "num"); }
+
+std::string Table(const std::vector<std::string>& headers, const std::string& rows, const char* css_class) {
+  std::string out = css_class ? Format("<table class=\"%s\">\n<tr>", css_class) : std::string("<table>\n<tr>");
+  for (const std::string& h : headers) out += "<th>" + Esc(h) + "</th>";
+  return out + "</tr>\n" + rows + "</table>\n";
+}
+
+}  // namespace diagnose_internal
+
 namespace {
 
 using namespace diagnose_internal;
@@ -40,21 +57,13 @@ p.key { font-size: 13px; margin: 4px 0; }
           vertical-align: -1px; }
 p.skipped { font-style: italic; color: #666; }
 details summary { cursor: pointer; font-weight: 600; margin: 6px 0; }
+.maps { display: flex; flex-wrap: wrap; gap: 10px; }
+.maps figure { flex: 1 1 560px; margin: 0; }
+.maps figure svg { width: 100%; }
+.maps figcaption { font-size: 13px; color: #444; margin: 4px 0; }
 )";
 
-std::string Esc(const std::string& text) { return plot::EscapeXml(text); }
-
-std::string Td(const std::string& text, const char* css_class = nullptr) {
-  return css_class ? Format("<td class=\"%s\">", css_class) + Esc(text) + "</td>" : "<td>" + Esc(text) + "</td>";
-}
-std::string NumTd(double value, int digits = 4) { return Td(Num(value, digits), "num"); }
 std::string YesNo(bool value) { return Td(value ? "yes" : "no"); }
-
-std::string Table(const std::vector<std::string>& headers, const std::string& rows) {
-  std::string out = "<table>\n<tr>";
-  for (const std::string& h : headers) out += "<th>" + Esc(h) + "</th>";
-  return out + "</tr>\n" + rows + "</table>\n";
-}
 
 const CandidateFit* Chosen(const Diagnosis& d) {
   return d.chosen >= 0 && static_cast<size_t>(d.chosen) < d.candidates.size()
@@ -262,16 +271,17 @@ std::string RecordsSection(const Diagnosis& d) {
                 "chi2 chosen", "model period base / chosen"},
                rows) +
          "</details>\n<p class=\"meta\">Tables: <a href=\"records.csv\">records.csv</a>, "
-         "<a href=\"candidates.csv\">candidates.csv</a>, <a href=\"levels.csv\">levels.csv</a>.</p>\n";
+         "<a href=\"candidates.csv\">candidates.csv</a>, <a href=\"levels.csv\">levels.csv</a>; the diagnosed model: "
+         "<a href=\"model.json\">model.json</a>.</p>\n";
 }
 
 }  // namespace
 
-std::string DiagnosisHtml(const Diagnosis& d) {
+std::string DiagnosisHtml(const Diagnosis& d, const DiagnosisMaps* maps) {
   return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>strokelab diagnosis</title>\n"
          "<style>" +
          std::string(kStyle) + "</style>\n</head>\n<body>\n" + Header(d) + Verdict(d) + FitTable(d) +
-         ParametersTable(d) + CandidatesTable(d) + EvidenceSection(d) + FiguresSection(d) + RecordsSection(d) +
+         ParametersTable(d) + MapsSection(d, maps) + CandidatesTable(d) + EvidenceSection(d) + FiguresSection(d) + RecordsSection(d) +
          "</body>\n</html>\n";
 }
 

@@ -1,16 +1,20 @@
-// The diagnosis report's folder (diagnose_report.h): the CSV tables and index.html, and the number
-// formatting shared by the page and the figures.
+// The diagnosis report's folder (diagnose_report.h): index.html, the CSV tables, model.json, and the
+// number formatting shared by the page and the figures.
 #include <algorithm>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <fstream>
 #include <numeric>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
+#include <utility>
 
 #include "diagnose_report_internal.h"
 #include "strokelab/report/csv_table.h"
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/report/diagnosis_maps.h"
+#include "strokelab/model/model_json.h"
 
 namespace strokelab::report {
 namespace diagnose_internal {
@@ -165,25 +169,66 @@ void WriteLevels(const Diagnosis& d, const std::filesystem::path& path) {
   table.Write(path);
 }
 
+// Both models' maps, when both were swept.
+bool HaveBothMaps(const DiagnosisMaps* maps) { return maps && maps->note.empty() && maps->base && maps->diagnosed; }
+
+void WriteThresholdShifts(const DiagnosisMaps* maps, const std::filesystem::path& path) {
+  const std::vector<std::string> columns = {
+      "frequency_hz",          "grazing_base_v",           "grazing_diagnosed_v",
+      "grazing_shift_v",       "grazing_shift_percent",    "lowest_contact_base_v",
+      "lowest_contact_diagnosed_v", "lowest_contact_shift_v", "lowest_contact_shift_percent"};
+  std::vector<std::vector<double>> values(columns.size());
+  if (HaveBothMaps(maps)) {
+    for (const ThresholdShift& t : ThresholdShifts(*maps->base, *maps->diagnosed)) {
+      const double row[] = {t.frequency_hz,          t.base_grazing_v,           t.diagnosed_grazing_v,
+                            t.GrazingShiftV(),       t.GrazingShiftPercent(),    t.base_lowest_contact_v,
+                            t.diagnosed_lowest_contact_v, t.LowestContactShiftV(), t.LowestContactShiftPercent()};
+      for (size_t k = 0; k < columns.size(); ++k) values[k].push_back(row[k]);
+    }
+  }
+  CsvTable table(columns);
+  for (size_t k = 0; k < columns.size(); ++k) table.SetColumn(columns[k], values[k]);
+  table.Write(path);
+}
+
+void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& path) {
+  std::vector<std::vector<std::string>> rows = {
+      {"model", "amplitude_v", "bistable_from_hz", "bistable_to_hz", "from_kind", "to_kind"}};
+  if (HaveBothMaps(maps)) {
+    for (const auto& [name, result] : {std::pair{"base", &*maps->base}, std::pair{"diagnosed", &*maps->diagnosed}}) {
+      for (const JumpInterval& j : result->jump)
+        rows.push_back({name, Cell(j.amplitude_v), Cell(j.bistable_from_hz), Cell(j.bistable_to_hz), j.from_kind,
+                        j.to_kind});
+    }
+  }
+  WriteRows(path, rows);
+}
+
 }  // namespace
 
 const std::vector<std::string>& DiagnosisReportFiles() {
-  static const std::vector<std::string> files = {"index.html", "records.csv", "candidates.csv", "levels.csv"};
+  static const std::vector<std::string> files = {"index.html",      "records.csv",         "candidates.csv",
+                                                 "levels.csv",      "threshold_shift.csv", "jump_intervals.csv",
+                                                 "model.json"};
   return files;
 }
 
-void WriteDiagnosisReport(const Diagnosis& d, const std::filesystem::path& dir) {
+void WriteDiagnosisReport(const Diagnosis& d, const std::filesystem::path& dir, const DiagnosisMaps* maps) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
-  {
-    std::ofstream out(dir / "index.html");
-    out << DiagnosisHtml(d);
-    if (!out) throw std::runtime_error("cannot write " + (dir / "index.html").string());
-  }
+  auto write_text = [&](const char* name, const std::string& text) {
+    std::ofstream out(dir / name);
+    out << text;
+    if (!out) throw std::runtime_error("cannot write " + (dir / name).string());
+  };
+  write_text("index.html", DiagnosisHtml(d, maps));
   WriteRecords(d, dir / "records.csv");
   WriteCandidates(d, dir / "candidates.csv");
   WriteLevels(d, dir / "levels.csv");
+  WriteThresholdShifts(maps, dir / "threshold_shift.csv");
+  WriteJumpIntervals(maps, dir / "jump_intervals.csv");
+  write_text("model.json", ModelToJson(d.model).dump(2) + "\n");
 }
 
 }  // namespace strokelab::report

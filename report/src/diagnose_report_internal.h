@@ -8,6 +8,7 @@
 #include "format.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/plot/svg_plot.h"
+#include "strokelab/report/diagnosis_maps.h"
 
 namespace strokelab::report::diagnose_internal {
 
@@ -36,6 +37,13 @@ struct AmplitudeLevels {
 };
 AmplitudeLevels GroupAmplitudes(const std::vector<RecordMatch>& records);
 
+// HTML pieces of the page (diagnose_report.cc): text escaped for HTML, a table cell (with a class),
+// a number's cell ("num": right-aligned), a table with its header row (and a class).
+std::string Esc(const std::string& text);
+std::string Td(const std::string& text, const char* css_class = nullptr);
+std::string NumTd(double value, int digits = 4);
+std::string Table(const std::vector<std::string>& headers, const std::string& rows, const char* css_class = nullptr);
+
 // One figure of the page: its SVG (or SVGs), or the sentence that replaces it.
 struct Figure {
   std::string id;       // HTML anchor: "harmonics", "frf", "residual", "resonance", "contact", "ratios"
@@ -47,6 +55,11 @@ struct Figure {
   std::string caption;  // plain text: how to read it, or why it is missing
 };
 std::vector<Figure> DiagnosisFigures(const Diagnosis& diagnosis);
+
+// The maps section of the page: the base and the diagnosed model's saturation maps side by side, the
+// threshold shift per frequency and the jump intervals (diagnose_report_maps.cc). `maps` may be null
+// (not computed: said on the page).
+std::string MapsSection(const Diagnosis& diagnosis, const DiagnosisMaps* maps);
 
 // The figures against drive amplitude, per Signatures::Level (diagnose_report_levels.cc).
 Figure ResonanceFigure(const Diagnosis& diagnosis);

@@ -129,11 +129,14 @@ plot::Series Curve(std::string label, std::string color) {
 }
 
 // One saturation map: SpikeFactor of one branch over the grid, with the thresholds and jumps on top.
-std::string SaturationMap(const SweepResult& r, const BranchGrid& grid, Branch branch) {
+std::string SaturationMap(const SweepResult& r, const BranchGrid& grid, Branch branch,
+                          const SaturationMapStyle& style = {}) {
   plot::HeatMap map;
   map.x = r.frequency_hz;
   map.y = r.amplitude_v;
   map.log_z = true;
+  map.z_min = style.spike_factor_min;
+  map.z_max = style.spike_factor_max;
   map.z_label = "peak force / first-harmonic force amplitude";
   for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
     std::vector<double> row(r.frequency_hz.size(), NAN);
@@ -169,7 +172,9 @@ std::string SaturationMap(const SweepResult& r, const BranchGrid& grid, Branch b
     overlays.push_back(std::move(jumps));
   }
   plot::Axes axes;
-  axes.title = std::string("Stroke saturation, ") + ToString(branch) + "-sweep branch: peak force / |C1(f)|";
+  axes.title = !style.title.empty() ? style.title
+                                    : std::string("Stroke saturation, ") + ToString(branch) +
+                                          "-sweep branch: peak force / |C1(f)|";
   axes.x_label = "drive frequency [Hz]";
   axes.y_label = "drive amplitude [V]";
   axes.log_x = true;
@@ -308,7 +313,9 @@ const std::vector<std::string>& SweepFolderFiles() {
   return files;
 }
 
-std::string SaturationMapSvg(const SweepResult& r, Branch branch) { return SaturationMap(r, BranchGrid(r), branch); }
+std::string SaturationMapSvg(const SweepResult& r, Branch branch, const SaturationMapStyle& style) {
+  return SaturationMap(r, BranchGrid(r), branch, style);
+}
 
 std::string FrfMagnitudeSvg(const SweepResult& r, Branch branch) {
   return plot::LinePlot(FrfSeries(r, BranchGrid(r), branch, false, true),

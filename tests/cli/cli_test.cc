@@ -130,6 +130,10 @@ TEST(CliTest, FitAndDiagnoseOptionErrorsNameTheFlag) {
   ExpectInputError("diagnose --data no-such-dir --min-gain -1", "--min-gain: must be a finite number >= 0");
   ExpectInputError("diagnose --data no-such-dir --max-seconds 0", "--max-seconds: must be > 0");
   ExpectInputError("diagnose --data no-such-dir --harmonics 0", "--harmonics: must be >= 1, got 0");
+  ExpectInputError("diagnose --data no-such-dir --map-frequency-points 1",
+                   "--map-frequency-points: must be 0 (no maps) or 2 .. 400, got 1");
+  ExpectInputError("diagnose --data no-such-dir --map-amplitude-points -1",
+                   "--map-amplitude-points: must be 0 (no maps) or 2 .. 400, got -1");
 }
 
 // Every flag of the option tables (FitOptionFields, DiagnoseOptionFields) is in the help texts.

@@ -1,5 +1,6 @@
-// The diagnosis report (HTML page and CSV tables) on hand-made diagnoses, so that the page is
-// checked without fitting anything: a named effect, "nothing missing", and an empty diagnosis.
+// The diagnosis report (HTML page, CSV tables, model file) on hand-made diagnoses and sweep results,
+// so that the page is checked without fitting or sweeping anything: a named effect, "nothing
+// missing", an empty diagnosis, and the maps of the base and the diagnosed model.
 #include "strokelab/report/diagnose_report.h"
 
 #include <gmock/gmock.h>
@@ -14,7 +15,11 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "report_test_util.h"
+#include "strokelab/model/model_json.h"
+#include "strokelab/report/diagnosis_maps.h"
 
 namespace strokelab::report {
 namespace {
@@ -119,6 +124,9 @@ Diagnosis Named() {
   d.missing_physics = {Effect::kCubicStiffness};
   d.conclusion = "The suspension hardens: k3 explains the resonance shift & the odd harmonics.";
   d.seconds = 42;
+  d.model = d.base.model;
+  d.model.cubic_stiffness_n_per_m3 = 2.3456e6;
+  d.model_note = "the base model extended by cubic_stiffness";
 
   Signatures& s = d.signatures;
   s.evidence.push_back({"resonance_shift", "The resonance rises by 4.1 Hz from 0.1 V to 1 V.", 4.1, 0.5, 8.2,
@@ -145,6 +153,8 @@ Diagnosis NothingMissing() {
   d.missing_physics.clear();
   d.candidates.erase(d.candidates.begin());
   d.conclusion = "Nothing missing.";
+  d.model = d.base.model;
+  d.model_note = "nothing missing: the base fit's model";
   d.signatures.residual_rms_near_contacts = d.signatures.residual_rms_elsewhere = NAN;
   for (Signatures::Level& level : d.signatures.levels) {
     level.mean_contact_time_s = NAN;
@@ -230,7 +240,9 @@ TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
   EXPECT_EQ(Count(html, "<svg"), 12u);
   for (const char* id : {"harmonics", "frf", "residual", "resonance", "contact", "ratios"})
     EXPECT_THAT(html, HasSubstr(std::string("<section id=\"") + id + "\">")) << id;
-  EXPECT_THAT(html, Not(HasSubstr("class=\"skipped\"")));
+  // The one sentence in place of data: no maps were given.
+  EXPECT_EQ(Count(html, "class=\"skipped\""), 1u);
+  EXPECT_THAT(html, HasSubstr("<p class=\"skipped\">Saturation maps not computed.</p>"));
   // Self-contained: no script, nothing loaded from elsewhere.
   for (const char* external : {"<script", "src=", "href=\"http", "url(http"})
     EXPECT_THAT(html, Not(HasSubstr(external))) << external;
@@ -271,7 +283,7 @@ TEST(DiagnoseReportTest, NothingMissingSaysSoAndSkipsPlotsWithoutData) {
   EXPECT_THAT(html, HasSubstr("Nothing was added to the model, so there is no second map."));
   // 3 worst records x 2, FRF, one residual map, harmonic ratios.
   EXPECT_EQ(Count(html, "<svg"), 9u);
-  EXPECT_EQ(Count(html, "class=\"skipped\""), 2u);
+  EXPECT_EQ(Count(html, "class=\"skipped\""), 3u);  // and the maps, not given
 }
 
 TEST(DiagnoseReportTest, EmptyDiagnosisSkipsEveryFigure) {
@@ -284,6 +296,166 @@ TEST(DiagnoseReportTest, EmptyDiagnosisSkipsEveryFigure) {
   EXPECT_THAT(html, HasSubstr("No candidate was tried."));
   EXPECT_EQ(Lines(ReadFile(dir / "records.csv")).size(), 1u);
   EXPECT_EQ(Lines(ReadFile(dir / "levels.csv")).size(), 1u);
+}
+
+// ---- The maps of the base and the diagnosed model ---------------------------------------------
+
+// A map on the grid of MapsOf (5, 10, 20 Hz x 0.1, 0.3 V), every point stable on the up branch with
+// the spike factor `spikes` x (1 + frequency index): the two maps below span different ranges.
+SweepResult MapOf(const std::vector<double>& grazing_v, const std::vector<double>& lowest_v, double spikes,
+                  std::vector<JumpInterval> jumps) {
+  SweepResult r;
+  r.frequency_hz = GridAxis{5, 20, 3, true}.Values();
+  r.amplitude_v = {0.1, 0.3};
+  for (double v : r.amplitude_v) {
+    for (size_t j = 0; j < r.frequency_hz.size(); ++j) {
+      SweepPoint p;
+      p.frequency_hz = r.frequency_hz[j];
+      p.amplitude_v = v;
+      p.first_harmonic_force_n = 0.5;
+      p.peak_force_n = 0.5 * spikes * static_cast<double>(1 + j);
+      r.points.push_back(p);
+    }
+  }
+  for (size_t j = 0; j < r.frequency_hz.size(); ++j) r.saturation_threshold.push_back({r.frequency_hz[j], grazing_v[j], lowest_v[j]});
+  r.jump = std::move(jumps);
+  return r;
+}
+
+DiagnosisMaps MapsOf() {
+  DiagnosisMaps m;
+  m.frequency_hz = {5, 20, 3, true};
+  m.amplitude_v = {0.1, 0.3, 2, false};
+  m.base = MapOf({0.3, 0.2, NAN}, {0.28, 0.19, NAN}, 1.0, {{0.3, 10, 14, "fold", "grazing"}});
+  m.diagnosed = MapOf({0.27, 0.21, 0.4}, {0.25, 0.2, 0.38}, 2.0, {});
+  m.seconds = 1.5;
+  return m;
+}
+
+// The colour bar of the n-th SVG of the page.
+std::string ColourBarOf(const std::string& html, size_t n) {
+  size_t at = 0;
+  for (size_t i = 0; i <= n; ++i) at = html.find("<svg", at + 1);
+  const size_t bar = html.find("<g class=\"colorbar\">", at);
+  return html.substr(bar, html.find("</g>", bar) - bar);
+}
+
+TEST(DiagnoseReportMapsTest, BothMapsOnOneScaleWithTheThresholdShift) {
+  const std::filesystem::path dir = FreshDir("diagnose_maps");
+  const Diagnosis d = Named();
+  const DiagnosisMaps maps = MapsOf();
+  WriteDiagnosisReport(d, dir, &maps);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  EXPECT_EQ(Count(html, "class=\"skipped\""), 0u);
+  EXPECT_EQ(Count(html, "<svg"), 14u);  // the 12 figures and two maps
+  for (const char* expected : {
+           "<h2 id=\"maps\">What the missing physics changes for the control loop</h2>",
+           "Diagnosed model: the base model extended by cubic_stiffness.",
+           "Base model: stroke saturation, up-sweep branch",
+           "Diagnosed model (+ cubic_stiffness): stroke saturation, up-sweep branch",
+           "3 frequencies 5 – 20 Hz (geometric) x 2 amplitudes 0.1 – 0.3 V",
+           // 5 Hz: grazing 0.3 -> 0.27 V (-10 %), lowest contacting 0.28 -> 0.25 V (-10.71 %).
+           "<table class=\"threshold-shift\">",
+           "<tr><td class=\"num\">5</td><td class=\"num\">0.3</td><td class=\"num\">0.27</td>"
+           "<td class=\"num\">-0.0300</td><td class=\"num\">-10.00</td><td class=\"num\">0.28</td>"
+           "<td class=\"num\">0.25</td><td class=\"num\">-0.0300</td><td class=\"num\">-10.71</td></tr>",
+           // 20 Hz: only the diagnosed model reaches the stop.
+           "<tr><td class=\"num\">20</td><td class=\"num\">-</td><td class=\"num\">0.4</td>"
+           "<td class=\"num\">-</td><td class=\"num\">-</td>",
+           "moves by -0.0300 V at most, at 5 Hz (0.3 → 0.27 V, -10.00 %); by -2.50 % on average over the 2 "
+           "frequencies where both models reach the stop. At 1 frequency only the diagnosed model reaches the stop.",
+           "<table class=\"jump-intervals\">",
+           "<tr><td class=\"num\">0.3</td><td>10 – 14 Hz (fold – grazing)</td><td>none</td></tr>",
+       }) {
+    EXPECT_THAT(html, HasSubstr(expected));
+  }
+  // One colour scale (spike factor 1 .. 6 over both maps): the two colour bars are the same.
+  const size_t maps_at = html.find("id=\"maps\""), first_map = Count(html.substr(0, maps_at), "<svg");
+  EXPECT_EQ(ColourBarOf(html, first_map), ColourBarOf(html, first_map + 1));
+
+  const auto shifts = Lines(ReadFile(dir / "threshold_shift.csv"));
+  ASSERT_EQ(shifts.size(), 4u);
+  EXPECT_EQ(shifts[0],
+            "frequency_hz,grazing_base_v,grazing_diagnosed_v,grazing_shift_v,grazing_shift_percent,"
+            "lowest_contact_base_v,lowest_contact_diagnosed_v,lowest_contact_shift_v,lowest_contact_shift_percent");
+  EXPECT_THAT(shifts[1], ::testing::StartsWith("5,0.3,0.27,-0.0299999"));  // 0.27 - 0.3 in doubles
+  EXPECT_THAT(shifts[1], ::testing::HasSubstr(",-9.99999"));
+  EXPECT_EQ(shifts[3], "20,,0.4,,,,0.38,,");
+  const auto jumps = Lines(ReadFile(dir / "jump_intervals.csv"));
+  ASSERT_EQ(jumps.size(), 2u);
+  EXPECT_EQ(jumps[1], "base,0.3,10,14,fold,grazing");
+  // The model file is the diagnosed model as model files are written.
+  const nlohmann::json model = nlohmann::json::parse(ReadFile(dir / "model.json"));
+  EXPECT_EQ(model, ModelToJson(d.model));
+  EXPECT_EQ(model["cubic_stiffness_n_per_m3"], 2.3456e6);
+}
+
+TEST(DiagnoseReportMapsTest, ThresholdShiftsMatchFrequenciesAndSayWhereOneIsMissing) {
+  const DiagnosisMaps maps = MapsOf();
+  SweepResult other = *maps.diagnosed;
+  other.saturation_threshold.erase(other.saturation_threshold.begin() + 1);  // no 10 Hz column
+  const std::vector<ThresholdShift> shifts = ThresholdShifts(*maps.base, other);
+  ASSERT_EQ(shifts.size(), 3u);
+  EXPECT_EQ(shifts[0].diagnosed_grazing_v, 0.27);
+  EXPECT_TRUE(std::isnan(shifts[1].diagnosed_grazing_v));
+  EXPECT_EQ(shifts[2].diagnosed_grazing_v, 0.4);
+  EXPECT_NEAR(shifts[0].GrazingShiftPercent(), -10.0, 1e-12);
+  EXPECT_EQ(ThresholdShiftSummary(shifts),
+            "The grazing threshold (drive amplitude at which the stroke first reaches the stop) moves by -0.0300 V "
+            "at most, at 5 Hz (0.3 → 0.27 V, -10.00 %); by -10.00 % on average over the 1 frequency where both "
+            "models reach the stop. At 1 frequency only the base model reaches the stop. At 1 frequency only the "
+            "diagnosed model reaches the stop.");
+  EXPECT_EQ(ThresholdShiftSummary({}), "Neither model reaches the stop at any frequency of the grid.");
+}
+
+TEST(DiagnoseReportMapsTest, NothingMissingShowsOneMapAndNoShift) {
+  const std::filesystem::path dir = FreshDir("diagnose_maps_nothing");
+  DiagnosisMaps maps = MapsOf();
+  maps.diagnosed = maps.base;
+  maps.same_model = true;
+  WriteDiagnosisReport(NothingMissing(), dir, &maps);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  EXPECT_EQ(Count(html, "<svg"), 10u);  // the 9 figures and one map
+  EXPECT_THAT(html, HasSubstr("Base model = diagnosed model: stroke saturation, up-sweep branch"));
+  EXPECT_THAT(html, HasSubstr("Nothing missing: the diagnosed model is the base model, so the threshold does not move."));
+  EXPECT_THAT(html, HasSubstr("<td class=\"num\">+0.0000</td><td class=\"num\">+0.00</td>"));
+  EXPECT_THAT(html, Not(HasSubstr("moves by")));
+  EXPECT_EQ(Lines(ReadFile(dir / "threshold_shift.csv")).size(), 4u);
+}
+
+TEST(DiagnoseReportMapsTest, MissingMapsAreSaidWhyAndLeaveEmptyTables) {
+  const std::filesystem::path dir = FreshDir("diagnose_maps_missing");
+  DiagnosisMaps failed = MapsOf();
+  failed.diagnosed.reset();
+  failed.diagnosed_note = "the sweep failed: <CVode> gave up";
+  WriteDiagnosisReport(Named(), dir, &failed);
+  std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  EXPECT_EQ(Count(html, "<svg"), 13u);
+  EXPECT_THAT(html, HasSubstr("Diagnosed model (+ cubic_stiffness): stroke saturation, up-sweep branch: no map, the "
+                              "sweep failed: &lt;CVode&gt; gave up"));
+  EXPECT_THAT(html, Not(HasSubstr("threshold-shift")));
+  EXPECT_EQ(Lines(ReadFile(dir / "threshold_shift.csv")).size(), 1u);
+  EXPECT_EQ(Lines(ReadFile(dir / "jump_intervals.csv")).size(), 1u);
+  // A map with a failed row: its jump intervals there are unknown, not absent.
+  DiagnosisMaps holed = MapsOf();
+  std::erase_if(holed.diagnosed->points, [](const SweepPoint& p) { return p.amplitude_v == 0.3; });
+  holed.diagnosed->failures = {"row at 0.3 V: <CVode> gave up"};
+  WriteDiagnosisReport(Named(), dir, &holed);
+  html = ReadFile(dir / "index.html");
+  EXPECT_THAT(html, HasSubstr("1 of 5 rows and columns failed numerically and are left blank: row at 0.3 V: "
+                              "&lt;CVode&gt; gave up"));
+  EXPECT_THAT(html, HasSubstr("<tr><td class=\"num\">0.3</td><td>10 \u2013 14 Hz (fold \u2013 grazing)</td>"
+                              "<td>not known: this amplitude's row failed</td></tr>"));
+
+  DiagnosisMaps off;
+  off.note = "not computed (map_frequency_points or map_amplitude_points is 0)";
+  WriteDiagnosisReport(Named(), dir, &off);
+  html = ReadFile(dir / "index.html");
+  EXPECT_THAT(html, HasSubstr("Saturation maps not computed (map_frequency_points or map_amplitude_points is 0)."));
+  EXPECT_EQ(Count(html, "<svg"), 12u);
 }
 
 }  // namespace

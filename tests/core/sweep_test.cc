@@ -279,6 +279,29 @@ TEST(SweepEngineTest, CancellationStopsTheSweep) {
   EXPECT_EQ(calls, 1u);
 }
 
+// A strongly softening suspension (k3 = -1e9 N/m^3: the restoring force turns at 0.36 mm, no upper
+// stop) escapes to infinity at 0.5 V but not at 1 mV: that row's steady states fail numerically.
+// By default the failure fails the sweep; with skip_failed_units it leaves a hole and is listed.
+TEST(SweepEngineTest, FailedRowsFailTheSweepOrLeaveAListedHole) {
+  SweepSpec spec;
+  spec.model = PaperModel();
+  spec.model.cubic_stiffness_n_per_m3 = -1e9;
+  spec.frequency_hz = {8.0, 9.0, 2};
+  spec.amplitude_v = {0.001, 0.5, 2};
+  spec.thresholds = false;
+  spec.threads = 2;
+  EXPECT_THROW(RunSweep(spec), NumericalError);
+  spec.skip_failed_units = true;
+  const SweepResult r = RunSweep(spec);
+  ASSERT_EQ(r.failures.size(), 1u);
+  EXPECT_EQ(r.failures[0].rfind("row at 0.5 V: ", 0), 0u) << r.failures[0];
+  ASSERT_GE(r.points.size(), 2u);
+  for (const SweepPoint& p : r.points) EXPECT_EQ(p.amplitude_v, 0.001);
+  EXPECT_EQ(r.amplitude_v.size(), 2u);  // the grid as asked
+  spec.model = PaperModel();
+  EXPECT_TRUE(RunSweep(spec).failures.empty());
+}
+
 TEST(SweepEngineTest, BadSpecsNameTheField) {
   SweepSpec spec;
   spec.frequency_hz = {50.0, 5.0, 10};

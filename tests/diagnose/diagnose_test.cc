@@ -8,6 +8,7 @@
 // away from the impacts (see EffectRms; over whole records, impacts moved in time dominate).
 // The diagnosis must name it first, recover its parameter within 25 % and at least halve the
 // held-out error. A control campaign (no effect) must get "nothing missing".
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,8 +17,11 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/data/synth.h"
+#include "strokelab/model/model_json.h"
 #include "test_util.h"
 
 namespace strokelab {
@@ -108,6 +112,9 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
   if (c.parameter.empty() && !c.hertzian) {
     EXPECT_TRUE(d.missing_physics.empty());
     EXPECT_EQ(d.chosen, -1);
+    // The diagnosed model is the base fit's.
+    EXPECT_EQ(ModelToJson(d.model), ModelToJson(d.base.model));
+    EXPECT_THAT(d.model_note, ::testing::HasSubstr("nothing missing"));
     return;
   }
   // Concealed: the effect's share of the raw response is below the noise (sensor volts over the
@@ -135,6 +142,10 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
     EXPECT_NEAR(p.value, truth, 0.25 * std::abs(truth));
   }
   EXPECT_TRUE(found) << "no parameter " << key << " in the chosen candidate";
+  // The diagnosed model is the chosen candidate's, all its parameters as fitted together, and the
+  // JSON result carries it in the format of model files.
+  EXPECT_EQ(ModelToJson(d.model), ModelToJson(chosen.model));
+  EXPECT_EQ(DiagnosisToJson(d)["model"], ModelToJson(chosen.model));
   // second_stop: held-out record 24 (11 Hz, 0.5 V) is, in the truth, a period-2 orbit just past
   // grazing the upper stop, coexisting with a stable two-contact period-1 orbit; it is matched only
   // because the branch choice follows the settled motion (SettledAttractor), not Newton's period 1.
@@ -166,12 +177,21 @@ TEST(DiagnoseOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {
   options = DiagnoseOptions{};
   options.max_seconds = 0;
   EXPECT_EQ(IsValidText(options), "max_seconds: must be > 0");
+  options = DiagnoseOptions{};
+  options.map_frequency_points = 1;
+  EXPECT_EQ(IsValidText(options), "map_frequency_points: must be 0 (no maps) or 2 .. 400, got 1");
+  options.map_frequency_points = 0;  // no maps
+  EXPECT_EQ(IsValidText(options), "");
+  options.map_amplitude_points = 401;
+  EXPECT_EQ(IsValidText(options), "map_amplitude_points: must be 0 (no maps) or 2 .. 400, got 401");
 }
 
 TEST(DiagnoseOptionsTest, FieldTableNamesEachOptionAsIsValidDoes) {
   EXPECT_EQ(::strokelab::testing::OptionNames(DiagnoseOptionFields()),
             "heldout_every heldout_every --heldout-every; min_heldout_gain min_heldout_gain --min-gain; "
-            "max_seconds max_seconds --max-seconds; pairs pairs --no-pairs (clears); max_passes max_passes -");
+            "max_seconds max_seconds --max-seconds; pairs pairs --no-pairs (clears); max_passes max_passes -; "
+            "map_frequency_points map_frequency_points --map-frequency-points; "
+            "map_amplitude_points map_amplitude_points --map-amplitude-points");
   ::strokelab::testing::ExpectTableFieldsAreIsValidFields<DiagnoseOptions>(DiagnoseOptionFields());
 }
 

@@ -45,6 +45,20 @@ TEST(HeatMapTest, ColoursRunFromViridisDarkToYellow) {
   EXPECT_THAT(Group(svg, "cells"), HasSubstr("fill=\"#fde725\""));  // z = 11, the maximum
 }
 
+// A fixed colour range (maps side by side on one scale): z beyond it takes the end colours, and the
+// data's own extremes no longer do.
+TEST(HeatMapTest, FixedColourRangeClampsAndSharesTheScale) {
+  HeatMap m = SmallMap();
+  m.z_min = 2;
+  m.z_max = 6;
+  const std::string cells = Group(HeatMapPlot(m, {}, Axes{}), "cells");
+  EXPECT_EQ(Count(cells, "fill=\"#440154\""), 3);  // z = 0, 1, 2
+  EXPECT_EQ(Count(cells, "fill=\"#fde725\""), 5);  // z = 6, 7, 8, 9, 11
+  m.z_min = 0;
+  m.log_z = true;
+  EXPECT_THROW(HeatMapPlot(m, {}, Axes{}), std::invalid_argument);  // no zero on a log scale
+}
+
 // Log-spaced grid on a log axis: cell edges at the (geometric) midpoints, so all cells are equally wide.
 TEST(HeatMapTest, NonUniformGridOnLogAxis) {
   HeatMap m;

@@ -340,9 +340,10 @@ TEST_F(CampaignJobsTest, BadOptionsNameTheirField) {
       {{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"heldout_every", 3}}}},
       {{"kind", "diagnose"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"heldout_every", 1}}}},
       {{"kind", "fit"}, {"campaign", {{"path", 3}}}},
+      {{"kind", "diagnose"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"map_frequency_points", 1}}}},
   };
   const char* fields[] = {"/model", "/options/harmonics", "/options/heldout_every", "/options/heldout_every",
-                          "/campaign/path"};
+                          "/campaign/path", "/options/map_frequency_points"};
   for (size_t i = 0; i < std::size(cases); ++i)
     EXPECT_EQ(Error(Post(cases[i]), 400)["field"], fields[i]) << cases[i].dump();
 }
@@ -455,6 +456,13 @@ TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
   ASSERT_TRUE(table && table->status == 200);
   EXPECT_THAT(table->get_header_value("Content-Type"), HasSubstr("text/csv"));
   EXPECT_EQ(Error(Client().Get(base + "/report/nothing.csv", Auth(kReadToken)), 404)["code"], "no_report_file");
+  // The diagnosed model: in the result and as the report's model file, the format of a job's "model".
+  ASSERT_TRUE(result.contains("model"));
+  auto model = Client().Get(base + "/report/model.json", Auth(kReadToken));
+  ASSERT_TRUE(model && model->status == 200);
+  EXPECT_THAT(model->get_header_value("Content-Type"), HasSubstr("application/json"));
+  EXPECT_EQ(json::parse(model->body), result["model"]);
+  EXPECT_THAT(page->body, HasSubstr("<h2 id=\"maps\">"));
   // The report is in the database: it is served after a restart.
   Restart();
   auto again = Client().Get(base + "/report", Auth(kReadToken));

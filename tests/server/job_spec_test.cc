@@ -489,7 +489,9 @@ TEST(FitOptionsFromJobTest, ReadsEachOptionIntoItsField) {
                            {"min_heldout_gain", 5},
                            {"pairs", false},
                            {"max_passes", 4},
-                           {"max_seconds", 60}}}};
+                           {"max_seconds", 60},
+                           {"map_frequency_points", 0},
+                           {"map_amplitude_points", 5}}}};
   const DiagnoseOptions d = DiagnoseOptionsFromJob(diagnose);
   EXPECT_EQ(d.fit.harmonic_orders, 6);
   EXPECT_EQ(d.fit.mass_kg, FitOptions{}.mass_kg);
@@ -498,6 +500,8 @@ TEST(FitOptionsFromJobTest, ReadsEachOptionIntoItsField) {
   EXPECT_FALSE(d.pairs);
   EXPECT_EQ(d.max_passes, 4);
   EXPECT_EQ(d.max_seconds, 60.0);
+  EXPECT_EQ(d.map_frequency_points, 0);
+  EXPECT_EQ(d.map_amplitude_points, 5);
   EXPECT_EQ(DiagnoseOptionsFromJob({{"kind", "diagnose"}, {"campaign", {{"id", "0123456789abcdef"}}}}).max_passes,
             DiagnoseOptions{}.max_passes);
 }

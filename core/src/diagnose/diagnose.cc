@@ -23,6 +23,8 @@ using internal::ExtendedProblem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kAkaikePerParameter = 2.0;  // AIC: 2 per parameter on the fit records
+// Grid points per axis of the report's maps: a smooth model's sweep costs ~0.1 s per point today.
+constexpr int kMaxMapPoints = 400;
 
 std::string Format(double value, int digits = 4) {
   std::ostringstream out;
@@ -189,6 +191,12 @@ std::optional<FieldError> DiagnoseOptions::IsValid() const {
     return FieldError{"min_heldout_gain", "must be a finite number >= 0"};
   if (max_passes < 1) return FieldError{"max_passes", "must be >= 1, got " + std::to_string(max_passes)};
   if (!(max_seconds > 0)) return FieldError{"max_seconds", "must be > 0"};
+  if (map_frequency_points != 0 && (map_frequency_points < 2 || map_frequency_points > kMaxMapPoints))
+    return FieldError{"map_frequency_points", "must be 0 (no maps) or 2 .. " + std::to_string(kMaxMapPoints) +
+                                                  ", got " + std::to_string(map_frequency_points)};
+  if (map_amplitude_points != 0 && (map_amplitude_points < 2 || map_amplitude_points > kMaxMapPoints))
+    return FieldError{"map_amplitude_points", "must be 0 (no maps) or 2 .. " + std::to_string(kMaxMapPoints) +
+                                                  ", got " + std::to_string(map_amplitude_points)};
   return std::nullopt;
 }
 
@@ -199,6 +207,8 @@ const std::vector<OptionInfo<DiagnoseOptions>>& DiagnoseOptionFields() {
       {"max_seconds", "max_seconds", "--max-seconds", &DiagnoseOptions::max_seconds},
       {"pairs", "pairs", "--no-pairs", &DiagnoseOptions::pairs, true},
       {"max_passes", "max_passes", nullptr, &DiagnoseOptions::max_passes},
+      {"map_frequency_points", "map_frequency_points", "--map-frequency-points", &DiagnoseOptions::map_frequency_points},
+      {"map_amplitude_points", "map_amplitude_points", "--map-amplitude-points", &DiagnoseOptions::map_amplitude_points},
   };
   return kFields;
 }
@@ -299,6 +309,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     const ExtendedProblem problem = internal::BuildProblem(c.model, options.fit.model, c.effects, context, 0);
     d.after = MatchAll(c.model, problem.Surrogate(c.model), analyses, split.heldout, kind, orders);
     d.fit_after = c.figures;
+    d.model = c.model;
+    d.model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +
+                   (c.converged ? "" : " (that fit did NOT converge: the parameters may still be off)");
     std::ostringstream text;
     text << "missing physics: " << c.label << " (held-out chi-square down by " << Format(c.heldout_gain)
          << " residual variances; normalised RMS error " << Format(d.fit_before.nrmse) << " -> "
@@ -308,6 +321,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   } else {
     d.after = d.before;
     d.fit_after = d.fit_before;
+    d.model = d.base.model;
+    d.model_note = std::string("nothing missing: the base fit's model (") + ToString(options.fit.model) + ")";
     d.conclusion = "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
                    Format(options.min_heldout_gain) + " residual variances";
   }

@@ -74,6 +74,8 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
       out["missing_physics"].push_back(entry);
     }
   }
+  out["model"] = ModelToJson(d.model);
+  out["model_note"] = d.model_note;
   out["fit_before"] = Figures(d.fit_before);
   out["fit_after"] = Figures(d.fit_after);
   out["base_parameters"] = Parameters(d.base.parameters);

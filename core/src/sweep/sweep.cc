@@ -10,6 +10,7 @@
 #include <exception>
 #include <mutex>
 #include <numbers>
+#include <sstream>
 #include <thread>
 
 #include "strokelab/base/errors.h"
@@ -264,15 +265,30 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
   const size_t columns = spec.thresholds ? result.frequency_hz.size() : 0;
   std::vector<SweepRowResult> row_results(rows);
   result.saturation_threshold.resize(columns);
+  std::vector<std::string> failures(rows + columns);  // by unit, in slots: independent of the threads
 
   std::mutex progress_mutex;
   std::atomic<size_t> done{0};
   const size_t total = rows + columns;
   ParallelFor(total, [&](size_t i) {
-    if (i < rows) {
-      row_results[i] = SweepRow(spec.model, result.amplitude_v[i], result.frequency_hz, cancel);
-    } else {
-      result.saturation_threshold[i - rows] = SweepColumn(spec.model, result.frequency_hz[i - rows], cancel);
+    try {
+      if (i < rows) {
+        row_results[i] = SweepRow(spec.model, result.amplitude_v[i], result.frequency_hz, cancel);
+      } else {
+        result.saturation_threshold[i - rows] = SweepColumn(spec.model, result.frequency_hz[i - rows], cancel);
+      }
+    } catch (const NumericalError& e) {
+      if (!spec.skip_failed_units) throw;
+      std::ostringstream unit;
+      unit.precision(6);
+      if (i < rows) {
+        unit << "row at " << result.amplitude_v[i] << " V: " << e.what();
+      } else {
+        const double f_hz = result.frequency_hz[i - rows];
+        result.saturation_threshold[i - rows] = {f_hz, NAN, NAN};
+        unit << "column at " << f_hz << " Hz: " << e.what();
+      }
+      failures[i] = unit.str();
     }
     const size_t finished = ++done;
     if (progress) {
@@ -285,6 +301,8 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
     result.points.insert(result.points.end(), r.points.begin(), r.points.end());
     result.jump.insert(result.jump.end(), r.jumps.begin(), r.jumps.end());
   }
+  for (std::string& failure : failures)
+    if (!failure.empty()) result.failures.push_back(std::move(failure));
   result.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.points_per_second = static_cast<double>(rows * result.frequency_hz.size()) / result.wall_time_s;
   return result;

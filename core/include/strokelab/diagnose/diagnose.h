@@ -62,9 +62,16 @@ struct DiagnoseOptions {
   bool pairs = true;            // try the best pair when two effects each beat noise
   int max_passes = 8;           // solves of an extended fit (sampling corrections refreshed between)
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
+  // The report's saturation maps of the base and the diagnosed model (report/diagnosis_maps.h) over
+  // the campaign's frequency x amplitude range: grid points per axis, 0 in either: no maps. Read by
+  // the report layer (strokelab diagnose --out, a diagnose job's report), not by DiagnoseCampaign,
+  // which stays free of sweeps; kept here so that the CLI flags and job options come from one table.
+  int map_frequency_points = 40;
+  int map_amplitude_points = 12;
   std::function<void(const std::string&)> progress;  // one line per stage (may be empty)
   // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,
-  // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds".
+  // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds",
+  // "map_frequency_points", "map_amplitude_points".
   std::optional<FieldError> IsValid() const;
 };
 // The diagnosis's own options under their names (OptionInfo, fit.h), in the order the CLI reads its
@@ -160,6 +167,11 @@ struct Diagnosis {
   std::vector<CandidateFit> candidates;  // every candidate tried, best held-out gain first
   std::vector<Effect> missing_physics;   // named effects, best first (empty: nothing missing)
   int chosen = -1;                       // index into candidates (-1: nothing missing)
+  // The diagnosed model, ready to sweep or simulate (model_json.h): the base fit's model when nothing
+  // is missing, else the chosen candidate's (the base extended by the named effects, all parameters
+  // as fitted together). `model_note` says which, and whether its fit converged.
+  ActuatorModel model;
+  std::string model_note;
   std::string conclusion;                // in words
   double seconds = 0.0;
 };
@@ -167,8 +179,12 @@ struct Diagnosis {
 // Throws InputError for bad options or campaigns (as FitCampaign).
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
 
-// missing_physics (effect, parameters, evidence), fit_before, fit_after (nrmse, heldout_nrmse, ...),
-// base_parameters, candidates, signatures, records, conclusion, seconds.
+// missing_physics (effect, parameters, evidence), model (the diagnosed model as ModelToJson writes it:
+// what `strokelab sweep --model`, `simulate --model` and a sweep job's "model" read) and model_note,
+// fit_before, fit_after (nrmse, heldout_nrmse, ...), base_parameters and base_model, candidates,
+// signatures, records, conclusion, seconds. The fitted parameters appear twice in two shapes: as
+// reported (by name, with standard error and unit: base_parameters, missing_physics[].parameters and
+// .all_parameters) and as the model they make ("model", "base_model": model.h JSON names, no errors).
 nlohmann::json DiagnosisToJson(const Diagnosis& diagnosis);
 
 }  // namespace strokelab

@@ -32,6 +32,11 @@ struct SweepSpec {
   int threads = 1;
   // Locate saturation thresholds per frequency and jump intervals per amplitude (the maps).
   bool thresholds = true;
+  // A row or column whose numerics fail (NumericalError) leaves a hole, listed in
+  // SweepResult::failures (no steady states at that amplitude, NaN thresholds at that frequency),
+  // instead of failing the whole sweep: for maps that are better with a hole than missing (the
+  // diagnosis report's). Off: the first failure is thrown, as a job or `strokelab sweep` needs.
+  bool skip_failed_units = false;
   // Nothing, or the wrong field (frequency_hz.to, amplitude_v.points, a model key, ...).
   std::optional<FieldError> IsValid() const;
 };
@@ -76,6 +81,9 @@ struct SweepResult {
   std::vector<SweepPoint> points;  // by amplitude, then frequency, then branch (up, down, unstable...)
   std::vector<SaturationThreshold> saturation_threshold;  // one per grid frequency
   std::vector<JumpInterval> jump;
+  // With SweepSpec::skip_failed_units, the rows and columns that failed: "row at 0.28 V: <what>",
+  // "column at 9.5 Hz: <what>", in grid order. Empty otherwise.
+  std::vector<std::string> failures;
   double wall_time_s = 0.0;
   double points_per_second = 0.0;  // grid points (frequency x amplitude) per second of wall time
 };

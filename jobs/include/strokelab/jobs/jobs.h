@@ -6,8 +6,9 @@
 // directory under the data root): its spec carries the campaign's canonical directory and content
 // digest (checked again when the task runs: a campaign changed since submission fails the job), and
 // its result is one row, table "fit" (FitResultToJson) or "diagnosis" (DiagnosisToJson), plus, for
-// diagnose, the HTML report's files as rows of table "report_files" ({"name", "content_type",
-// "text"}). Only the server's in-process workers run these tasks (IsCampaignKind). Task specs carry the full model, so that a task's key (a hash of its spec and the code
+// diagnose, the HTML report's files (with the saturation maps of the base and the diagnosed model,
+// swept in the same task within what is left of the job's max_seconds, and the diagnosed model's
+// model.json) as rows of table "report_files" ({"name", "content_type", "text"}). Only the server's in-process workers run these tasks (IsCampaignKind). Task specs carry the full model, so that a task's key (a hash of its spec and the code
 // version) identifies its result whatever job it came from.
 #pragma once
 

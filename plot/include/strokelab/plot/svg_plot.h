@@ -37,6 +37,9 @@ struct HeatMap {
   std::vector<std::vector<double>> z;
   std::string z_label;
   bool log_z = false;
+  // The colour bar's range: NaN means "from the data". Fixed, it lets maps drawn side by side share
+  // one scale; z beyond it takes the end colour.
+  double z_min = 0.0 / 0.0, z_max = 0.0 / 0.0;
 };
 std::string HeatMapPlot(const HeatMap& map, const std::vector<Series>& overlays, const Axes& axes);
 

@@ -28,8 +28,16 @@ std::string SweepSummaryText(const SweepResult& result);
 // than the resonance ridge that dominates |H| (which the FRF pictures show). NaN if undefined.
 double SpikeFactor(const SweepPoint& point);
 
+// How a saturation map is drawn: its title (empty: "Stroke saturation, up-sweep branch: ...") and
+// the colour bar's SpikeFactor range (NaN: from the data), fixed to draw maps side by side on one
+// scale.
+struct SaturationMapStyle {
+  std::string title;
+  double spike_factor_min = 0.0 / 0.0, spike_factor_max = 0.0 / 0.0;
+};
+
 // The saturation map of one branch (see WriteSweepFolder) and the |H| family (paper Fig. 10) as SVG.
-std::string SaturationMapSvg(const SweepResult& result, Branch branch);
+std::string SaturationMapSvg(const SweepResult& result, Branch branch, const SaturationMapStyle& style = {});
 std::string FrfMagnitudeSvg(const SweepResult& result, Branch branch);
 
 // The files WriteSweepFolder writes, in order.

@@ -1,0 +1,149 @@
+// The saturation maps of the base and the diagnosed model (diagnosis_maps.h): the grid from the
+// campaign's records, the two sweeps under the diagnosis's time budget, the threshold shifts.
+#include "strokelab/report/diagnosis_maps.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "format.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/model/model_json.h"
+
+namespace strokelab::report {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Sets `stop` at `deadline` unless the owner finishes first (a row or column of a smooth model can
+// take seconds, so waiting for the sweep's progress calls could overrun the budget by that much).
+class Deadline {
+ public:
+  Deadline(Clock::time_point deadline, std::atomic<bool>* stop)
+      : thread_([this, deadline, stop] {
+          std::unique_lock<std::mutex> lock(mutex_);
+          if (!done_cv_.wait_until(lock, deadline, [this] { return done_; })) stop->store(true);
+        }) {}
+  ~Deadline() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      done_ = true;
+    }
+    done_cv_.notify_all();
+    thread_.join();
+  }
+  Deadline(const Deadline&) = delete;
+  Deadline& operator=(const Deadline&) = delete;
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable done_cv_;
+  bool done_ = false;
+  std::thread thread_;  // last: starts once the members it waits on exist
+};
+
+// One model's map, or nothing with the reason in `note`.
+std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const DiagnosisMaps& maps,
+                                         Clock::time_point deadline, double max_seconds, std::string* note) {
+  SweepSpec spec;
+  spec.model = model;
+  spec.frequency_hz = maps.frequency_hz;
+  spec.amplitude_v = maps.amplitude_v;
+  spec.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  spec.thresholds = true;
+  spec.skip_failed_units = true;  // a row or column that fails leaves a hole, not an empty page
+  if (const std::optional<FieldError> error = spec.IsValid()) {
+    *note = "not swept: " + error->field + ": " + error->message;
+    return std::nullopt;
+  }
+  const std::string budget = Format("the diagnosis's time limit (max_seconds %g s)", max_seconds);
+  if (Clock::now() >= deadline) {
+    *note = "not swept: " + budget + " was spent before the map began";
+    return std::nullopt;
+  }
+  const Clock::time_point start = Clock::now();
+  std::atomic<bool> stop{false};
+  try {
+    const Deadline watch(deadline, &stop);
+    return RunSweep(spec, {}, &stop);
+  } catch (const Cancelled&) {
+    *note = Format("cut off after %.3g s: ", SecondsSince(start)) + budget + " was spent";
+  } catch (const std::exception& e) {
+    *note = std::string("the sweep failed: ") + e.what();
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& options) {
+  const Clock::time_point start = Clock::now();
+  auto progress = [&](const std::string& line) {
+    if (options.progress) options.progress(line);
+  };
+  DiagnosisMaps maps;
+  if (options.map_frequency_points == 0 || options.map_amplitude_points == 0) {
+    maps.note = "not computed (map_frequency_points or map_amplitude_points is 0)";
+    return maps;
+  }
+  double f_lo = INFINITY, f_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
+  for (const RecordMatch& r : d.before) {
+    if (!std::isfinite(r.frequency_hz) || !std::isfinite(r.amplitude_v)) continue;
+    f_lo = std::min(f_lo, r.frequency_hz), f_hi = std::max(f_hi, r.frequency_hz);
+    v_lo = std::min(v_lo, r.amplitude_v), v_hi = std::max(v_hi, r.amplitude_v);
+  }
+  if (!(f_lo > 0 && f_hi > f_lo && v_lo > 0 && v_hi > v_lo)) {
+    maps.note = "not computed: the campaign's records do not span a range of both frequency and amplitude";
+    return maps;
+  }
+  maps.frequency_hz = {f_lo, f_hi, options.map_frequency_points, true};
+  maps.amplitude_v = {v_lo, v_hi, options.map_amplitude_points, false};
+  maps.same_model = ModelToJson(d.base.model) == ModelToJson(d.model);
+  const Clock::time_point deadline =
+      start + std::chrono::duration_cast<Clock::duration>(
+                  std::chrono::duration<double>(std::max(0.0, options.max_seconds - d.seconds)));
+  const std::string grid = Format("%d x %d", options.map_frequency_points, options.map_amplitude_points);
+  progress("map of the base model (" + grid + ")");
+  maps.base = SweepOneModel(d.base.model, maps, deadline, options.max_seconds, &maps.base_note);
+  if (maps.same_model) {
+    maps.diagnosed = maps.base;
+    maps.diagnosed_note = maps.base_note;
+  } else {
+    progress(Format("%.3g s: map of the diagnosed model (", SecondsSince(start)) + grid + ")");
+    maps.diagnosed = SweepOneModel(d.model, maps, deadline, options.max_seconds, &maps.diagnosed_note);
+  }
+  maps.seconds = SecondsSince(start);
+  progress(Format("%.3g s: maps done", maps.seconds));
+  return maps;
+}
+
+std::vector<ThresholdShift> ThresholdShifts(const SweepResult& base, const SweepResult& diagnosed) {
+  std::vector<ThresholdShift> shifts;
+  for (const SaturationThreshold& b : base.saturation_threshold) {
+    ThresholdShift s;
+    s.frequency_hz = b.frequency_hz;
+    s.base_grazing_v = b.grazing_amplitude_v;
+    s.base_lowest_contact_v = b.lowest_contact_amplitude_v;
+    s.diagnosed_grazing_v = s.diagnosed_lowest_contact_v = NAN;
+    for (const SaturationThreshold& t : diagnosed.saturation_threshold) {
+      if (std::abs(t.frequency_hz - b.frequency_hz) > 1e-9 * b.frequency_hz) continue;
+      s.diagnosed_grazing_v = t.grazing_amplitude_v;
+      s.diagnosed_lowest_contact_v = t.lowest_contact_amplitude_v;
+      break;
+    }
+    shifts.push_back(s);
+  }
+  return shifts;
+}
+
+}  // namespace strokelab::report
