@@ -136,6 +136,7 @@ std::vector<SmoothCase> ForceTermCases() {
 }
 
 // Central difference of the flow's end (and first harmonics) in one perturbation.
+constexpr double kDifferenceTolerance = 1e-13;
 struct Perturbed {
   State end;
   std::vector<std::complex<double>> harmonics;
@@ -146,11 +147,17 @@ Perturbed CentralDifference(const SmoothCase& c, State start, double step, int h
   const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
   FlowRequest request;
   request.harmonics = harmonics;
+  // Tighter than the default tolerance, so that the quotient's noise (the flows' error over the step)
+  // stays far below what is checked.
+  FlowOptions tight;
+  tight.relative_tolerance = kDifferenceTolerance;
+  tight.absolute_tolerance_m = 1e-17;
+  tight.absolute_tolerance_m_per_s = 1e-14;
   auto run = [&](double sign) {
     ActuatorModel model = c.model;
     State y = start;
     perturb(&model, &y, sign * step);
-    return Flow(model, drive, y, 0.0, 1.0 / c.frequency_hz, request);
+    return Flow(model, drive, y, 0.0, 1.0 / c.frequency_hz, request, tight);
   };
   const FlowResult plus = run(1.0), minus = run(-1.0);
   Perturbed d;
@@ -178,8 +185,8 @@ void ExpectColumn(const Scale& scale, State analytic, State difference, const st
 
 TEST(VariationalFlowTest, EveryForceTermsSensitivitiesAreTheFlowsFiniteDifferences) {
   constexpr int kHarmonics = 3;
-  // Central differences at a relative step of 1e-4: truncation ~1e-8, the integrator's tolerance
-  // (1e-12) over the step ~1e-8; the analytic sensitivities must agree to 1e-6.
+  // Central differences at a relative step of 1e-4: truncation ~1e-8, the flows' tolerance (1e-13)
+  // over the step ~1e-9; the analytic sensitivities (at the default tolerances) must agree to 1e-6.
   constexpr double kRelativeStep = 1e-4, kTolerance = 1e-6;
   for (const SmoothCase& c : ForceTermCases()) {
     SCOPED_TRACE(c.name);
@@ -196,8 +203,8 @@ TEST(VariationalFlowTest, EveryForceTermsSensitivitiesAreTheFlowsFiniteDifferenc
     const double h_x = kRelativeStep * scale.length_m, h_v = kRelativeStep * scale.speed_m_per_s;
     double harmonic_size = 0.0;
     for (std::complex<double> q : flow.harmonic_integrals) harmonic_size = std::max(harmonic_size, std::abs(q));
-    // Ten times the flow's relative tolerance (1e-12) on the harmonics, over the difference's step.
-    auto noise = [&](double step) { return 10 * 1e-12 * harmonic_size / step; };
+    // Ten times the differenced flows' relative tolerance on the harmonics, over the difference's step.
+    auto noise = [&](double step) { return 10 * kDifferenceTolerance * harmonic_size / step; };
     const Perturbed dx = CentralDifference(c, start, h_x, kHarmonics, [](ActuatorModel*, State* y, double e) { y->x_m += e; });
     ExpectColumn(scale, flow.columns[0], dx.end, flow.harmonic_sensitivities[0], dx.harmonics, kTolerance, noise(h_x));
     const Perturbed dv =
@@ -210,6 +217,34 @@ TEST(VariationalFlowTest, EveryForceTermsSensitivitiesAreTheFlowsFiniteDifferenc
       const Perturbed dp = CentralDifference(c, start, step, kHarmonics,
                                              [field](ActuatorModel* m, State*, double e) { m->*field += e; });
       ExpectColumn(scale, flow.columns[2 + p], dp.end, flow.harmonic_sensitivities[2 + p], dp.harmonics, kTolerance, noise(step));
+    }
+  }
+}
+
+// The map's derivative in the drive's frequency and amplitude (the continuation's parameter column),
+// exact from the flow (the pass's end moving with the frequency), against central differences of
+// the map at shifted drives.
+TEST(VariationalFlowTest, DriveDerivativesAreTheMapsFiniteDifferences) {
+  for (const SmoothCase& c : ForceTermCases()) {
+    SCOPED_TRACE(c.name);
+    const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
+    const Scale scale = ScaleOf(c.model, c.frequency_hz);
+    const State start = SettledStart(c.model, drive);
+    const PeriodMap map(c.model, c.frequency_hz, c.amplitude_v);
+    for (DriveParameter which : {DriveParameter::kFrequencyHz, DriveParameter::kAmplitudeV}) {
+      const bool frequency = which == DriveParameter::kFrequencyHz;
+      const State exact = map.Linearize(start, 1, which).d_end_d_drive;
+      const double step = 1e-5 * (frequency ? c.frequency_hz : c.amplitude_v);
+      auto apply = [&](double sign) {
+        const PeriodMap shifted(c.model, c.frequency_hz + (frequency ? sign * step : 0.0),
+                                c.amplitude_v + (frequency ? 0.0 : sign * step));
+        return shifted.Apply(start);
+      };
+      const State plus = apply(1.0), minus = apply(-1.0);
+      const State difference{(plus.x_m - minus.x_m) / (2 * step), (plus.v_m_per_s - minus.v_m_per_s) / (2 * step)};
+      EXPECT_LE(scale.Norm(Difference(exact, difference)), 1e-6 * scale.Norm(difference))
+          << (frequency ? "frequency" : "amplitude") << ": exact (" << exact.x_m << ", " << exact.v_m_per_s
+          << ") difference (" << difference.x_m << ", " << difference.v_m_per_s << ")";
     }
   }
 }

@@ -1,14 +1,18 @@
 #include "variational_field.h"
 
 #include <cmath>
+#include <numbers>
 
 namespace strokelab::variational {
 
 Layout::Layout(const FlowRequest& request)
     : state_columns(request.monodromy ? 2 : 0),
-      columns(state_columns + static_cast<int>(request.parameters.size())),
+      parameter_columns(static_cast<int>(request.parameters.size())),
       harmonics(request.harmonics),
       harmonic_sensitivities(request.harmonic_sensitivities) {
+  columns = state_columns + parameter_columns;
+  if (request.drive_amplitude) amplitude_column = columns++;
+  if (request.drive_frequency) frequency_column = columns++;
   size = 2 + 2 * columns + 2 * harmonics + (harmonic_sensitivities ? 2 * columns * harmonics : 0);
 }
 
@@ -43,13 +47,14 @@ void SmallAngleCosSin(double theta, double* cos_theta, double* sin_theta) {
 }
 
 double Field::Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const {
-  return Evaluate(std::cos(omega_rad_per_s_ * t_s), std::sin(omega_rad_per_s_ * t_s), y, dy, mode);
+  return Evaluate(t_s, std::cos(omega_rad_per_s_ * t_s), std::sin(omega_rad_per_s_ * t_s), y, dy, mode);
 }
 
-double Field::Evaluate(double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
+double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
   const double x = y[0], v = y[1];
   // sin/cos of w t serve the drive (angle addition with its phase) and the quadratures.
-  const double voltage_v = drive_.amplitude_v * (sin_wt * cos_phase_ + cos_wt * sin_phase_);
+  const double sin_drive = sin_wt * cos_phase_ + cos_wt * sin_phase_;  // sin(wt + phi)
+  const double voltage_v = drive_.amplitude_v * sin_drive;
   const Layout& l = layout_;
   const double m = inverse_mass_per_kg_;
   double force_n;
@@ -62,7 +67,16 @@ double Field::Evaluate(double cos_wt, double sin_wt, const double* y, double* dy
       const int i = l.Column(c);
       dy[i] = y[i + 1];
       double acceleration = (j.d_dx_n_per_m * y[i] + j.d_dv_n_s_per_m * y[i + 1]) * m;
-      if (c >= l.state_columns) {
+      if (c == l.amplitude_column || c == l.frequency_column) {
+        // g v_in(t) with v_in = V sin(wt + phi), while the amplifier does not clip it:
+        // d/dV = g sin(wt + phi), d/df = g V 2 pi t cos(wt + phi).
+        if (std::abs(voltage_v) <= model_.amplifier_limit_v) {
+          const double cos_drive = cos_wt * cos_phase_ - sin_wt * sin_phase_;
+          acceleration += model_.gain_n_per_v * m *
+                          (c == l.amplitude_column ? sin_drive
+                                                   : drive_.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive);
+        }
+      } else if (c >= l.state_columns) {
         double ActuatorModel::*p = parameters_[c - l.state_columns];
         // x'' = f / m_p: the mass enters through 1 / m_p (d/dm_p = -f / m_p^2), the rest through f.
         acceleration += p == &ActuatorModel::mass_kg

@@ -21,7 +21,9 @@ namespace strokelab::variational {
 
 struct Layout {
   int state_columns = 0;  // 2 with the monodromy, else 0
-  int columns = 0;        // state columns + parameters
+  int parameter_columns = 0;
+  int amplitude_column = -1, frequency_column = -1;  // -1: not asked for
+  int columns = 0;        // state columns + parameters + drive columns
   int harmonics = 0;
   bool harmonic_sensitivities = false;
   int size = 2;
@@ -40,7 +42,7 @@ class Field {
 
   // dy/dt at t in `mode`, given cos(wt) and sin(wt) (a step rotates them from its start instead of
   // calling sin and cos at every stage: they were a third of the time). Returns the blocked force [N].
-  double Evaluate(double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
+  double Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
   double Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const;
   double omega_rad_per_s() const { return omega_rad_per_s_; }
   double Force(double t_s, double x_m, double v_m_per_s, ContactMode mode) const;

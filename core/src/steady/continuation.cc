@@ -78,7 +78,9 @@ class BranchProblem {
     const State y = StateOf(u);
     Evaluation e;
     const PeriodMap map = MapAt(p);
-    e.figures = with_figures ? map.Trace(y) : map.Linearize(y);
+    const DriveParameter drive =
+        which_ == ContinuationParameter::kFrequencyHz ? DriveParameter::kFrequencyHz : DriveParameter::kAmplitudeV;
+    e.figures = with_figures ? map.Trace(y, 1, drive) : map.Linearize(y, 1, drive);
     const Matrix2& m = e.figures.monodromy;
     e.g[0] = (e.figures.end.x_m - y.x_m) / length_m_;
     e.g[1] = (e.figures.end.v_m_per_s - y.v_m_per_s) / speed_m_per_s_;
@@ -86,12 +88,9 @@ class BranchProblem {
     e.jacobian[0][1] = m.b * speed_m_per_s_ / length_m_;
     e.jacobian[1][0] = m.c * length_m_ / speed_m_per_s_;
     e.jacobian[1][1] = m.d - 1.0;
-    // dG/dp by a forward difference: the map's dependence on the parameter is smooth away from
-    // grazing, and one extra pass is cheaper than the variational equations in p.
-    const double dp = 1e-7;
-    const State shifted = MapAt((u.p + dp) * p_ref_).Apply(y);
-    e.jacobian[0][2] = (shifted.x_m - e.figures.end.x_m) / length_m_ / dp;
-    e.jacobian[1][2] = (shifted.v_m_per_s - e.figures.end.v_m_per_s) / speed_m_per_s_ / dp;
+    // dG/d(p / p_ref) from the map's own drive derivative (PeriodMap::Trace).
+    e.jacobian[0][2] = e.figures.d_end_d_drive.x_m * p_ref_ / length_m_;
+    e.jacobian[1][2] = e.figures.d_end_d_drive.v_m_per_s * p_ref_ / speed_m_per_s_;
     return e;
   }
 

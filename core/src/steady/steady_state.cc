@@ -110,7 +110,9 @@ struct PeriodMap::Impl {
   std::optional<PiecewiseLinearSystem> system;
 
   OrbitFigures TraceClosedForm(State y0, int periods, bool with_figures) const;
-  OrbitFigures TraceFlow(State y0, int periods, bool with_figures) const;
+  OrbitFigures TraceFlow(State y0, int periods, bool with_figures, std::optional<DriveParameter> drive) const;
+  // d P^periods(y0) / d(drive parameter) on the closed form: a forward difference.
+  State ClosedFormDriveDerivative(State y0, const State& end, int periods, DriveParameter drive) const;
 };
 
 PeriodMap::PeriodMap(const ActuatorModel& model, double frequency_hz, double amplitude_v)
@@ -135,12 +137,31 @@ State PeriodMap::Apply(State y) const {
   return y;
 }
 
-OrbitFigures PeriodMap::Trace(State y, int periods) const {
-  return impl_->system ? impl_->TraceClosedForm(y, periods, true) : impl_->TraceFlow(y, periods, true);
+OrbitFigures PeriodMap::Trace(State y, int periods, std::optional<DriveParameter> drive) const {
+  if (!impl_->system) return impl_->TraceFlow(y, periods, true, drive);
+  OrbitFigures figures = impl_->TraceClosedForm(y, periods, true);
+  if (drive) figures.d_end_d_drive = impl_->ClosedFormDriveDerivative(y, figures.end, periods, *drive);
+  return figures;
 }
 
-OrbitFigures PeriodMap::Linearize(State y, int periods) const {
-  return impl_->system ? impl_->TraceClosedForm(y, periods, false) : impl_->TraceFlow(y, periods, false);
+OrbitFigures PeriodMap::Linearize(State y, int periods, std::optional<DriveParameter> drive) const {
+  if (!impl_->system) return impl_->TraceFlow(y, periods, false, drive);
+  OrbitFigures figures = impl_->TraceClosedForm(y, periods, false);
+  if (drive) figures.d_end_d_drive = impl_->ClosedFormDriveDerivative(y, figures.end, periods, *drive);
+  return figures;
+}
+
+State PeriodMap::Impl::ClosedFormDriveDerivative(State y0, const State& end, int periods, DriveParameter drive) const {
+  // The map's dependence on the drive is smooth away from grazing; one more pass is cheaper than
+  // differentiating the closed form's switch instants.
+  const bool frequency = drive == DriveParameter::kFrequencyHz;
+  const double value = frequency ? this->drive.frequency_hz : this->drive.amplitude_v;
+  const double step = 1e-7 * (value != 0.0 ? value : 1.0);
+  const PeriodMap shifted(model, frequency ? value + step : this->drive.frequency_hz,
+                          frequency ? this->drive.amplitude_v : value + step);
+  State y = y0;
+  for (int k = 0; k < periods; ++k) y = shifted.Apply(y);
+  return {(y.x_m - end.x_m) / step, (y.v_m_per_s - end.v_m_per_s) / step};
 }
 
 OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_figures) const {
@@ -197,9 +218,12 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_f
   return figures;
 }
 
-OrbitFigures PeriodMap::Impl::TraceFlow(State y0, int periods, bool with_figures) const {
+OrbitFigures PeriodMap::Impl::TraceFlow(State y0, int periods, bool with_figures,
+                                        std::optional<DriveParameter> drive_parameter) const {
   FlowRequest request;
   request.monodromy = true;
+  request.drive_amplitude = drive_parameter == DriveParameter::kAmplitudeV;
+  request.drive_frequency = drive_parameter == DriveParameter::kFrequencyHz;
   request.harmonics = with_figures ? 1 : 0;
   request.figures = with_figures;
   const double t_end = periods / drive.frequency_hz;
@@ -207,6 +231,15 @@ OrbitFigures PeriodMap::Impl::TraceFlow(State y0, int periods, bool with_figures
   OrbitFigures figures;
   figures.end = flow.end;
   figures.monodromy = {flow.columns[0].x_m, flow.columns[1].x_m, flow.columns[0].v_m_per_s, flow.columns[1].v_m_per_s};
+  if (drive_parameter) {
+    figures.d_end_d_drive = flow.columns[2];
+    // The pass ends at t = periods / f: d/df adds the flow's rate there times dt/df = -periods / f^2.
+    if (request.drive_frequency) {
+      const double dt_df = -periods / (drive.frequency_hz * drive.frequency_hz);
+      figures.d_end_d_drive.x_m += flow.end_rate.x_m * dt_df;
+      figures.d_end_d_drive.v_m_per_s += flow.end_rate.v_m_per_s * dt_df;
+    }
+  }
   figures.contacts = flow.contacts;
   if (!with_figures) {
     figures.min_displacement_m = figures.max_displacement_m = figures.peak_force_n = NAN;  // not computed

@@ -36,13 +36,15 @@ namespace strokelab {
 struct FlowRequest {
   bool monodromy = false;                           // columns d/dx0, d/dv0
   std::vector<double ActuatorModel::*> parameters;  // columns d/dp, in this order
+  bool drive_amplitude = false;                     // then a column d/dV [per V]
+  bool drive_frequency = false;                     // then a column d/df at fixed t [per Hz]
   int harmonics = 0;                                // N: int x e^{-jhwt} dt for h = 1..N
   bool harmonic_sensitivities = false;              // and the same of every column's x
   bool figures = false;                             // extrema of x, peak force
 };
 
 struct FlowOptions {
-  double relative_tolerance = 1e-12;  // on (x, v): the map's residual is driven to 1e-11 (steady_state.h)
+  double relative_tolerance = 1e-11;  // on (x, v): the map's residual is driven to 1e-11 (steady_state.h)
   // On the sensitivity columns (their absolute tolerances scale alike): Newton and the fits' Jacobians
   // need far fewer digits than the residual.
   double sensitivity_relative_tolerance = 1e-10;
@@ -55,7 +57,9 @@ struct FlowOptions {
 
 struct FlowResult {
   State end;
-  std::vector<State> columns;  // d end / d(x0, v0) when requested, then d end / d p per parameter
+  State end_rate;              // d end / dt at t1 (x', x'') in the mode there
+  // d end / d(x0, v0) when requested, then d end / d p per parameter, then d/dV, then d/df.
+  std::vector<State> columns;
   // [h - 1]: int_t0^t1 x e^{-jhwt} dt [m s]; [c][h - 1] the same of column c's x.
   std::vector<std::complex<double>> harmonic_integrals;
   std::vector<std::vector<std::complex<double>>> harmonic_sensitivities;

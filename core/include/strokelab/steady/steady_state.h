@@ -41,10 +41,14 @@ struct Matrix2 {
   std::array<std::complex<double>, 2> Eigenvalues() const;
 };
 
+// A drive parameter the map depends on (the continuation's parameter).
+enum class DriveParameter { kFrequencyHz, kAmplitudeV };
+
 // What one pass of the map over `periods` drive periods saw.
 struct OrbitFigures {
   State end;                          // P^periods(y0)
   Matrix2 monodromy;                  // d end / d y0
+  State d_end_d_drive;                // d end / d(drive parameter) when asked for [per Hz or per V]
   std::complex<double> x1;            // C_1 of x over the pass [m], phase relative to the drive (t = 0)
   double min_displacement_m = 0.0;
   double max_displacement_m = 0.0;
@@ -66,11 +70,14 @@ class PeriodMap {
 
   // One drive period from y at phase 0.
   State Apply(State y) const;
-  // `periods` drive periods, with the Jacobian and the orbit's figures.
-  OrbitFigures Trace(State y, int periods = 1) const;
-  // The same with only `end`, `monodromy` and `contacts` filled in (the displacement extrema and the
-  // first harmonic are about half a closed-form trace): for Newton steps whose figures are not kept.
-  OrbitFigures Linearize(State y, int periods = 1) const;
+  // `periods` drive periods, with the Jacobian and the orbit's figures; with `drive`, also
+  // d end / d(drive parameter), the end of the pass moving with the frequency (exact from the
+  // variational flow, a forward difference of relative step 1e-7 on the closed form).
+  OrbitFigures Trace(State y, int periods = 1, std::optional<DriveParameter> drive = std::nullopt) const;
+  // The same with only `end`, `monodromy`, `d_end_d_drive` and `contacts` filled in (the displacement
+  // extrema and the first harmonic are about half a closed-form trace): for Newton steps whose
+  // figures are not kept.
+  OrbitFigures Linearize(State y, int periods = 1, std::optional<DriveParameter> drive = std::nullopt) const;
   // The state of the linear (no-contact) steady state at phase 0, clipped into the stops' range:
   // the shooting start (a start inside the stop does not converge).
   State ClippedLinearStart() const;
