@@ -91,6 +91,27 @@ TEST(ExtendedFitTest, ConvergesAndItsStandardErrorsHoldTheTruth) {
   }
 }
 
+// An amplifier limit between 1 and 4 V on records driven at 0.5 V at most never clips: the records say
+// nothing of it, so it gets no standard error and the fit says it is not identifiable.
+TEST(ExtendedFitTest, AParameterTheRecordsDoNotConstrainIsNotIdentifiable) {
+  const CubicCampaign c = MakeCubicCampaign();
+  ExtendedProblem problem = CubicProblem();
+  problem.parameters.push_back(LogFree("amplifier_limit_v", &ActuatorModel::amplifier_limit_v, 2.0));
+  const ExtendedFitResult r = internal::FitExtended(c.records, c.synthesis.campaign.response, problem, ExtendedFitOptions{});
+  EXPECT_FALSE(r.converged);
+  EXPECT_NE(r.report.find("NOT IDENTIFIABLE from these records: amplifier_limit_v"), std::string::npos) << r.report;
+  for (const FitParameter& p : r.parameters) {
+    SCOPED_TRACE(p.name);
+    if (p.name == "amplifier_limit_v") {
+      EXPECT_FALSE(p.identifiable);
+      EXPECT_TRUE(std::isnan(p.standard_error));
+    } else {
+      EXPECT_TRUE(p.identifiable);
+      EXPECT_TRUE(std::isfinite(p.standard_error));
+    }
+  }
+}
+
 TEST(ExtendedFitTest, CutOffBeforeCeresConvergesSaysSo) {
   const CubicCampaign c = MakeCubicCampaign();
   ExtendedFitOptions options;

@@ -33,9 +33,8 @@ std::string Format(double value, int digits = 4) {
   return out.str();
 }
 
-// Every record matched by `model` (its piecewise-linear stand-in `surrogate` finds the branch).
-std::vector<RecordMatch> MatchAll(const ActuatorModel& model, const ActuatorModel& surrogate,
-                                  std::span<const RecordAnalysis> analyses, const std::vector<bool>& heldout,
+// Every record matched by `model` on its best-matching orbit.
+std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const RecordAnalysis> analyses, const std::vector<bool>& heldout,
                                   ResponseKind kind, int orders) {
   std::vector<RecordMatch> matches(analyses.size());
   ParallelFor(analyses.size(), [&](size_t i) {
@@ -50,7 +49,7 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, const ActuatorMode
     m.nrmse = m.chi2 = kInf;
     std::optional<internal::Prediction> p;
     try {
-      p = internal::Predict(model, surrogate, a, kind, orders);
+      p = internal::Predict(model, a, kind, orders);
     } catch (const std::exception&) {
     }
     if (!p) return;
@@ -168,7 +167,7 @@ CandidateFit FitCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.parameters = r.parameters;
   c.effect_parameters = internal::EffectParameters(effects, r.parameters);
   const std::vector<RecordMatch> matches =
-      MatchAll(r.model, problem.Surrogate(r.model), analyses, split.heldout, kind, orders);
+      MatchAll(r.model, analyses, split.heldout, kind, orders);
   c.figures = Figures(matches, problem.parameters.size());
   const double variance = std::max(1.0, c.figures.residual_variance);
   c.heldout_gain = (base_figures.heldout_chi2 - c.figures.heldout_chi2) / variance;
@@ -252,7 +251,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   d.base.warnings.insert(d.base.warnings.begin(), warnings.begin(), warnings.end());
   const EffectContext context = Context(d.base, split.fit);
   const ExtendedProblem base_problem = internal::BuildProblem(d.base.model, options.fit.model, {}, context, 0);
-  d.before = MatchAll(d.base.model, d.base.model, analyses, split.heldout, kind, orders);
+  d.before = MatchAll(d.base.model, analyses, split.heldout, kind, orders);
   d.fit_before = Figures(d.before, base_problem.parameters.size());
 
   // 3. Signatures.
@@ -307,7 +306,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     const CandidateFit& c = d.candidates[d.chosen];
     d.missing_physics = c.effects;
     const ExtendedProblem problem = internal::BuildProblem(c.model, options.fit.model, c.effects, context, 0);
-    d.after = MatchAll(c.model, problem.Surrogate(c.model), analyses, split.heldout, kind, orders);
+    d.after = MatchAll(c.model, analyses, split.heldout, kind, orders);
     d.fit_after = c.figures;
     d.model = c.model;
     d.model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +

@@ -132,8 +132,6 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
       // Hertzian k_s [N/m^1.5] with the linear stop's force at the typical penetration p:
       // k_s,H p^(3/2) = k_s p.
       problem.base.contact_law = ContactLaw::kHertzian;
-      problem.surrogate_contact_stiffness = start.contact_law == ContactLaw::kLinear ? start.contact_stiffness
-                                                                                     : start.contact_stiffness * std::sqrt(context.penetration_m);
       const double hertz_start = start.contact_law == ContactLaw::kHertzian
                                      ? start.contact_stiffness
                                      : start.contact_stiffness / std::sqrt(std::max(context.penetration_m, 1e-9));
@@ -144,9 +142,11 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
     if (start.contact_damping_n_s_per_m > 0 || Has(effects, Effect::kContactDamping)) {
       // Linear in c_s from 2 % of the contact's critical damping 2 sqrt(k_s m_p), down to 0 (no
       // damping is the null a log scale could not reach), up to 3 times critical.
-      const double critical = 2.0 * std::sqrt(problem.surrogate_contact_stiffness > 0 ? problem.surrogate_contact_stiffness
-                                                                                      : start.contact_stiffness) *
-                              std::sqrt(start.mass_kg);
+      // (The linear stiffness at the typical penetration p for a Hertzian stop: k_s,H p^(1/2).)
+      const double linear_ks = start.contact_law == ContactLaw::kLinear || !Has(effects, Effect::kHertzianContact)
+                                   ? start.contact_stiffness
+                                   : start.contact_stiffness * std::sqrt(context.penetration_m);
+      const double critical = 2.0 * std::sqrt(linear_ks) * std::sqrt(start.mass_kg);
       const double c0 = start.contact_damping_n_s_per_m > 0 ? start.contact_damping_n_s_per_m : 0.02 * critical;
       const double scale = 0.1 * critical;
       FreeParameter cs = LinearParameter("c_s", "N s/m", &ActuatorModel::contact_damping_n_s_per_m, c0, scale,

@@ -20,9 +20,9 @@ namespace {
 
 using Complex = std::complex<double>;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Solves end when the refreshed sampling corrections moved no theta by more than this (theta ~ 1: a
-// relative change of 1e-4 in a log-scaled parameter, far below the standard errors seen in the tests).
-constexpr double kSolveTolerance = 1e-4;
+// Solves end when the refreshed sampling corrections moved no identifiable theta by more than this
+// fraction of its standard error (a change no test on the estimate could see).
+constexpr double kSolveTolerancePerError = 0.01;
 constexpr int kAperiodicSettlePeriods = 64;  // plain periods before harmonics of an aperiodic anchor
 
 // One record's target: its measured harmonics, the orbit the next evaluations start from, and the
@@ -90,14 +90,62 @@ class OrbitCost : public ceres::CostFunction {
   std::vector<double ActuatorModel::*> fields_;
 };
 
-// The sampling correction of a record at `model`: the surrogate's (extended_fit.h), at the surrogate's
-// orbit nearest the record's anchor.
-std::vector<Complex> CorrectionAt(const ExtendedProblem& problem, const ActuatorModel& model, const Target& t,
-                                  ResponseKind kind, int orders) {
-  const ActuatorModel surrogate = problem.Surrogate(model);
-  const std::optional<ModelOrbit> s = SolveOrbit(surrogate, *t.record, t.anchor, kind, orders, OrbitSearch::kAttractor);
-  if (!s) return std::vector<Complex>(orders, 0.0);
-  return SamplingCorrection(surrogate, *t.record, *s, kind, orders);
+// The sampling correction of a record at `model`, on the model's orbit through the record's anchor.
+std::vector<Complex> CorrectionAt(const ActuatorModel& model, const Target& t, ResponseKind kind, int orders) {
+  const std::optional<ModelOrbit> orbit = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
+  if (!orbit) return std::vector<Complex>(orders, 0.0);
+  return SamplingCorrection(model, *t.record, *orbit, kind, orders);
+}
+
+Eigen::MatrixXd DenseJacobian(const ceres::CRSMatrix& crs) {
+  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int r = 0; r < crs.num_rows; ++r)
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+  return j;
+}
+
+struct ParameterErrors {
+  Eigen::MatrixXd covariance;      // of theta; NaN rows and columns for parameters not identifiable
+  std::vector<bool> identifiable;
+};
+
+// Cov(theta) = s^2 (J^T J)^{-1} from the Jacobian at the solution, over the parameters the records
+// constrain. A parameter is not identifiable when its column is zero or it takes part (component above
+// 0.1) in a right singular vector of the column-scaled J whose singular value is below 1e-8 of the
+// largest: the sensitivities are exact to ~1e-8, so such a direction is zero within their error (e.g. an
+// amplifier limit above every record's drive, a stop no record reaches).
+ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_variance) {
+  const int p = static_cast<int>(j.cols());
+  ParameterErrors out{Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN()),
+                      std::vector<bool>(p, true)};
+  const Eigen::VectorXd norms = j.colwise().norm();
+  for (int i = 0; i < p; ++i)
+    if (!(norms(i) > 0.0)) out.identifiable[i] = false;
+  std::vector<int> kept;
+  for (int i = 0; i < p; ++i)
+    if (out.identifiable[i]) kept.push_back(i);
+  Eigen::MatrixXd scaled(j.rows(), kept.size());
+  for (size_t k = 0; k < kept.size(); ++k) scaled.col(k) = j.col(kept[k]) / norms(kept[k]);
+  if (kept.empty()) return out;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
+  const Eigen::VectorXd& sigma = svd.singularValues();
+  for (int k = 0; k < sigma.size(); ++k) {
+    if (sigma(k) >= 1e-8 * sigma(0)) continue;
+    for (size_t i = 0; i < kept.size(); ++i)
+      if (std::abs(svd.matrixV()(i, k)) > 0.1) out.identifiable[kept[i]] = false;
+  }
+  std::vector<int> identified;
+  for (int i : kept)
+    if (out.identifiable[i]) identified.push_back(i);
+  if (identified.empty()) return out;
+  Eigen::MatrixXd a(j.rows(), identified.size());
+  for (size_t k = 0; k < identified.size(); ++k) a.col(k) = j.col(identified[k]) / norms(identified[k]);
+  const Eigen::MatrixXd inverse = (a.transpose() * a).inverse();
+  for (size_t r = 0; r < identified.size(); ++r)
+    for (size_t c = 0; c < identified.size(); ++c)
+      out.covariance(identified[r], identified[c]) =
+          residual_variance * inverse(r, c) / (norms(identified[r]) * norms(identified[c]));
+  return out;
 }
 
 }  // namespace
@@ -109,7 +157,8 @@ double FreeParameter::Value(double theta) const {
 double FreeParameter::ValuePerTheta(double theta) const { return log_scale ? Value(theta) : scale; }
 
 double FreeParameter::StandardError(double theta, double theta_variance) const {
-  const double se = std::sqrt(std::max(0.0, theta_variance));
+  if (!(theta_variance >= 0.0)) return std::numeric_limits<double>::quiet_NaN();  // not identifiable
+  const double se = std::sqrt(theta_variance);
   return log_scale ? std::abs(Value(theta)) * se : std::abs(scale) * se;
 }
 
@@ -119,31 +168,13 @@ ActuatorModel ExtendedProblem::Decode(const double* theta) const {
   return m;
 }
 
-ActuatorModel ExtendedProblem::Surrogate(const ActuatorModel& full) const {
-  ActuatorModel m = full;
-  m.quadratic_stiffness_n_per_m2 = 0.0;
-  m.cubic_stiffness_n_per_m3 = 0.0;
-  m.friction_force_n = 0.0;
-  if (m.contact_law == ContactLaw::kHertzian) {
-    m.contact_law = ContactLaw::kLinear;
-    m.contact_stiffness = surrogate_contact_stiffness;
-  }
-  return m;
-}
-
-std::optional<Prediction> Predict(const ActuatorModel& model, const ActuatorModel& surrogate,
-                                  const RecordAnalysis& record, ResponseKind kind, int orders) {
-  std::optional<ModelOrbit> s = BestMatchingOrbit(surrogate, record, kind, orders);
-  if (!s) return std::nullopt;
+std::optional<Prediction> Predict(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind,
+                                  int orders) {
+  std::optional<ModelOrbit> orbit = BestMatchingOrbit(model, record, kind, orders);
+  if (!orbit) return std::nullopt;
   Prediction p;
-  if (model.IsPiecewiseLinear()) {
-    p.orbit = *s;
-  } else {
-    std::optional<ModelOrbit> f = SolveOrbit(model, record, s->anchor, kind, orders, OrbitSearch::kAttractor);
-    if (!f) return std::nullopt;
-    p.orbit = std::move(*f);
-  }
-  const std::vector<Complex> correction = SamplingCorrection(surrogate, record, *s, kind, orders);
+  p.orbit = std::move(*orbit);
+  const std::vector<Complex> correction = SamplingCorrection(model, record, p.orbit, kind, orders);
   p.harmonics = p.orbit.harmonics;
   for (int h = 0; h < orders; ++h) p.harmonics[h] += correction[h];
   return p;
@@ -152,11 +183,10 @@ std::optional<Prediction> Predict(const ActuatorModel& model, const ActuatorMode
 double Chi2At(std::span<const RecordAnalysis* const> records, ResponseKind kind, const ExtendedProblem& problem,
               const std::vector<double>& theta, int orders) {
   const ActuatorModel full = problem.Decode(theta.data());
-  const ActuatorModel surrogate = problem.Surrogate(full);
   std::vector<double> chi2(records.size(), kInf);
   ParallelFor(records.size(), [&](size_t i) {
     try {
-      if (const auto p = Predict(full, surrogate, *records[i], kind, orders))
+      if (const auto p = Predict(full, *records[i], kind, orders))
         chi2[i] = MismatchSquared(*records[i], p->harmonics) /
                   (records[i]->harmonic_se * records[i]->harmonic_se);
     } catch (const std::exception&) {
@@ -217,7 +247,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     const ActuatorModel model = problem.Decode(theta.data());
     ParallelFor(targets.size(), [&](size_t i) {
       try {
-        targets[i].correction = CorrectionAt(problem, model, targets[i], kind, orders);
+        targets[i].correction = CorrectionAt(model, targets[i], kind, orders);
       } catch (const std::exception&) {
         targets[i].correction.assign(orders, 0.0);
       }
@@ -237,14 +267,20 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     result.report = summary.BriefReport();
     ceres_converged = summary.termination_type == ceres::CONVERGENCE;
     if (!ceres_converged) break;
-    double change = 0.0;
-    for (int i = 0; i < p; ++i) change = std::max(change, std::abs(theta[i] - before[i]));
-    moved = change > kSolveTolerance;
+    ceres::CRSMatrix jacobian;
+    double cost = 0.0;
+    if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian)) break;
+    const double variance = 2.0 * cost / static_cast<double>(result.residuals - p);
+    const ParameterErrors errors = ErrorsFromJacobian(DenseJacobian(jacobian), variance);
+    moved = false;
+    for (int i = 0; i < p; ++i)
+      if (errors.identifiable[i] && std::abs(theta[i] - before[i]) > kSolveTolerancePerError * std::sqrt(errors.covariance(i, i)))
+        moved = true;
   }
-  // The cost and whether the Jacobian can be evaluated at all: Ceres' covariance does not check
-  // (a failed evaluation left it to run an SVD on an empty matrix and crash).
+  // The cost and the Jacobian at the end (a record without a steady state leaves neither).
   double cost = 0.0;
-  const bool evaluates = ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
+  ceres::CRSMatrix jacobian;
+  const bool evaluates = ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian);
   result.chi2 = evaluates ? 2.0 * cost : kInf;
   result.residual_variance = result.chi2 / static_cast<double>(result.residuals - p);
   result.converged = ceres_converged && !moved && evaluates;
@@ -252,22 +288,16 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   else if (moved) result.report += "\nNOT CONVERGED: the sampling corrections still moved the parameters after " +
                                    std::to_string(result.passes) + " solves";
   if (!evaluates) result.report += "\nNOT CONVERGED: a record has no steady state at the end";
-  const bool unusable = !evaluates;
 
-  Eigen::MatrixXd covariance = Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN());
-  if (!unusable) {
-    ceres::Covariance::Options covariance_options;
-    covariance_options.algorithm_type = ceres::DENSE_SVD;
-    ceres::Covariance cov(covariance_options);
-    const double* block = theta.data();
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(p, p);
-    if (cov.Compute(std::vector<const double*>{block}, &ceres_problem) &&
-        cov.GetCovarianceBlock(block, block, c.data())) {
-      covariance = result.residual_variance * Eigen::MatrixXd(c);
-    } else {
-      result.converged = false;
-      result.report += "\nthe Jacobian is rank deficient (parameters not all identifiable)";
-    }
+  ParameterErrors errors{Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN()),
+                         std::vector<bool>(p, false)};
+  if (evaluates) errors = ErrorsFromJacobian(DenseJacobian(jacobian), result.residual_variance);
+  std::string unidentified;
+  for (int i = 0; i < p; ++i)
+    if (evaluates && !errors.identifiable[i]) unidentified += (unidentified.empty() ? "" : ", ") + problem.parameters[i].name;
+  if (!unidentified.empty()) {
+    result.converged = false;
+    result.report += "\nNOT IDENTIFIABLE from these records: " + unidentified;
   }
   result.theta = theta;
   result.model = problem.Decode(theta.data());
@@ -277,9 +307,11 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     out.name = fp.name;
     out.unit = fp.unit;
     out.value = fp.Value(theta[i]);
-    out.standard_error = fp.StandardError(theta[i], covariance(i, i));
+    out.standard_error = fp.StandardError(theta[i], errors.covariance(i, i));
+    out.identifiable = errors.identifiable[i];
+    if (!out.identifiable) out.note = "not identifiable from these records";
     if (std::abs(theta[i] - fp.theta_min) < 1e-6 || std::abs(theta[i] - fp.theta_max) < 1e-6)
-      out.note = "on its bound";
+      out.note += (out.note.empty() ? "" : "; ") + std::string("on its bound");
     result.parameters.push_back(out);
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();

@@ -191,13 +191,8 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
     double t = 0.0;
     PwlMode mode = system.InitialMode(0.0, y);
     system.Advance(&t, &y, &mode, phase_time_s, [](const SwitchEvent&) {});
-  } else if (phase_time_s > 0) {
-    SimulationOptions to_phase;
-    to_phase.duration_s = phase_time_s;
-    to_phase.sample_rate_hz = 1.0 / phase_time_s;
-    to_phase.initial = y;
-    to_phase.record_velocity = false;
-    y = MakeCvodeEngine()->Simulate(model, SineDrive{a.drive.amplitude_v, f, 0.0}, to_phase).final_state;
+  } else {
+    y = Flow(model, SineDrive{a.drive.amplitude_v, f, 0.0}, y, 0.0, phase_time_s, {}).end;
   }
   SimulationOptions sim;
   sim.duration_s = static_cast<double>(a.window.end) / a.sample_rate_hz;
@@ -233,7 +228,7 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
 std::vector<Complex> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                         ResponseKind kind, int orders) {
   std::vector<Complex> correction(orders, 0.0);
-  if (orbit.anchor.period != 1 || !model.IsPiecewiseLinear()) return correction;
+  if (orbit.anchor.period != 1) return correction;
   const std::vector<double> signal = OrbitOnRecordGrid(model, a, orbit, kind);
   const double f = a.drive.frequency_hz;
   const HarmonicFit fit = FitHarmonics(signal, a.sample_rate_hz, f, a.window, orders);

@@ -7,8 +7,8 @@
 // linear) and takes the residuals' Jacobian from the flow's exact sensitivities (fit_orbit.h,
 // OrbitHarmonicSlopes): one nonlinear least-squares problem, converged when Ceres' own convergence
 // test holds, with standard errors from the true Jacobian at the solution. The records' sampling
-// correction (fit_orbit.h, SamplingCorrection: what a record's sampling makes of the piecewise-linear
-// surrogate's response) is frozen during a solve and refreshed between solves.
+// correction (fit_orbit.h, SamplingCorrection: what a record's sampling makes of the model's response)
+// is frozen during a solve and refreshed between solves.
 #pragma once
 
 #include <complex>
@@ -41,17 +41,13 @@ struct FreeParameter {
 struct ExtendedProblem {
   ActuatorModel base;  // everything not free (contact law, stop sides, m_p, ...)
   std::vector<FreeParameter> parameters;
-  // Linear contact stiffness of the surrogate when the model's contact is Hertzian [N/m].
-  double surrogate_contact_stiffness = 0.0;
   ActuatorModel Decode(const double* theta) const;
-  // The piecewise-linear stand-in of `full`: k2 = k3 = 0, no friction, linear contact.
-  ActuatorModel Surrogate(const ActuatorModel& full) const;
 };
 
 struct ExtendedFitOptions {
   int orders = 10;         // harmonics N
   int max_passes = 8;      // solves, each with the sampling corrections refreshed at its start
-  int max_iterations = 30; // Ceres iterations per solve
+  int max_iterations = 200; // Ceres iterations per solve (the cubic fit of campaign-a needs 59)
   double max_seconds = 120.0;
 };
 
@@ -68,7 +64,7 @@ struct ExtendedFitResult {
   double seconds = 0.0;
 };
 
-// Fits problem.parameters to `records` (their anchors found from the surrogate at the start).
+// Fits problem.parameters to `records` (their anchors: each record's best-matching orbit at the start).
 ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, ResponseKind kind,
                               const ExtendedProblem& problem, const ExtendedFitOptions& options);
 
@@ -77,13 +73,13 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
 double Chi2At(std::span<const RecordAnalysis* const> records, ResponseKind kind, const ExtendedProblem& problem,
               const std::vector<double>& theta, int orders);
 
-// The model's harmonics as a record's sampling sees them: the full model's steady state (started
-// from the surrogate's best-matching stable orbit) plus the surrogate's sampling correction.
+// The model's harmonics as a record's sampling sees them: the model's best-matching stable orbit
+// (fit_orbit.h, BestMatchingOrbit) plus its sampling correction.
 struct Prediction {
   ModelOrbit orbit;
   std::vector<std::complex<double>> harmonics;
 };
-std::optional<Prediction> Predict(const ActuatorModel& model, const ActuatorModel& surrogate,
-                                  const RecordAnalysis& record, ResponseKind kind, int orders);
+std::optional<Prediction> Predict(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind,
+                                  int orders);
 
 }  // namespace strokelab::internal

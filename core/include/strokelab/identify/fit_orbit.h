@@ -87,8 +87,7 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
                                       ResponseKind kind);
 
 // What the record's sampling and least-squares fit make of the model's response, less the orbit's
-// continuous-time harmonics (see fit_refine.cc). Zero for orbits of period other than 1 and for models that
-// are not piecewise linear.
+// continuous-time harmonics (see fit_refine.cc). Zero for orbits of period other than 1.
 std::vector<std::complex<double>> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a,
                                                      const ModelOrbit& orbit, ResponseKind kind, int orders);
 
