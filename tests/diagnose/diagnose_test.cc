@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "concealed_effects.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/data/synth.h"
 #include "strokelab/model/model_json.h"
@@ -27,41 +28,10 @@
 namespace strokelab {
 namespace {
 
-struct EffectCase {
-  std::string name;
-  std::string parameter;  // model key (model.h) of the effect's parameter; empty for the control
-  double value = 0.0;     // its truth
-  bool hertzian = false;  // the contact law is Hertzian (value is k_s in N/m^1.5)
-  uint64_t seed = 0;
-};
-
-// Test names and failure messages show the case's name, not its bytes.
-void PrintTo(const EffectCase& c, std::ostream* out) { *out << c.name; }
-
-SynthOptions CampaignOptions(uint64_t seed) {
-  SynthOptions o;
-  o.frequencies_hz = {5, 6, 7, 8, 9, 11};
-  o.amplitudes_v = {0.1, 0.3, 0.4, 0.5};
-  o.duration_s = 1.0;
-  o.settle_s = 5.0;
-  o.noise_rms_v = 0.0005;
-  o.offset_v = 0.01;
-  o.hum_v = 0.0005;
-  o.perturb = {{"k_p", 0.1}, {"c_p", 0.1}, {"g", 0.1}, {"d", 0.1}, {"k_s", 0.1}};
-  o.seed = seed;
-  return o;
-}
-
-ActuatorModel WithEffect(const EffectCase& c) {
-  ActuatorModel m = PaperModel();
-  if (c.hertzian) {
-    m.contact_law = ContactLaw::kHertzian;
-    m.contact_stiffness = c.value;
-  } else if (!c.parameter.empty()) {
-    m.*(FindParameter(c.parameter).field) = c.value;
-  }
-  return m;
-}
+using ::strokelab::testing::CampaignOptions;
+using ::strokelab::testing::ConcealedEffectCases;
+using ::strokelab::testing::EffectCase;
+using ::strokelab::testing::WithEffect;
 
 // RMS over the campaign of (response with the effect - response without it) [response units],
 // over all samples (whole) and over those farther than kImpactWindowS from an impact in either
@@ -152,17 +122,8 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
   EXPECT_LE(d.fit_after.heldout_nrmse, 0.5 * d.fit_before.heldout_nrmse);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Library, DiagnoseTest,
-    ::testing::Values(EffectCase{"nothing_missing", "", 0.0, false, 1001},
-                      EffectCase{"cubic_stiffness", "k3", 1.5e7, false, 1002},
-                      EffectCase{"quadratic_stiffness", "k2", 7e3, false, 1003},
-                      EffectCase{"hertzian_contact", "k_s", 1.5e7, true, 1004},
-                      EffectCase{"contact_damping", "c_s", 40.0, false, 1005},
-                      EffectCase{"second_stop", "d_upper", 1.45e-3, false, 1006},
-                      EffectCase{"dry_friction", "friction_n", 0.001, false, 1007},
-                      EffectCase{"amplifier_saturation", "amplifier_limit_v", 0.45, false, 1008}),
-    [](const ::testing::TestParamInfo<EffectCase>& info) { return info.param.name; });
+INSTANTIATE_TEST_SUITE_P(Library, DiagnoseTest, ::testing::ValuesIn(ConcealedEffectCases()),
+                         [](const ::testing::TestParamInfo<EffectCase>& info) { return info.param.name; });
 
 // The base fit's fields come first, under FitOptions' names; then the diagnosis's own.
 TEST(DiagnoseOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {

@@ -34,8 +34,8 @@ std::string Format(double value, int digits = 4) {
 }
 
 // Every record matched by `model` on its best-matching orbit.
-std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const RecordAnalysis> analyses, const std::vector<bool>& heldout,
-                                  ResponseKind kind, int orders) {
+std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const RecordAnalysis> analyses,
+                                  const std::vector<bool>& heldout, ResponseKind kind, int orders) {
   std::vector<RecordMatch> matches(analyses.size());
   ParallelFor(analyses.size(), [&](size_t i) {
     const RecordAnalysis& a = analyses[i];
@@ -123,12 +123,48 @@ std::string Label(const std::vector<Effect>& effects) {
 
 struct Split {
   std::vector<bool> heldout;            // per analysis
+  std::vector<size_t> heldout_indices;  // into the analyses
   std::vector<RecordAnalysis> fit;      // the fit records' analyses
-  std::vector<const RecordAnalysis*> fit_pointers;
+  std::vector<const RecordAnalysis*> fit_pointers;  // into `fit` (a move of the Split keeps them valid)
 };
 
+// Every n-th record held out, the last of each block of n; n = 0 holds none out.
+Split SplitRecords(std::span<const RecordAnalysis> analyses, int heldout_every) {
+  Split split;
+  split.heldout.assign(analyses.size(), false);
+  for (size_t i = 0; i < analyses.size(); ++i) {
+    if (heldout_every > 0 && i % heldout_every == static_cast<size_t>(heldout_every - 1)) {
+      split.heldout[i] = true;
+      split.heldout_indices.push_back(i);
+    } else {
+      split.fit.push_back(analyses[i]);
+    }
+  }
+  for (const RecordAnalysis& a : split.fit) split.fit_pointers.push_back(&a);
+  return split;
+}
+
+// Step 2: the base fit on the fit records, the scales it gives the effects, and the base model on
+// every record.
+struct BaseStage {
+  FitResult fit;
+  EffectContext context;
+  std::vector<RecordMatch> matches;
+  FitFigures figures;
+};
+BaseStage FitBase(std::span<const RecordAnalysis> analyses, const Split& split, ResponseKind kind,
+                  bool absolute_scale, const DiagnoseOptions& options) {
+  BaseStage b;
+  b.fit = FitAnalysed(split.fit, kind, absolute_scale, options.fit);
+  b.context = Context(b.fit, split.fit);
+  const ExtendedProblem base_problem = internal::BuildProblem(b.fit.model, options.fit.model, {}, b.context, 0);
+  b.matches = MatchAll(b.fit.model, analyses, split.heldout, kind, options.fit.harmonic_orders);
+  b.figures = Figures(b.matches, base_problem.parameters.size());
+  return b;
+}
+
 // Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
-CandidateFit FitCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
+CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
                           const EffectContext& context, const Split& split, std::span<const RecordAnalysis> analyses,
                           ResponseKind kind, const FitFigures& base_figures, double seconds_left) {
   const auto clock_start = std::chrono::steady_clock::now();
@@ -229,30 +265,21 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   progress("analysing " + std::to_string(campaign.records.size()) + " records");
   const std::vector<RecordAnalysis> analyses = AnalyseCampaign(campaign, options.fit, &warnings);
 
-  // 1. The split: every n-th record held out, the last of each block of n.
-  Split split;
-  split.heldout.assign(analyses.size(), false);
-  for (size_t i = 0; i < analyses.size(); ++i) {
-    if (i % options.heldout_every == static_cast<size_t>(options.heldout_every - 1)) {
-      split.heldout[i] = true;
-      d.heldout.push_back(i);
-    } else {
-      split.fit.push_back(analyses[i]);
-    }
-  }
-  for (const RecordAnalysis& a : split.fit) split.fit_pointers.push_back(&a);
+  // 1. The split.
+  const Split split = SplitRecords(analyses, options.heldout_every);
+  d.heldout = split.heldout_indices;
   if (d.heldout.empty()) throw InputError("records", "too few records to hold any out (heldout_every " +
                                                          std::to_string(options.heldout_every) + ")");
 
   // 2. The base fit on the fit records, evaluated on all.
   progress("base fit on " + std::to_string(split.fit.size()) + " records, " + std::to_string(d.heldout.size()) +
            " held out");
-  d.base = FitAnalysed(split.fit, kind, campaign.absolute_scale, options.fit);
+  BaseStage base = FitBase(analyses, split, kind, campaign.absolute_scale, options);
+  d.base = std::move(base.fit);
   d.base.warnings.insert(d.base.warnings.begin(), warnings.begin(), warnings.end());
-  const EffectContext context = Context(d.base, split.fit);
-  const ExtendedProblem base_problem = internal::BuildProblem(d.base.model, options.fit.model, {}, context, 0);
-  d.before = MatchAll(d.base.model, analyses, split.heldout, kind, orders);
-  d.fit_before = Figures(d.before, base_problem.parameters.size());
+  const EffectContext& context = base.context;
+  d.before = std::move(base.matches);
+  d.fit_before = base.figures;
 
   // 3. Signatures.
   d.signatures = internal::MeasureSignatures(campaign, analyses, d.before, d.base.model, kind, options.fit);
@@ -269,7 +296,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
       continue;
     }
     progress("candidate " + std::string(info.id));
-    d.candidates.push_back(FitCandidate({info.effect}, d.base.model, options, context, split, analyses, kind,
+    d.candidates.push_back(RunCandidate({info.effect}, d.base.model, options, context, split, analyses, kind,
                                         d.fit_before, seconds_left()));
   }
   auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
@@ -287,7 +314,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     const CandidateFit& first = d.candidates[accepted[0]];
     const CandidateFit& second = d.candidates[accepted[1]];
     progress("pair " + first.label + "+" + second.label);
-    CandidateFit pair = FitCandidate({first.effects[0], second.effects[0]}, first.model, options, context, split,
+    CandidateFit pair = RunCandidate({first.effects[0], second.effects[0]}, first.model, options, context, split,
                                      analyses, kind, d.fit_before, seconds_left());
     // The pair must beat the best single as the single beat the base.
     const double variance = std::max(1.0, pair.figures.residual_variance);
@@ -327,6 +354,24 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   }
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;
+}
+
+CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effects, const DiagnoseOptions& options) {
+  Validate(options);
+  const auto clock_start = std::chrono::steady_clock::now();
+  const std::vector<RecordAnalysis> analyses = AnalyseCampaign(campaign, options.fit, nullptr);
+  const Split split = SplitRecords(analyses, 0);
+  const BaseStage base = FitBase(analyses, split, campaign.response, campaign.absolute_scale, options);
+  for (Effect e : effects)
+    if (!internal::Applicable(e, options.fit.model, base.context))
+      throw InputError("effects", std::string(Info(e).id) + " cannot show in this campaign (" +
+                                      (options.fit.model == FitModelKind::kPaper ? "no record reaches the stop"
+                                                                                 : "the base model has no stop") +
+                                      ")");
+  const double seconds_left =
+      options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return RunCandidate(std::vector<Effect>(effects.begin(), effects.end()), base.fit.model, options, base.context,
+                      split, analyses, campaign.response, base.figures, seconds_left);
 }
 
 }  // namespace strokelab

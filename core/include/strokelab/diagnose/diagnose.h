@@ -24,6 +24,7 @@
 #include <functional>
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -178,6 +179,17 @@ struct Diagnosis {
 
 // Throws InputError for bad options or campaigns (as FitCampaign).
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
+
+// One candidate of the diagnosis fitted to every record, none held out: the base fit (step 2), then
+// the base model extended by `effects` with every parameter free (step 4, the problem and start
+// DiagnoseCampaign fits for that candidate). For studies of the extended fit's estimates and
+// standard errors against a known truth (tests/diagnose/fit_study.cc). The held-out figures are
+// then empty (heldout_chi2 0, heldout_nrmse NaN, heldout_gain 0); heldout_every, min_heldout_gain
+// and pairs play no part. Throws InputError for bad options or campaigns (as DiagnoseCampaign) and,
+// naming "effects", for an effect that cannot show in the campaign (Hertzian contact, contact
+// damping or a second stop without contacts).
+CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effects,
+                          const DiagnoseOptions& options = {});
 
 // missing_physics (effect, parameters, evidence), model (the diagnosed model as ModelToJson writes it:
 // what `strokelab sweep --model`, `simulate --model` and a sweep job's "model" read) and model_note,
