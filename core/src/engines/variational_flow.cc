@@ -1,6 +1,6 @@
-// The DOP853 integration of variational_flow.h: steps with error control on (x, v), switching
-// surfaces located on the dense output, the step cut at each switch and the sensitivities' jump
-// applied there.
+// The DOP853 integration of variational_flow.h: steps with error control on (x, v) and the
+// sensitivity columns, switching surfaces located on the dense output, the step cut at each switch
+// and the sensitivities' jump applied there.
 #include "strokelab/engines/variational_flow.h"
 
 #include <algorithm>
@@ -16,13 +16,13 @@
 namespace strokelab {
 namespace {
 
-
 // Step size control of Hairer, Norsett and Wanner, Sec. II.4 (as in their DOP853 code): the error
 // estimate is of order 8 in h, the factor is bounded to [0.2, 10] with a safety factor of 0.9.
 constexpr double kStepSafety = 0.9, kMinStepFactor = 0.2, kMaxStepFactor = 10.0;
 
 // kStepSafety * error^(-1/8) by three square roots (std::pow was 3 % of a sweep's time).
 double StepFactor(double error) { return kStepSafety / std::sqrt(std::sqrt(std::sqrt(error))); }
+
 // The longest step, as a fraction of the shortest period of drive and suspension: at most one extremum
 // of x per step, so that an apex shows a grazing contact the step's ends do not.
 constexpr double kFlowMaxStepFraction = 1.0 / 20.0;
