@@ -86,10 +86,7 @@ void Service::Impl::AddJobRoutes() {
               const std::string type = req.get_header_value("Content-Type");
               const auto is = [&type](const char* media) { return type.rfind(media, 0) == 0; };
               if (!is("application/x-tar") && !is("application/zip") && !is("application/x-zip-compressed"))
-                throw HttpError{415, "unsupported_media_type",
-                                "send the campaign as a tar archive (ustar or pax) with Content-Type "
-                                "application/x-tar, or as a zip archive with Content-Type application/zip, "
-                                "not '" + type + "'", ""};
+                throw HttpError{415, "unsupported_media_type", UnsupportedCampaignMessage(type), ""};
               // The body's first bytes, not the type, choose the reader (campaign_upload.h).
               ArchiveLimits limits;
               limits.max_file_bytes = limits.max_total_bytes = options.max_campaign_bytes;

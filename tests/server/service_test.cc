@@ -145,6 +145,21 @@ TEST_F(ServiceTest, OversizeJobAndBodyNameTheLimit) {
   EXPECT_EQ(e2["code"], "body_too_large");
 }
 
+// curl -d sends application/x-www-form-urlencoded: refused (a form post from any web page must not
+// submit jobs), and the message names the header to add, whatever the body's size (httplib refuses
+// a form body over 8 KiB itself, which was answered 413 body_too_large).
+TEST_F(ServiceTest, AFormPostIsRefusedNamingTheHeaderToAdd) {
+  auto c = Client();
+  const std::string padded = json(kSmallSweep).dump() + std::string(20000, ' ');
+  for (const std::string& body : {json(kSmallSweep).dump(), padded}) {
+    for (const char* type : {"application/x-www-form-urlencoded", "text/plain", ""}) {
+      const json e = Error(c.Post("/v1/jobs", Auth(kSubmitToken), body, type), 415);
+      EXPECT_EQ(e["code"], "unsupported_media_type") << type << ", " << body.size() << " bytes";
+      EXPECT_THAT(e.value("message", ""), HasSubstr("-H 'Content-Type: application/json'")) << type;
+    }
+  }
+}
+
 TEST_F(ServiceTest, UnknownJobAndCancelOfAFinishedJob) {
   auto c = Client();
   EXPECT_EQ(Error(c.Get("/v1/jobs/12345", Auth(kReadToken)), 404)["code"], "unknown_job");
