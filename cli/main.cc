@@ -20,15 +20,15 @@ commands:
   synth      a synthetic measurement campaign (recordings layout) from a model, its truth apart
   fit        fit a model (paper, linear) to a campaign directory: parameters with standard errors
   diagnose   where a fitted model misses a campaign, the physics it left out, fitted, with the improvement
+  paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 service:
   serve      the REST service: SQLite job store, worker pool, web page at /
   worker     a remote worker leasing tasks from a server (--server http://HOST:PORT)
   submit     submit a job file to a server (--wait: progress bar until it finishes)
   status     a job's status (--wait: until it finishes)
-  results    a job's steady states as JSON or --csv
+  results    a finished job's results: a sweep's steady states (JSON or --csv), a fit's or diagnosis's document
   backup     a consistent copy of the service's job store, safe while it runs (--db F --to G)
-  paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 Run 'strokelab COMMAND --help' for a command's options.
 )";
