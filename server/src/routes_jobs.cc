@@ -71,8 +71,8 @@ void Service::Impl::AddJobRoutes() {
   On("DELETE", R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
                 const JobRecord job = RequireJob(req.matches[1]);
                 if (!store->CancelJob(job.id, NowMs()))
-                  throw HttpError{409, "already_finished", "job " + std::to_string(job.id) + " has already " +
-                                                              ToString(job.status), ""};
+                  throw HttpError{409, "already_finished", "job " + std::to_string(job.id) + " has already finished (" +
+                                                              ToString(job.status) + ")", ""};
                 {
                   std::lock_guard<std::mutex> lock(cancel_mutex);
                   auto [begin, end] = running.equal_range(job.id);

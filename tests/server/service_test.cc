@@ -171,6 +171,20 @@ TEST_F(ServiceTest, UnknownJobAndCancelOfAFinishedJob) {
   EXPECT_THAT(e["message"].get<std::string>(), HasSubstr("succeeded"));
 }
 
+// A second cancel said "job N has already cancelled": the job has finished, and how.
+TEST_F(ServiceTest, CancellingACancelledJobSaysItHasFinished) {
+  json job = kSmallSweep;
+  job["grid"]["frequency_hz"]["points"] = 400;
+  job["grid"]["amplitude_v"]["points"] = 60;
+  const std::string path = "/v1/jobs/" + std::to_string(Submit(job)["id"].get<int64_t>());
+  auto c = Client();
+  auto first = c.Delete(path, Auth(kSubmitToken));
+  ASSERT_TRUE(first && first->status == 200) << (first ? first->body : "no reply");
+  const json again = Error(c.Delete(path, Auth(kSubmitToken)), 409);
+  EXPECT_EQ(again["code"], "already_finished");
+  EXPECT_THAT(again.value("message", ""), ::testing::EndsWith("has already finished (cancelled)"));
+}
+
 TEST_F(ServiceTest, CancelStopsARunningJob) {
   json job = kSmallSweep;
   job["grid"]["frequency_hz"]["points"] = 400;
