@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "ceres_log.h"
 #include "commands.h"
 #include "service_help.h"
 #include "strokelab/base/errors.h"
@@ -184,6 +185,10 @@ int RunServe(const std::vector<std::string>& argv) {
   if (const auto parent = std::filesystem::path(options.db_path).parent_path(); !parent.empty())
     std::filesystem::create_directories(parent);
 
+  // The service's log is JSON lines: Ceres' lines, when asked for, join it as such (ceres_log.h).
+  CeresLogSettings ceres_log = CeresLogSettingsFrom(std::getenv("STROKELAB_CERES_LOG"));
+  ceres_log.json_lines = true;
+  RouteCeresLog(ceres_log);
   InstallStopSignals();
   server::Service service(options);
   const int port = service.Start();

@@ -1,9 +1,11 @@
 // strokelab: one binary for local studies and, later, the service.
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <string>
 #include <vector>
 
+#include "ceres_log.h"
 #include "commands.h"
 #include "strokelab/base/errors.h"
 
@@ -31,6 +33,9 @@ service:
   backup     a consistent copy of the service's job store, safe while it runs (--db F --to G)
 
 Run 'strokelab COMMAND --help' for a command's options.
+
+Ceres' own log lines (the fits' solver) are dropped unless STROKELAB_CERES_LOG=LEVEL[:FILE] asks for
+them: LEVEL error, warning or info (and above), on stderr or appended to FILE (serve: as JSON lines).
 )";
 
 }  // namespace
@@ -43,6 +48,7 @@ int main(int argc, char** argv) {
   const std::string command = argv[1];
   const std::vector<std::string> rest(argv + 2, argv + argc);
   try {
+    strokelab::cli::RouteCeresLog(strokelab::cli::CeresLogSettingsFrom(std::getenv("STROKELAB_CERES_LOG")));
     if (command == "simulate") return strokelab::cli::RunSimulate(rest);
     if (command == "paper") return strokelab::cli::RunPaper(rest);
     if (command == "sweep") return strokelab::cli::RunSweep(rest);
