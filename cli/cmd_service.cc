@@ -211,7 +211,8 @@ int RunServe(const std::vector<std::string>& argv) {
 }
 
 int RunWorker(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks"}, {"--help"});
+  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks", "--exit-when-idle"},
+                  {"--help"});
   if (args.Has("--help")) {
     std::cout << kWorkerHelp;
     return 0;
@@ -226,6 +227,11 @@ int RunWorker(const std::vector<std::string>& argv) {
   gethostname(hostname, sizeof hostname);
   options.name = args.GetOr("--name", std::string(hostname) + "-" + std::to_string(getpid()));
   options.max_tasks = args.Integer("--max-tasks", -1);
+  if (args.Has("--exit-when-idle")) {
+    const int seconds = args.Integer("--exit-when-idle", 0);
+    if (seconds < 0 || seconds > 7 * 24 * 3600) throw InputError("--exit-when-idle", "must be between 0 and 604800 seconds");
+    options.exit_when_idle_ms = seconds * 1000;
+  }
   InstallStopSignals();
   const int done = worker::RunRemoteWorker(options, g_stop);
   std::fprintf(stderr, "worker %s: %d tasks completed\n", options.name.c_str(), done);

@@ -2,8 +2,10 @@
 
 #include <httplib.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <cstdio>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -82,18 +84,34 @@ std::pair<std::string, int> ParseServerUrl(const std::string& url) {
   return {rest.substr(0, colon), port};
 }
 
+int IdlePollWaitMs(const RemoteWorkerOptions& options, int idle_polls) {
+  int64_t wait_ms = std::max(options.idle_poll_ms, 1);
+  for (int i = 1; i < idle_polls && wait_ms < options.idle_poll_max_ms; ++i) wait_ms *= 2;
+  return static_cast<int>(std::min<int64_t>(wait_ms, std::max(options.idle_poll_max_ms, options.idle_poll_ms)));
+}
+
 int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>& stop) {
   const auto [host, port] = ParseServerUrl(options.server_url);
   std::atomic<int> completed{0};
   std::atomic<bool> refused{false};
   std::string refusal;
+  // For --exit-when-idle: the worker is idle when no thread holds a task, since the last lease.
+  using Clock = std::chrono::steady_clock;
+  const auto since_start_ms = [start = Clock::now()] {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start).count();
+  };
+  std::atomic<int> busy_threads{0};
+  std::atomic<int64_t> last_activity_ms{0};
+  std::atomic<bool> idle_exit{false};
   auto loop = [&, host = host, port = port](int index) {
     httplib::Client client(host, port);
     client.set_connection_timeout(5);
     client.set_read_timeout(60);
+    client.set_keep_alive(true);  // idle polls reuse one connection instead of a new one each
     const httplib::Headers headers = AuthHeaders(options.token);
     const std::string name = options.name + "-" + std::to_string(index);
-    while (!stop && !refused && (options.max_tasks < 0 || completed < options.max_tasks)) {
+    int idle_polls = 0;
+    while (!stop && !refused && !idle_exit && (options.max_tasks < 0 || completed < options.max_tasks)) {
       auto lease = client.Post("/v1/tasks/lease", headers, json({{"worker", name}}).dump(), "application/json");
       if (!lease) {  // network trouble: the server may be restarting
         Pause(1000, stop);
@@ -105,13 +123,27 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         break;
       }
       if (lease->status == 204) {
-        Pause(options.idle_poll_ms, stop);
+        int wait_ms = IdlePollWaitMs(options, ++idle_polls);
+        if (options.exit_when_idle_ms >= 0) {
+          const int64_t idle_ms = since_start_ms() - last_activity_ms;
+          if (busy_threads == 0 && idle_ms >= options.exit_when_idle_ms) {
+            idle_exit = true;
+            break;
+          }
+          // Wake at the idle limit rather than up to a whole backed-off wait after it.
+          wait_ms = static_cast<int>(std::clamp<int64_t>(options.exit_when_idle_ms - idle_ms, 50, wait_ms));
+        }
+        if (wait_ms > options.keep_connection_max_wait_ms) client.stop();  // reconnects on the next request
+        Pause(wait_ms, stop);
         continue;
       }
       if (lease->status != 200) {
         Pause(1000, stop);
         continue;
       }
+      idle_polls = 0;
+      ++busy_threads;
+      last_activity_ms = since_start_ms();
       const json task = json::parse(lease->body);
       json reply = {{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}};
       std::string endpoint = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>());
@@ -139,6 +171,8 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         }
         Pause(500, stop);
       }
+      last_activity_ms = since_start_ms();
+      --busy_threads;
     }
   };
   std::vector<std::thread> threads;

@@ -14,11 +14,25 @@ struct RemoteWorkerOptions {
   std::string token;
   std::string name = "remote";      // shown in the server's lease records
   int threads = 1;                  // tasks worked on at once
-  int idle_poll_ms = 500;           // wait between leases when the queue is empty
+  // Polls of an empty queue back off: the first waits idle_poll_ms, each next one twice as long,
+  // up to idle_poll_max_ms; a leased task resets the wait. So idle workers cost the server little.
+  int idle_poll_ms = 500;
+  int idle_poll_max_ms = 10000;
+  // Polls (and completions) reuse one kept-alive connection, but before an idle wait longer than
+  // this the worker closes it: the server (cpp-httplib) holds one of its few threads for each open
+  // connection, so many idle workers keeping theirs open would starve the clients.
+  int keep_connection_max_wait_ms = 1000;
   int max_tasks = -1;               // stop after this many tasks (-1: never; for tests)
+  // Exit once every thread has found the queue empty for this long (-1: never), so that a worker
+  // under a batch scheduler (Slurm) gives its allocation back when the work is done.
+  int exit_when_idle_ms = -1;
 };
 
-// Runs until `stop` becomes true (or max_tasks are done). Returns the number of tasks completed.
+// The wait before the next poll of an empty queue, after `idle_polls` empty polls in a row (>= 1).
+int IdlePollWaitMs(const RemoteWorkerOptions& options, int idle_polls);
+
+// Runs until `stop` becomes true, max_tasks are done, or the worker has been idle for
+// exit_when_idle_ms. Returns the number of tasks completed.
 // Network errors are retried with a pause; a refused token ends the run with std::runtime_error.
 int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>& stop);
 
