@@ -96,13 +96,18 @@ static thread_local std::optional<std::chrono::steady_clock::time_point> t_reque
 void Service::Impl::SetUpRoutes() {
   http.set_payload_max_length(std::max(options.max_body_bytes, options.max_campaign_bytes));
   // Before routing: the access log's start time, and the body limit of all but campaign uploads.
-  // The access log (event_log.h): every request, routed or not, one JSON line.
+  // The access log (event_log.h): every request, routed or not, one JSON line (but empty-queue polls).
   http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     if (!options.quiet) t_request_start = std::chrono::steady_clock::now();
     return RefuseOversizeBody(req, res);
   });
   if (!options.quiet) {
     http.set_logger([](const httplib::Request& req, const httplib::Response& res) {
+      // An idle remote worker's poll of the empty queue is not worth a line (/metrics counts it).
+      if (res.status == 204 && req.path == "/v1/tasks/lease") {
+        t_request_start.reset();
+        return;
+      }
       std::optional<double> ms;
       if (t_request_start)
         ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - *t_request_start).count();
