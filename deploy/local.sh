@@ -6,6 +6,8 @@
 #                          tests, then the sanitizer stages (ASan+UBSan with the fuzz harnesses, TSan)
 #   deploy/local.sh test-release    the Release build and its tests only (the quick loop)
 #   deploy/local.sh test-slow       the Release build and the tests labelled "slow" (long diagnosis cases)
+#   deploy/local.sh test-slurm      the Release build, then the Slurm array of deploy/slurm/ on a real
+#                                   single-node Slurm started here (root; tests/slurm/run.sh)
 #   deploy/local.sh build  build only
 #   deploy/local.sh sanitize        the sanitizer stages only
 #   deploy/local.sh fuzz [SECONDS]  build the libFuzzer harnesses and run each for SECONDS (default 600)
@@ -172,6 +174,12 @@ case "${1:-}" in
     stage "slow release tests" ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$TEST_JOBS" -L slow
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
+  test-slurm)
+    install_missing
+    stage "release build" build
+    stage "slurm array" tests/slurm/run.sh "$BUILD_DIR/strokelab"
+    printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
+    ;;
   sanitize)
     install_missing
     sanitizer_stages
@@ -187,7 +195,7 @@ case "${1:-}" in
     build
     ;;
   *)
-    echo "usage: deploy/local.sh run|demo|test|test-release|test-slow|build|sanitize|fuzz [SECONDS]" >&2
+    echo "usage: deploy/local.sh run|demo|test|test-release|test-slow|test-slurm|build|sanitize|fuzz [SECONDS]" >&2
     exit 2
     ;;
 esac
