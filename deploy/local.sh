@@ -16,11 +16,11 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(build-essential cmake ninja-build ccache pkg-config libeigen3-dev libsundials-dev libceres-dev nlohmann-json3-dev
           libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy chromium
-          clang libclang-rt-14-dev util-linux tar zlib1g-dev python3-yaml)
+          clang libclang-rt-14-dev util-linux tar zlib1g-dev python3-yaml docker-compose)
 # clang (+ clang-rt, libFuzzer): the sanitizer and fuzzing builds; util-linux (prlimit) and tar: the
 # full-disk and tar-upload tests (both Essential in Debian, listed so the dependency is written down);
-# zlib: deflated members of zip campaign uploads. python3-yaml: the deploy
-# files' checks (tests/deploy).
+# zlib: deflated members of zip campaign uploads. python3-yaml and docker-compose (1.29): the deploy
+# files' checks (tests/deploy; `docker-compose config` on deploy/compose.yaml).
 
 install_missing() {
   local missing=()

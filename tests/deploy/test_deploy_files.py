@@ -1,12 +1,19 @@
 """The deploy files' properties that operators and their engines require (issue 17), checked offline:
-the Dockerfile and its build context, and the sbatch file. No engine or cluster is needed.
+the Dockerfile and its build context, the compose file for Debian 12's docker-compose 1.29, and the
+sbatch file. No engine or cluster is needed; where docker-compose is installed,
+`docker-compose config` must accept the compose file.
 
 Run from anywhere: python3 -m unittest -v test_deploy_files (STROKELAB_SOURCE_DIR: the repository,
 default two folders up)."""
 import os
 import pathlib
 import re
+import shutil
+import subprocess
+import tempfile
 import unittest
+
+import yaml
 
 
 ROOT = pathlib.Path(os.environ.get("STROKELAB_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
@@ -64,6 +71,46 @@ class DockerImage(unittest.TestCase):
                 with self.subTest(file=str(path.relative_to(ROOT))):
                     self.assertEqual(tag, version, "image tag differs from project(VERSION) in CMakeLists.txt")
         self.assertIn("CMakeLists.txt", (DEPLOY / "docker-build.sh").read_text())
+
+
+class Compose(unittest.TestCase):
+    def setUp(self):
+        self.text = (DEPLOY / "compose.yaml").read_text()
+        self.compose = yaml.safe_load(self.text)
+
+    def test_only_keys_docker_compose_1_29_takes(self):
+        # 1.29 refuses a top-level `name` ("'name' does not match any of the regexes").
+        self.assertLessEqual(set(self.compose), {"version", "services", "volumes", "secrets", "networks", "configs"})
+
+    def test_docker_compose_config_accepts_it(self):
+        compose = shutil.which("docker-compose")
+        if not compose:
+            self.skipTest("docker-compose is not installed (Debian: apt-get install docker-compose)")
+        with tempfile.TemporaryDirectory() as scratch:
+            copy = pathlib.Path(scratch) / "compose.yaml"
+            copy.write_text(self.text)
+            for secret in self.compose.get("secrets", {}).values():
+                (pathlib.Path(scratch) / secret["file"]).write_text("")
+            result = subprocess.run([compose, "-f", str(copy), "config", "-q"], capture_output=True, text=True)
+        self.assertEqual(result.returncode, 0, result.stderr)
+
+    def test_token_files_at_mode_0600_are_owned_by_the_containers_user(self):
+        # Compose without swarm mounts a secret's file with the host's owner and mode, so a 0600
+        # file must belong to the image's uid; the header says so.
+        self.assertRegex(self.text, r"chown 10001:10001 deploy/tokens deploy/worker-token")
+        self.assertIn("chmod 0600", self.text)
+
+    def test_fit_and_diagnose_jobs_have_a_worker(self):
+        command = " ".join(self.compose["services"]["server"]["command"])
+        workers = re.search(r"--workers=\$\{STROKELAB_SERVER_WORKERS:-(\d+)\}", command)
+        self.assertTrue(workers, command)
+        self.assertGreater(int(workers.group(1)), 0, "fit and diagnose jobs run on in-process workers only")
+
+    def test_workers_take_the_token_from_a_file_and_skip_the_server_healthcheck(self):
+        worker = self.compose["services"]["worker"]
+        self.assertEqual(worker.get("healthcheck"), {"disable": True})
+        self.assertNotIn("--token", " ".join(worker["command"]))
+        self.assertIn("/run/secrets/worker_token", " ".join(worker["command"]))
 
 
 class Slurm(unittest.TestCase):
