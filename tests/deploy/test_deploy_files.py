@@ -1,7 +1,7 @@
 """The deploy files' properties that operators and their engines require (issue 17), checked offline:
 the Dockerfile and its build context, the compose file for Debian 12's docker-compose 1.29, and the
-sbatch file. No engine or cluster is needed; where docker-compose is installed,
-`docker-compose config` must accept the compose file.
+Kubernetes manifests against the "restricted" Pod Security Standard, field by field. No engine or
+cluster is needed; where docker-compose is installed, `docker-compose config` must accept the file.
 
 Run from anywhere: python3 -m unittest -v test_deploy_files (STROKELAB_SOURCE_DIR: the repository,
 default two folders up)."""
@@ -14,7 +14,6 @@ import tempfile
 import unittest
 
 import yaml
-
 
 ROOT = pathlib.Path(os.environ.get("STROKELAB_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
 DEPLOY = ROOT / "deploy"
@@ -35,6 +34,15 @@ def source_folders():
         for cmake in (ROOT / folder).rglob("CMakeLists.txt"):
             folders.update(re.findall(r"\$\{PROJECT_SOURCE_DIR\}/(\w+)", cmake.read_text()))
     return folders
+
+
+def k8s_documents():
+    return [d for d in yaml.safe_load_all((DEPLOY / "kubernetes" / "strokelab.yaml").read_text()) if d]
+
+
+def pod_templates():
+    return {d["metadata"]["name"]: d["spec"]["template"]["spec"] for d in k8s_documents()
+            if d["kind"] in ("Deployment", "StatefulSet", "DaemonSet", "Job")}
 
 
 class DockerImage(unittest.TestCase):
@@ -111,6 +119,66 @@ class Compose(unittest.TestCase):
         self.assertEqual(worker.get("healthcheck"), {"disable": True})
         self.assertNotIn("--token", " ".join(worker["command"]))
         self.assertIn("/run/secrets/worker_token", " ".join(worker["command"]))
+
+
+class Kubernetes(unittest.TestCase):
+    def test_no_secret_with_tokens_is_shipped(self):
+        text = (DEPLOY / "kubernetes" / "strokelab.yaml").read_text()
+        self.assertNotIn("CHANGE-ME", text)
+        self.assertEqual([d["metadata"]["name"] for d in k8s_documents() if d["kind"] == "Secret"], [])
+        self.assertIn("kubectl create secret generic strokelab-tokens", text, "the header says how to create it")
+
+    def test_restricted_pod_security_standard(self):
+        templates = pod_templates()
+        self.assertEqual(set(templates), {"strokelab", "strokelab-worker"})
+        for name, pod in templates.items():
+            pod_context = pod.get("securityContext", {})
+            for container in pod["containers"] + pod.get("initContainers", []):
+                context = container.get("securityContext", {})
+                with self.subTest(pod=name, container=container["name"]):
+                    self.assertTrue(context.get("runAsNonRoot", pod_context.get("runAsNonRoot")), "runAsNonRoot")
+                    self.assertNotEqual(context.get("runAsUser", pod_context.get("runAsUser")), 0)
+                    self.assertIs(context.get("allowPrivilegeEscalation"), False, "allowPrivilegeEscalation")
+                    self.assertIn("ALL", context.get("capabilities", {}).get("drop", []), "capabilities drop ALL")
+                    self.assertEqual(context.get("capabilities", {}).get("add", []), [])
+                    self.assertNotIn(context.get("privileged"), (True,))
+                    seccomp = context.get("seccompProfile", pod_context.get("seccompProfile", {}))
+                    self.assertIn(seccomp.get("type"), ("RuntimeDefault", "Localhost"), "seccompProfile")
+
+    def test_worker_token_is_not_on_the_command_line(self):
+        worker = pod_templates()["strokelab-worker"]["containers"][0]
+        arguments = " ".join(worker.get("command", []) + worker.get("args", []))
+        self.assertNotIn("--token", arguments)
+        self.assertNotIn("$(", arguments)
+        env = {e["name"]: e for e in worker.get("env", [])}
+        self.assertEqual(env["STROKELAB_TOKEN"]["valueFrom"]["secretKeyRef"],
+                         {"name": "strokelab-tokens", "key": "worker-token"})
+
+    def test_server_has_a_startup_probe_on_health(self):
+        server = pod_templates()["strokelab"]["containers"][0]
+        self.assertEqual(server["startupProbe"]["httpGet"]["path"], "/v1/health")
+        self.assertIn("livenessProbe", server)
+
+    def test_token_volume_is_readable_by_the_group_only(self):
+        pod = pod_templates()["strokelab"]
+        secret = next(v["secret"] for v in pod["volumes"] if "secret" in v)
+        self.assertEqual(secret.get("defaultMode"), 0o440)
+        self.assertEqual(pod["securityContext"]["fsGroup"], 10001)
+
+    def test_volume_warns_that_wal_needs_a_local_filesystem(self):
+        text = (DEPLOY / "kubernetes" / "strokelab.yaml").read_text()
+        pvc = next(part for part in text.split("\n---\n") if "kind: PersistentVolumeClaim" in part)
+        self.assertRegex(pvc, r"WAL[\s\S]*NFS")
+        self.assertTrue(re.search(r"WAL[^\n]*\n?[^\n]*NFS", (ROOT / "README.md").read_text()),
+                        "README.md does not say that WAL needs a local file system (no NFS)")
+
+    def test_metrics_scrape_sends_a_token(self):
+        scrape = yaml.safe_load((DEPLOY / "kubernetes" / "prometheus-scrape.yaml").read_text())
+        job = next(j for j in scrape["scrape_configs"] if j["job_name"] == "strokelab")
+        self.assertEqual(job["metrics_path"], "/metrics")
+        self.assertEqual(job["authorization"]["type"], "Bearer")
+        self.assertTrue(job["authorization"].get("credentials_file") or job["authorization"].get("credentials"))
+        self.assertTrue(job["static_configs"][0]["targets"][0].startswith("strokelab."))
 
 
 class Slurm(unittest.TestCase):
