@@ -41,8 +41,14 @@ def k8s_documents():
 
 
 def pod_templates():
-    return {d["metadata"]["name"]: d["spec"]["template"]["spec"] for d in k8s_documents()
-            if d["kind"] in ("Deployment", "StatefulSet", "DaemonSet", "Job")}
+    """Every pod the manifest makes, by its workload's name (a CronJob's pods through its jobTemplate)."""
+    pods = {}
+    for d in k8s_documents():
+        if d["kind"] in ("Deployment", "StatefulSet", "DaemonSet", "Job"):
+            pods[d["metadata"]["name"]] = d["spec"]["template"]["spec"]
+        elif d["kind"] == "CronJob":
+            pods[d["metadata"]["name"]] = d["spec"]["jobTemplate"]["spec"]["template"]["spec"]
+    return pods
 
 
 class DockerImage(unittest.TestCase):
@@ -130,7 +136,7 @@ class Kubernetes(unittest.TestCase):
 
     def test_restricted_pod_security_standard(self):
         templates = pod_templates()
-        self.assertEqual(set(templates), {"strokelab", "strokelab-worker"})
+        self.assertEqual(set(templates), {"strokelab", "strokelab-worker", "strokelab-backup"})
         for name, pod in templates.items():
             pod_context = pod.get("securityContext", {})
             for container in pod["containers"] + pod.get("initContainers", []):
@@ -171,6 +177,19 @@ class Kubernetes(unittest.TestCase):
         self.assertRegex(pvc, r"WAL[\s\S]*NFS")
         self.assertTrue(re.search(r"WAL[^\n]*\n?[^\n]*NFS", (ROOT / "README.md").read_text()),
                         "README.md does not say that WAL needs a local file system (no NFS)")
+
+    def test_backup_cron_job_copies_the_store_beside_the_server(self):
+        cron = next(d for d in k8s_documents() if d["kind"] == "CronJob")
+        pod = pod_templates()[cron["metadata"]["name"]]
+        command = " ".join(pod["containers"][0]["command"] + pod["containers"][0]["args"])
+        self.assertRegex(command, r"strokelab backup --db /var/lib/strokelab/strokelab\.db\s+--to /backups/")
+        claims = {v["persistentVolumeClaim"]["claimName"] for v in pod["volumes"] if "persistentVolumeClaim" in v}
+        self.assertEqual(claims, {"strokelab-data", "strokelab-backups"})
+        # The data volume is ReadWriteOnce: the job must land on the server's node.
+        term = pod["affinity"]["podAffinity"]["requiredDuringSchedulingIgnoredDuringExecution"][0]
+        self.assertEqual(term["labelSelector"]["matchLabels"]["app.kubernetes.io/component"], "server")
+        self.assertEqual(term["topologyKey"], "kubernetes.io/hostname")
+        self.assertEqual(cron["spec"]["concurrencyPolicy"], "Forbid")
 
     def test_metrics_scrape_sends_a_token(self):
         scrape = yaml.safe_load((DEPLOY / "kubernetes" / "prometheus-scrape.yaml").read_text())
