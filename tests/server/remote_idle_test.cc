@@ -32,6 +32,12 @@ class EmptyQueueStub {
     thread_ = std::thread([this] { http_.listen_after_bind(); });
     // Listening since the bind; waiting for the loop lets the destructor's stop() end it.
     while (!http_.is_running()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    // Debian's cpp-httplib is a shared library that ThreadSanitizer does not instrument, and it
+    // parses responses with function-local static std::regex objects: TSan cannot see the guard of
+    // their first initialisation, so two worker threads making the first requests of the process
+    // were reported as a race. One request from this thread initialises them before those threads
+    // exist (a path the stub does not record).
+    httplib::Client("127.0.0.1", port_).Get("/warm-up");
   }
   ~EmptyQueueStub() {
     http_.stop();
