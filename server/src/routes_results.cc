@@ -91,7 +91,9 @@ void Service::Impl::AddResultRoutes() {
              const int64_t cursor = req.has_param("cursor") ? QueryInteger(req, "cursor") : 0;
              const Store::Page page = store->Results(job.id, "points", filter, cursor, limit);
              if (req.get_header_value("Accept").find("text/csv") != std::string::npos) {
-               res.set_header("X-Next-Cursor", std::to_string(page.next_cursor));
+               // No header on the last page: a client that follows the header stops there (a
+               // cursor of 0 would start again from the first row).
+               if (page.next_cursor != 0) res.set_header("X-Next-Cursor", std::to_string(page.next_cursor));
                res.set_content(PointsCsv(page.rows, job.id), "text/csv");
                return;
              }

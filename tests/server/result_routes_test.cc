@@ -1,0 +1,115 @@
+// A finished sweep's result routes as a client reads them: CSV pages that end, whole tables in one
+// request (`?format=csv`), CSV of thresholds and jumps, the job's spec and grid, off-grid queries.
+#include "strokelab/server/service.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+
+namespace strokelab::server {
+namespace {
+
+using ::testing::HasSubstr;
+using nlohmann::json;
+
+// 60 x 11 grid points with thresholds: over 1,000 point rows (up, down and unstable), so that the
+// default page size of 1,000 would cut the table.
+const json kResultRoutesSweep = {{"kind", "sweep"},
+                                 {"model", "paper"},
+                                 {"thresholds", true},
+                                 {"grid",
+                                  {{"frequency_hz", {{"from", 6}, {"to", 18}, {"points", 60}}},
+                                   {"amplitude_v", {{"from", 0.1}, {"to", 0.6}, {"points", 11}}}}}};
+
+// One service and one finished sweep for the whole suite (the routes only read).
+class ResultRoutesTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::filesystem::path(std::filesystem::path(::testing::TempDir()) /
+                                     ("result_routes_test_" + std::to_string(::getpid())));
+    std::filesystem::remove_all(*dir_);
+    std::filesystem::create_directories(*dir_);
+    ServiceOptions options;
+    options.port = 0;
+    options.db_path = (*dir_ / "jobs.db").string();
+    options.workers = 1;
+    options.quiet = true;
+    service_ = new Service(options);
+    port_ = service_->Start();
+    httplib::Client c("127.0.0.1", port_);
+    auto r = c.Post("/v1/jobs", kResultRoutesSweep.dump(), "application/json");
+    ASSERT_TRUE(r && r->status == 201) << (r ? r->body : "no reply");
+    job_ = json::parse(r->body)["id"];
+    for (int i = 0; i < 1200; ++i) {  // a bound on the wait, not a timed assertion
+      const json job = json::parse(c.Get("/v1/jobs/" + std::to_string(job_))->body);
+      if (job["status"] != "queued" && job["status"] != "running") {
+        ASSERT_EQ(job["status"], "succeeded") << job.dump();
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    FAIL() << "the sweep did not finish";
+  }
+  static void TearDownTestSuite() {
+    service_->Stop();
+    delete service_;
+    std::filesystem::remove_all(*dir_);
+    delete dir_;
+  }
+
+  static httplib::Client Client() { return httplib::Client("127.0.0.1", port_); }
+  static std::string JobPath(const std::string& tail) { return "/v1/jobs/" + std::to_string(job_) + tail; }
+  // Every row of the points table, by the JSON pages.
+  static size_t PointRowCount() {
+    auto c = Client();
+    size_t rows = 0;
+    std::string cursor = "0";
+    for (int page = 0; page < 100; ++page) {
+      const json body = json::parse(c.Get(JobPath("/points?limit=10000&cursor=" + cursor))->body);
+      rows += body["points"].size();
+      if (body["next_cursor"].is_null()) return rows;
+      cursor = std::to_string(body["next_cursor"].get<int64_t>());
+    }
+    ADD_FAILURE() << "the JSON pages do not end";
+    return rows;
+  }
+
+  static inline std::filesystem::path* dir_ = nullptr;
+  static inline Service* service_ = nullptr;
+  static inline int port_ = 0;
+  static inline int64_t job_ = 0;
+};
+
+size_t LineCount(const std::string& text) { return static_cast<size_t>(std::count(text.begin(), text.end(), '\n')); }
+
+// A client that follows X-Next-Cursor reads the table once and stops: the last page carries no
+// cursor (a cursor of 0 would start again from the first row, forever).
+TEST_F(ResultRoutesTest, CsvPagesFollowedByTheirCursorReadTheTableOnce) {
+  const size_t total = PointRowCount();
+  ASSERT_GT(total, 1000u);
+  auto c = Client();
+  size_t rows = 0;
+  std::string cursor = "0";
+  int pages = 0;
+  for (; pages < 20; ++pages) {
+    auto r = c.Get(JobPath("/points?limit=400&cursor=" + cursor), {{"Accept", "text/csv"}});
+    ASSERT_TRUE(r && r->status == 200);
+    rows += LineCount(r->body) - 1;  // less the header
+    if (!r->has_header("X-Next-Cursor")) break;
+    cursor = r->get_header_value("X-Next-Cursor");
+    ASSERT_NE(cursor, "0") << "a cursor back to the first page after " << rows << " rows";
+  }
+  EXPECT_LT(pages, 20);
+  EXPECT_EQ(rows, total);
+}
+
+}  // namespace
+}  // namespace strokelab::server
