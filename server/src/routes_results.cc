@@ -1,9 +1,10 @@
-// The result routes of finished jobs: a sweep's points (JSON or CSV), saturation map and FRFs (JSON
-// or SVG); a fit's or diagnosis's result document and HTML report.
+// The result routes of finished jobs: a sweep's points, thresholds and jumps (JSON or CSV), saturation
+// map and FRFs (JSON or SVG); a fit's or diagnosis's result document and HTML report.
 #include "service_impl.h"
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include "http_reply.h"
 #include "request_params.h"
@@ -41,7 +42,65 @@ std::string PointsCsv(const std::vector<json>& rows, int64_t job_id) {
   return out;
 }
 
+// Stored rows of a small table (thresholds: one per frequency; jumps: a few per amplitude) as CSV,
+// thresholds in order of frequency as the saturation map lists them.
+template <class Row>
+std::string TableCsv(const std::vector<json>& rows, int64_t job_id, const char* table) {
+  std::string out = report::CsvHeader<Row>();
+  for (const json& row : rows) out += report::CsvLine(StoredRow<Row>(row, job_id, table));
+  return out;
+}
+
+// Points per chunk of a streamed CSV body.
+constexpr int kCsvRowsPerChunk = 2000;
+
+// Every point row that passes `filter`, as one CSV body written a page of the store at a time as
+// the client reads it, so that a whole sweep never sits in memory as text. The headers are sent by
+// then: a row that does not read cuts the body short (the client sees a broken transfer).
+void StreamPointsCsv(Store& store, int64_t job_id, const Store::Filter& filter, httplib::Response& res) {
+  struct Position {
+    int64_t cursor = 0;
+    bool header_sent = false;
+  };
+  auto at = std::make_shared<Position>();
+  res.set_chunked_content_provider("text/csv", [&store, job_id, filter, at](size_t, httplib::DataSink& sink) {
+    try {
+      std::string text = at->header_sent ? std::string() : report::CsvHeader<SweepPoint>();
+      at->header_sent = true;
+      const Store::Page page = store.Results(job_id, "points", filter, at->cursor, kCsvRowsPerChunk);
+      for (const json& row : page.rows) text += report::CsvLine(StoredRow<SweepPoint>(row, job_id, "points"));
+      if (!sink.write(text.data(), text.size())) return false;
+      if (page.next_cursor == 0) sink.done();
+      at->cursor = page.next_cursor;
+      return true;
+    } catch (const std::exception&) {
+      return false;
+    }
+  });
+}
+
+// The filters of /points and /frf that are query parameters.
+Store::Filter PointFilter(const httplib::Request& req) {
+  Store::Filter filter;
+  if (req.has_param("frequency_min_hz")) filter.frequency_min_hz = QueryNumber(req, "frequency_min_hz");
+  if (req.has_param("frequency_max_hz")) filter.frequency_max_hz = QueryNumber(req, "frequency_max_hz");
+  if (req.has_param("amplitude_v")) filter.amplitude_v = QueryNumber(req, "amplitude_v");
+  if (req.has_param("branch")) {
+    const std::string b = req.get_param_value("branch");
+    if (b != "up" && b != "down" && b != "unstable")
+      throw HttpError{400, "bad_query", "must be up, down or unstable", "branch"};
+    filter.branch = b;
+  }
+  return filter;
+}
+
 }  // namespace
+
+std::vector<json> Service::Impl::ThresholdRows(const JobRecord& job) {
+  std::vector<json> rows = store->Results(job.id, "thresholds", {}, 0, 1000000).rows;
+  std::sort(rows.begin(), rows.end(), [](const json& a, const json& b) { return a["frequency_hz"] < b["frequency_hz"]; });
+  return rows;
+}
 
 SweepResult Service::Impl::SweepResultOf(const JobRecord& job) {
   SweepResult r;
@@ -77,20 +136,17 @@ std::vector<json> Service::Impl::CampaignJobRows(const JobRecord& job, const std
 void Service::Impl::AddResultRoutes() {
   On("GET", R"(/v1/jobs/(\d+)/points)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
-             Store::Filter filter;
-             if (req.has_param("frequency_min_hz")) filter.frequency_min_hz = QueryNumber(req, "frequency_min_hz");
-             if (req.has_param("frequency_max_hz")) filter.frequency_max_hz = QueryNumber(req, "frequency_max_hz");
-             if (req.has_param("amplitude_v")) filter.amplitude_v = QueryNumber(req, "amplitude_v");
-             if (req.has_param("branch")) {
-               const std::string b = req.get_param_value("branch");
-               if (b != "up" && b != "down" && b != "unstable")
-                 throw HttpError{400, "bad_query", "must be up, down or unstable", "branch"};
-               filter.branch = b;
+             const Store::Filter filter = PointFilter(req);
+             const bool csv = WantsCsv(req);
+             // CSV without limit or cursor: the whole table in one body (pandas.read_csv(url)).
+             if (csv && !req.has_param("limit") && !req.has_param("cursor")) {
+               StreamPointsCsv(*store, job.id, filter, res);
+               return;
              }
              const int limit = QueryLimit(req, 1000, 10000);
              const int64_t cursor = req.has_param("cursor") ? QueryInteger(req, "cursor") : 0;
              const Store::Page page = store->Results(job.id, "points", filter, cursor, limit);
-             if (req.get_header_value("Accept").find("text/csv") != std::string::npos) {
+             if (csv) {
                // No header on the last page: a client that follows the header stops there (a
                // cursor of 0 would start again from the first row).
                if (page.next_cursor != 0) res.set_header("X-Next-Cursor", std::to_string(page.next_cursor));
@@ -100,6 +156,22 @@ void Service::Impl::AddResultRoutes() {
              SendJson(res, {{"points", page.rows},
                             {"next_cursor", page.next_cursor ? json(page.next_cursor) : json(nullptr)}});
            }));
+  // The saturation thresholds and jump intervals as tables of their own (JSON or CSV).
+  On("GET", R"(/v1/jobs/(\d+)/(thresholds|jumps))",
+     Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+       const JobRecord job = RequireJob(req.matches[1]);
+       if (job.kind != "sweep") throw HttpError{400, "not_a_sweep", "only sweep jobs have these tables", ""};
+       const bool thresholds = req.matches[2] == "thresholds";
+       const std::vector<json> rows =
+           thresholds ? ThresholdRows(job) : store->Results(job.id, "jumps", {}, 0, 1000000).rows;
+       if (WantsCsv(req)) {
+         res.set_content(thresholds ? TableCsv<SaturationThreshold>(rows, job.id, "thresholds")
+                                    : TableCsv<JumpInterval>(rows, job.id, "jumps"),
+                         "text/csv");
+         return;
+       }
+       SendJson(res, {{thresholds ? "saturation_threshold" : "jump", rows}});
+     }));
   On("GET", R"(/v1/jobs/(\d+)/saturation-map)",
            Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
@@ -108,11 +180,8 @@ void Service::Impl::AddResultRoutes() {
                res.set_content(report::SaturationMapSvg(SweepResultOf(job), Branch::kUp), "image/svg+xml");
                return;
              }
-             json thresholds = store->Results(job.id, "thresholds", {}, 0, 1000000).rows;
-             std::sort(thresholds.begin(), thresholds.end(),
-                       [](const json& a, const json& b) { return a["frequency_hz"] < b["frequency_hz"]; });
              SendJson(res, {{"job", JobJson(job)},
-                            {"saturation_threshold", thresholds},
+                            {"saturation_threshold", ThresholdRows(job)},
                             {"jump", store->Results(job.id, "jumps", {}, 0, 1000000).rows}});
            }));
   On("GET", R"(/v1/jobs/(\d+)/frf)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {

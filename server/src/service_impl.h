@@ -85,6 +85,9 @@ struct Service::Impl {
   // The job of a path's id (404 when there is none).
   JobRecord RequireJob(const std::string& id_text);
 
+  // A sweep job's stored saturation thresholds, in order of frequency.
+  std::vector<nlohmann::json> ThresholdRows(const JobRecord& job);
+
   // The stored results of a sweep job as a SweepResult (for the pictures).
   SweepResult SweepResultOf(const JobRecord& job);
 

@@ -111,5 +111,49 @@ TEST_F(ResultRoutesTest, CsvPagesFollowedByTheirCursorReadTheTableOnce) {
   EXPECT_EQ(rows, total);
 }
 
+// pandas.read_csv(url): ?format=csv (or Accept: text/csv) without limit or cursor is the whole
+// table in one body, past the 1,000 rows of a page; with filters, the rows that pass them.
+TEST_F(ResultRoutesTest, FormatCsvIsTheWholeTableInOneBody) {
+  const size_t total = PointRowCount();
+  auto c = Client();
+  auto by_query = c.Get(JobPath("/points?format=csv"));
+  ASSERT_TRUE(by_query && by_query->status == 200);
+  EXPECT_THAT(by_query->get_header_value("Content-Type"), HasSubstr("text/csv"));
+  EXPECT_FALSE(by_query->has_header("X-Next-Cursor"));
+  EXPECT_EQ(LineCount(by_query->body), total + 1);
+  EXPECT_EQ(by_query->body.substr(0, by_query->body.find('\n')).substr(0, 25), "frequency_hz,amplitude_v,");
+  auto by_accept = c.Get(JobPath("/points"), {{"Accept", "text/csv"}});
+  ASSERT_TRUE(by_accept && by_accept->status == 200);
+  EXPECT_EQ(by_accept->body, by_query->body);
+  auto up = c.Get(JobPath("/points?format=csv&branch=up&amplitude_v=0.35"));
+  ASSERT_TRUE(up && up->status == 200);
+  EXPECT_EQ(LineCount(up->body), 61u);  // header + 60 frequencies
+  // ?format=json wins over the Accept header; another format names the parameter.
+  auto json_page = c.Get(JobPath("/points?format=json&limit=5"), {{"Accept", "text/csv"}});
+  EXPECT_EQ(json::parse(json_page->body)["points"].size(), 5u);
+  auto bad = c.Get(JobPath("/points?format=xml"));
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_EQ(json::parse(bad->body)["error"]["field"], "format");
+}
+
+// The saturation thresholds and the jump intervals load as tables of their own, in CSV or JSON.
+TEST_F(ResultRoutesTest, ThresholdsAndJumpsAreTablesInCsvAndJson) {
+  auto c = Client();
+  const json map = json::parse(c.Get(JobPath("/saturation-map"))->body);
+  auto thresholds = c.Get(JobPath("/thresholds?format=csv"));
+  ASSERT_TRUE(thresholds && thresholds->status == 200) << thresholds->body;
+  EXPECT_THAT(thresholds->get_header_value("Content-Type"), HasSubstr("text/csv"));
+  EXPECT_EQ(LineCount(thresholds->body), 61u);
+  EXPECT_EQ(thresholds->body.substr(0, thresholds->body.find('\n')),
+            "frequency_hz,grazing_amplitude_v,lowest_contact_amplitude_v");
+  auto jumps = c.Get(JobPath("/jumps"), {{"Accept", "text/csv"}});
+  ASSERT_TRUE(jumps && jumps->status == 200);
+  ASSERT_FALSE(map["jump"].empty());
+  EXPECT_EQ(LineCount(jumps->body), map["jump"].size() + 1);
+  EXPECT_THAT(jumps->body, HasSubstr("amplitude_v,bistable_from_hz,bistable_to_hz,from_kind,to_kind\n"));
+  EXPECT_EQ(json::parse(c.Get(JobPath("/thresholds"))->body)["saturation_threshold"], map["saturation_threshold"]);
+  EXPECT_EQ(json::parse(c.Get(JobPath("/jumps?format=json"))->body)["jump"], map["jump"]);
+}
+
 }  // namespace
 }  // namespace strokelab::server
