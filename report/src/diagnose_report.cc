@@ -271,7 +271,8 @@ std::string RecordsSection(const Diagnosis& d) {
                 "chi2 chosen", "model period base / chosen"},
                rows) +
          "</details>\n<p class=\"meta\">Tables: <a href=\"records.csv\">records.csv</a>, "
-         "<a href=\"candidates.csv\">candidates.csv</a>, <a href=\"levels.csv\">levels.csv</a>; the diagnosed model: "
+         "<a href=\"candidates.csv\">candidates.csv</a>, <a href=\"candidate_parameters.csv\">candidate_parameters.csv</a>, "
+         "<a href=\"levels.csv\">levels.csv</a>; the diagnosed model: "
          "<a href=\"model.json\">model.json</a>.</p>\n";
 }
 

@@ -259,9 +259,17 @@ TEST(DiagnoseReportTest, NamedEffectTables) {
   EXPECT_THAT(records[8], ::testing::StartsWith("rec<&>7,32,0.3,1,1,0.0255,"));
   const auto candidates = Lines(ReadFile(dir / "candidates.csv"));
   ASSERT_EQ(candidates.size(), 4u);
-  EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,"
-                                                   "k3=2345600;se=120000;N/m^3,3,12.5,"));
-  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,,0,0,skipped: <1 s of the budget left");
+  // One value per cell: the effect parameters are a table of their own, one row per parameter.
+  EXPECT_EQ(candidates[0],
+            "label,chosen,fitted,converged,heldout_gain,fit_gain,nrmse,heldout_nrmse,chi2,heldout_chi2,"
+            "residual_variance,passes,wall_time_s,note");
+  EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,3,12.5,"));
+  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,0,0,skipped: <1 s of the budget left");
+  const auto parameters = Lines(ReadFile(dir / "candidate_parameters.csv"));
+  ASSERT_EQ(parameters.size(), 3u);
+  EXPECT_EQ(parameters[0], "candidate,parameter,value,standard_error,unit");
+  EXPECT_EQ(parameters[1], "cubic_stiffness,k3,2345600,120000,N/m^3");
+  EXPECT_EQ(parameters[2], "quadratic_stiffness,k2,150,400,N/m^2");
   const auto levels = Lines(ReadFile(dir / "levels.csv"));
   ASSERT_EQ(levels.size(), 4u);
   EXPECT_EQ(levels[1], "0.1,5,31.2,0.3,0.002,0.003,");
