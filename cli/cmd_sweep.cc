@@ -54,7 +54,7 @@ amplitude with a stable contacting response), per amplitude the jump (bistable) 
 Without --json or --out a short summary is printed. --json and --out exclude each other.
 
 --json: {points: [{frequency_hz, amplitude_v, branch (up|down|unstable), stable, period (drive
-periods, or "aperiodic"), first_harmonic_force_n, first_harmonic_phase_rad, h_re, h_im,
+periods, or "aperiodic"), first_harmonic_force_n, first_harmonic_phase_rad, h_re_n_per_v, h_im_n_per_v,
 min_displacement_m, max_displacement_m, peak_force_n, contacts_per_period, max_multiplier}],
 saturation_threshold: [{frequency_hz, grazing_amplitude_v, lowest_contact_amplitude_v}],
 jump: [{amplitude_v, bistable_from_hz, bistable_to_hz, from_kind, to_kind}],

@@ -168,7 +168,7 @@ class Client:
 
     def frf(self, job_id: int, amplitude_v: float) -> Dict[str, Any]:
         """FRF branches at one of the job's amplitudes: {"amplitude_v", "branches": {"up": [...],
-        "down": [...], "unstable": [...]}}, each entry {frequency_hz, h_re, h_im, magnitude_n_per_v}."""
+        "down": [...], "unstable": [...]}}, each entry {frequency_hz, h_re_n_per_v, h_im_n_per_v, magnitude_n_per_v}."""
         return self.request("GET", f"/v1/jobs/{int(job_id)}/frf", query={"amplitude_v": repr(float(amplitude_v))})
 
     def frf_svg(self, job_id: int, branch: str = "up") -> str:

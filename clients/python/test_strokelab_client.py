@@ -136,7 +136,7 @@ class SweepEndToEnd(unittest.TestCase):
         self.assertEqual(len(up), 20 * 4)
         for p in whole:
             self.assertIn(p["branch"], ("up", "down", "unstable"))
-            for key in ("h_re", "h_im", "peak_force_n", "min_displacement_m", "max_displacement_m"):
+            for key in ("h_re_n_per_v", "h_im_n_per_v", "peak_force_n", "min_displacement_m", "max_displacement_m"):
                 self.assertIn(key, p)
 
     def test_points_filters(self):
@@ -194,7 +194,7 @@ class SweepEndToEnd(unittest.TestCase):
         up = frf["branches"]["up"]
         self.assertEqual(len(up), 20)
         for p in up:
-            self.assertAlmostEqual(p["magnitude_n_per_v"], (p["h_re"] ** 2 + p["h_im"] ** 2) ** 0.5, places=12)
+            self.assertAlmostEqual(p["magnitude_n_per_v"], (p["h_re_n_per_v"] ** 2 + p["h_im_n_per_v"] ** 2) ** 0.5, places=12)
         self.assertIn("<svg", self.client.frf_svg(self.job_id, branch="down"))
 
     def test_cancel_of_a_finished_job_is_409(self):

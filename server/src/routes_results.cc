@@ -202,8 +202,8 @@ void Service::Impl::AddResultRoutes() {
              for (const json& row : store->Results(job.id, "points", filter, 0, 1000000).rows) {
                const SweepPoint p = StoredRow<SweepPoint>(row, job.id, "points");
                branches[ToString(p.branch)].push_back({{"frequency_hz", JsonNumber(p.frequency_hz)},
-                                                       {"h_re", JsonNumber(p.h.real())},
-                                                       {"h_im", JsonNumber(p.h.imag())},
+                                                       {"h_re_n_per_v", JsonNumber(p.h.real())},
+                                                       {"h_im_n_per_v", JsonNumber(p.h.imag())},
                                                        {"magnitude_n_per_v", JsonNumber(std::abs(p.h))}});
              }
              SendJson(res, {{"amplitude_v", *filter.amplitude_v}, {"branches", branches}});

@@ -93,7 +93,7 @@ TEST(SweepOutputTest, JsonHasThePromisedKeys) {
   ASSERT_EQ(j["points"].size(), r.points.size());
   for (const auto& p : j["points"]) {
     for (const char* key : {"frequency_hz", "amplitude_v", "branch", "stable", "period", "first_harmonic_force_n",
-                            "first_harmonic_phase_rad", "h_re", "h_im", "min_displacement_m", "max_displacement_m",
+                            "first_harmonic_phase_rad", "h_re_n_per_v", "h_im_n_per_v", "min_displacement_m", "max_displacement_m",
                             "peak_force_n", "contacts_per_period", "max_multiplier"})
       EXPECT_TRUE(p.contains(key)) << key << " in " << p.dump();
   }
@@ -102,8 +102,8 @@ TEST(SweepOutputTest, JsonHasThePromisedKeys) {
   EXPECT_EQ(j["points"][1]["period"], 2);
   EXPECT_EQ(j["points"][2]["period"], "aperiodic");
   EXPECT_TRUE(j["points"][3]["max_multiplier"].is_null());
-  EXPECT_DOUBLE_EQ(j["points"][0]["h_re"].get<double>(), r.points[0].h.real());
-  EXPECT_DOUBLE_EQ(j["points"][0]["h_im"].get<double>(), r.points[0].h.imag());
+  EXPECT_DOUBLE_EQ(j["points"][0]["h_re_n_per_v"].get<double>(), r.points[0].h.real());
+  EXPECT_DOUBLE_EQ(j["points"][0]["h_im_n_per_v"].get<double>(), r.points[0].h.imag());
   size_t down = 0, unstable = 0;
   for (const auto& p : j["points"]) {
     down += p["branch"] == "down";
@@ -148,7 +148,7 @@ TEST(SweepOutputTest, FolderHasTablesPicturesAndSummary) {
   const auto points = Lines(ReadFile(dir / "nested/points.csv"));
   ASSERT_EQ(points.size(), r.points.size() + 1);
   EXPECT_EQ(points[0],
-            "frequency_hz,amplitude_v,branch,stable,period,first_harmonic_force_n,first_harmonic_phase_rad,h_re,h_im,"
+            "frequency_hz,amplitude_v,branch,stable,period,first_harmonic_force_n,first_harmonic_phase_rad,h_re_n_per_v,h_im_n_per_v,"
             "min_displacement_m,max_displacement_m,peak_force_n,contacts_per_period,max_multiplier");
   const auto aperiodic = Cells(points[3]);
   ASSERT_EQ(aperiodic.size(), 14u) << points[3];
