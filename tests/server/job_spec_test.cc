@@ -388,6 +388,25 @@ TEST(SweepSpecFromJobTest, ConvertsGridModelAndThresholds) {
   EXPECT_FALSE(linear.model.HasLowerStop());
 }
 
+// A linear axis between decimal end points has the decimals in between as its values, not their
+// rounded neighbours: 0.1 .. 0.6 V in 26 points is 0.1, 0.12, ..., 0.3 (not 0.30000000000000004, as
+// 0.1 + 0.2 is), so that they print and are queried as the axis defines them.
+TEST(SweepSpecFromJobTest, LinearAxisValuesAreTheDecimalsTheAxisDefines) {
+  json job = BaseSweep();
+  job["grid"]["amplitude_v"] = {{"from", 0.1}, {"to", 0.6}, {"points", 26}};
+  const std::vector<double> values = SweepSpecFromJob(job).amplitude_v.Values();
+  ASSERT_EQ(values.size(), 26u);
+  for (int i = 0; i < 26; ++i) {
+    char decimal[16];
+    std::snprintf(decimal, sizeof decimal, "%.2f", 0.1 + 0.02 * i);
+    EXPECT_EQ(values[i], std::stod(decimal)) << i;
+    EXPECT_LE(json(values[i]).dump().size(), 4u) << json(values[i]).dump();
+  }
+  // Values that are no short decimal keep the nearest double: 0.5 .. 1.5 in 4 points.
+  job["grid"]["amplitude_v"] = {{"from", 0.5}, {"to", 1.5}, {"points", 4}};
+  EXPECT_EQ(SweepSpecFromJob(job).amplitude_v.Values()[1], 0.5 + 1.0 / 3.0);
+}
+
 TEST(SweepSpecFromJobTest, Eq1IsThePapersGrid) {
   // paper Eq. 1: w(n) = 10 pi 1.02^(n-1) rad/s; "from" defaults to 5 Hz.
   const SweepSpec spec = SweepSpecFromJob(BaseEq1Sweep());
