@@ -225,10 +225,10 @@ std::string EvidenceSection(const Diagnosis& d) {
   std::string rows;
   for (const Signatures::Hotspot& h : s.hotspots) {
     rows += "<tr>" + Td(h.record) + NumTd(h.frequency_hz) + NumTd(h.amplitude_v) + Td(std::to_string(h.harmonic), "num") +
-            NumTd(100 * h.magnitude_error, 3) + NumTd(h.phase_error_rad * 180 / std::numbers::pi, 3) + NumTd(h.chi2_per_residual, 3) +
+            NumTd(100 * h.magnitude_error, 3) + NumTd(h.phase_error_rad, 3) + NumTd(h.chi2_per_residual, 3) +
             "</tr>\n";
   }
-  return out + Table({"record", "f [Hz]", "V [V]", "harmonic", "magnitude error [%]", "phase error [deg]",
+  return out + Table({"record", "f [Hz]", "V [V]", "harmonic", "magnitude error [%]", "phase error [rad]",
                       "chi2 per residual"},
                      rows);
 }

@@ -87,22 +87,22 @@ bool AnyFinite(const std::vector<plot::Series>& series) {
   return false;
 }
 
-// Degrees on (-180, 180].
-double WrappedDeg(std::complex<double> c) { return std::abs(c) > 0 ? std::arg(c) * 180.0 / std::numbers::pi : NAN; }
+// The phase in rad on (-pi, pi] (rad: the unit of every phase strokelab writes).
+double WrappedRad(std::complex<double> c) { return std::abs(c) > 0 ? std::arg(c) : NAN; }
 
-// Phases of c[0..n) in degrees on (-180, 180] against h = 1..n; the line breaks where the wrapped
-// phase jumps by more than 180 deg between neighbours, rather than sweeping across the plot.
+// Phases of c[0..n) in rad on (-pi, pi] against h = 1..n; the line breaks where the wrapped phase
+// jumps by more than pi between neighbours, rather than sweeping across the plot.
 void AddPhases(const std::vector<std::complex<double>>& c, size_t n, plot::Series* s) {
   double previous = NAN;
   for (size_t h = 0; h < n; ++h) {
-    const double deg = h < c.size() ? WrappedDeg(c[h]) : NAN;
-    if (std::abs(deg - previous) > 180) {
+    const double rad = h < c.size() ? WrappedRad(c[h]) : NAN;
+    if (std::abs(rad - previous) > std::numbers::pi) {
       s->x.push_back(static_cast<double>(h) + 0.5);
       s->y.push_back(NAN);
     }
     s->x.push_back(static_cast<double>(h + 1));
-    s->y.push_back(deg);
-    previous = deg;
+    s->y.push_back(rad);
+    previous = rad;
   }
 }
 
@@ -158,13 +158,13 @@ Figure HarmonicsFigure(const Diagnosis& d, const char* unit) {
     axes.log_y = true;
     PadRange(magnitude, false, true, 0.04, 0.08, &axes.y_min, &axes.y_max);
     fig.svgs.push_back(plot::LinePlot(magnitude, axes));
-    axes = MakeAxes(rec.name + ": phase", "harmonic order h", "arg C_h [deg]", kHalfWidthPx, 340);
-    axes.y_min = -180;
-    axes.y_max = 180;
+    axes = MakeAxes(rec.name + ": phase", "harmonic order h", "arg C_h [rad]", kHalfWidthPx, 340);
+    axes.y_min = -std::numbers::pi;
+    axes.y_max = std::numbers::pi;
     fig.svgs.push_back(plot::LinePlot(phase, axes));
   }
   fig.caption = Format("The %zu records the base model fits worst (largest chi-square): measured harmonics as dots, "
-                       "the base model dashed%s. Phases relative to the drive, wrapped to +-180 deg.",
+                       "the base model dashed%s. Phases relative to the drive in rad, wrapped to \u00b1\u03c0.",
                        order.size(), chosen ? (", " + ChosenLabel(d) + " solid").c_str() : " (nothing was added)");
   return fig;
 }

@@ -112,13 +112,14 @@ std::string AxisText(const std::vector<double>& v, const char* unit) {
 
 std::string VoltsOrDash(double v) { return std::isfinite(v) ? Format("%8.4f V", v) : std::string("       - "); }
 
-// Phase in degrees on (-90, 270]: paper Eq. 3 runs from 180 deg (below resonance) to 0 deg (above)
-// without wrapping there, and a response past 180 deg stays continuous.
-double PhaseDeg(double rad) {
-  double deg = rad * 180.0 / std::numbers::pi;
-  while (deg <= -90.0) deg += 360.0;
-  while (deg > 270.0) deg -= 360.0;
-  return deg;
+// Phase in rad, the unit of the tables' first_harmonic_phase_rad, on (-pi/2, 3 pi/2]: paper Eq. 3
+// runs from pi (below resonance) to 0 (above) without wrapping there, and a response past pi stays
+// continuous.
+double PhaseRad(double rad) {
+  constexpr double kPi = std::numbers::pi;
+  while (rad <= -kPi / 2) rad += 2 * kPi;
+  while (rad > 3 * kPi / 2) rad -= 2 * kPi;
+  return rad;
 }
 
 plot::Series Curve(std::string label, std::string color) {
@@ -193,7 +194,7 @@ std::vector<plot::Series> FrfSeries(const SweepResult& r, const BranchGrid& grid
     for (size_t jf = 0; jf < r.frequency_hz.size(); ++jf) {
       const size_t k = grid.On(branch, ia, jf);
       const double value = k == BranchGrid::kNone ? NAN
-                           : phase                ? PhaseDeg(std::arg(r.points[k].h))
+                           : phase                ? PhaseRad(std::arg(r.points[k].h))
                                                   : std::abs(r.points[k].h);
       s.y.push_back(value);
     }
@@ -208,7 +209,7 @@ std::vector<plot::Series> FrfSeries(const SweepResult& r, const BranchGrid& grid
     dots.line_width = 1.2;
     for (size_t k : grid.unstable[ia]) {
       dots.x.push_back(r.points[k].frequency_hz);
-      dots.y.push_back(phase ? PhaseDeg(std::arg(r.points[k].h)) : std::abs(r.points[k].h));
+      dots.y.push_back(phase ? PhaseRad(std::arg(r.points[k].h)) : std::abs(r.points[k].h));
     }
     any = any || !dots.x.empty();
     series.push_back(std::move(dots));
@@ -353,7 +354,7 @@ void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const st
   }
   WriteFile(dir / "frf_phase.svg",
             plot::LinePlot(phase, FrfAxes("First-order FRF phase: up branch solid, down branch dashed",
-                                          "arg H [deg]")));
+                                          "arg H [rad]")));
   WriteFile(dir / "summary.txt", SweepSummaryText(r));
 }
 

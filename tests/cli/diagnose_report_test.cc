@@ -226,7 +226,8 @@ TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
            "<td class=\"num\">4.10 \u00b1 0.50</td><td class=\"num\">8.2</td>",
            "<td>quadratic_stiffness + cubic_stiffness</td>",
            "<td>rec&lt;&amp;&gt;7</td><td class=\"num\">32</td>",
-           "<td class=\"num\">12.5</td><td class=\"num\">-11.5</td>",
+           "<td class=\"num\">12.5</td><td class=\"num\">-0.2</td>",  // phase in rad, as everywhere
+           "phase error [rad]", "arg C_h [rad]",
            // The residual near contacts in the contact figure's caption.
            "0.05 N within +-2 ms of the contacts, 0.0125 N elsewhere (ratio 4)",
        }) {
@@ -234,7 +235,7 @@ TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
   }
   EXPECT_EQ(Count(html, "<tr class=\"chosen\">"), 1u);
   EXPECT_THAT(html, Not(HasSubstr(kOddName)));
-  for (const char* bad : {">nan", ">inf", "-nan", "nan<"}) EXPECT_THAT(html, Not(HasSubstr(bad))) << bad;
+  for (const char* bad : {">nan", ">inf", "-nan", "nan<", "[deg]"}) EXPECT_THAT(html, Not(HasSubstr(bad))) << bad;
   // One SVG per plot: 3 worst records x (magnitude, phase), FRF, 2 residual maps, resonance,
   // contact times, harmonic ratios.
   EXPECT_EQ(Count(html, "<svg"), 12u);

@@ -178,6 +178,15 @@ TEST(SweepOutputTest, FolderHasTablesPicturesAndSummary) {
   EXPECT_THAT(ReadFile(dir / "nested/model.json"), HasSubstr("\"mass_kg\": 0.032"));
 }
 
+// One unit for phase: the tables' first_harmonic_phase_rad is in rad, and so is the phase plot.
+TEST(SweepOutputTest, ThePhasePlotIsInTheTablesUnit) {
+  const std::filesystem::path dir = FreshDir("sweep_phase_unit");
+  WriteSweepFolder(Synthetic(), PaperModel(), dir);
+  const std::string phase = ReadFile(dir / "frf_phase.svg");
+  EXPECT_THAT(phase, HasSubstr("arg H [rad]"));
+  EXPECT_THAT(phase, ::testing::Not(HasSubstr("deg")));
+}
+
 TEST(SweepOutputTest, WithoutThresholdsTheTablesKeepTheirHeaders) {
   SweepResult r = Synthetic();
   r.saturation_threshold.clear();
