@@ -79,12 +79,46 @@ void StreamPointsCsv(Store& store, int64_t job_id, const Store::Filter& filter, 
   });
 }
 
-// The filters of /points and /frf that are query parameters.
-Store::Filter PointFilter(const httplib::Request& req) {
+// A number as the service writes it in JSON (the shortest that reads back).
+std::string NumberText(double value) { return json(value).dump(); }
+
+// The amplitude of a sweep job's grid that `requested` names: one within a millionth of the grid's
+// smallest step of it (0.30000000000000004 names 0.3). Off the grid, 400 naming the grid's
+// amplitudes (the nearest below and above, and the axis; GET /v1/jobs/{id} lists them all), rather
+// than an empty table that looks like a result.
+double GridAmplitude(const JobRecord& job, double requested) {
+  const std::vector<double> grid = jobs::SweepSpecFromJob(job.spec).amplitude_v.Values();
+  double smallest_step = std::abs(grid.back());
+  for (size_t i = 1; i < grid.size(); ++i) smallest_step = std::min(smallest_step, grid[i] - grid[i - 1]);
+  const double tolerance = 1e-6 * std::max(smallest_step, 1e-300);
+  const auto above = std::lower_bound(grid.begin(), grid.end(), requested);
+  if (above != grid.end() && *above - requested <= tolerance) return *above;
+  if (above != grid.begin() && requested - *(above - 1) <= tolerance) return *(above - 1);
+  std::string nearest;
+  if (above != grid.begin()) nearest += NumberText(*(above - 1));
+  if (above != grid.end()) nearest += (nearest.empty() ? "" : " and ") + NumberText(*above);
+  std::string all;
+  if (grid.size() <= 30) {
+    for (double v : grid) all += (all.empty() ? "" : ", ") + NumberText(v);
+  } else {
+    all = NumberText(grid.front()) + " .. " + NumberText(grid.back()) + " in " + std::to_string(grid.size()) + " values";
+  }
+  throw HttpError{400, "off_grid",
+                  NumberText(requested) + " V is not an amplitude of job " + std::to_string(job.id) +
+                      "'s grid; nearest: " + nearest + " V (the grid: " + all + " V; GET /v1/jobs/" +
+                      std::to_string(job.id) + " lists them under resolved.grid)",
+                  "amplitude_v"};
+}
+
+// The filters of /points and /frf that are query parameters; a sweep's amplitude snapped to its grid.
+Store::Filter PointFilter(const httplib::Request& req, const JobRecord& job) {
   Store::Filter filter;
   if (req.has_param("frequency_min_hz")) filter.frequency_min_hz = QueryNumber(req, "frequency_min_hz");
   if (req.has_param("frequency_max_hz")) filter.frequency_max_hz = QueryNumber(req, "frequency_max_hz");
-  if (req.has_param("amplitude_v")) filter.amplitude_v = QueryNumber(req, "amplitude_v");
+  if (req.has_param("amplitude_v")) {
+    filter.amplitude_v = QueryNumber(req, "amplitude_v");
+    if (job.kind == "sweep") filter.amplitude_v = GridAmplitude(job, *filter.amplitude_v);
+  }
   if (req.has_param("branch")) {
     const std::string b = req.get_param_value("branch");
     if (b != "up" && b != "down" && b != "unstable")
@@ -136,7 +170,7 @@ std::vector<json> Service::Impl::CampaignJobRows(const JobRecord& job, const std
 void Service::Impl::AddResultRoutes() {
   On("GET", R"(/v1/jobs/(\d+)/points)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);
-             const Store::Filter filter = PointFilter(req);
+             const Store::Filter filter = PointFilter(req, job);
              const bool csv = WantsCsv(req);
              // CSV without limit or cursor: the whole table in one body (pandas.read_csv(url)).
              if (csv && !req.has_param("limit") && !req.has_param("cursor")) {
@@ -180,7 +214,7 @@ void Service::Impl::AddResultRoutes() {
                res.set_content(report::SaturationMapSvg(SweepResultOf(job), Branch::kUp), "image/svg+xml");
                return;
              }
-             SendJson(res, {{"job", JobJson(job)},
+             SendJson(res, {{"job", JobDetailJson(job)},
                             {"saturation_threshold", ThresholdRows(job)},
                             {"jump", store->Results(job.id, "jumps", {}, 0, 1000000).rows}});
            }));
@@ -197,7 +231,7 @@ void Service::Impl::AddResultRoutes() {
              if (!req.has_param("amplitude_v"))
                throw HttpError{400, "bad_query", "is required (one of the job's amplitudes)", "amplitude_v"};
              Store::Filter filter;
-             filter.amplitude_v = QueryNumber(req, "amplitude_v");
+             filter.amplitude_v = GridAmplitude(job, QueryNumber(req, "amplitude_v"));
              json branches = {{"up", json::array()}, {"down", json::array()}, {"unstable", json::array()}};
              for (const json& row : store->Results(job.id, "points", filter, 0, 1000000).rows) {
                const SweepPoint p = StoredRow<SweepPoint>(row, job.id, "points");

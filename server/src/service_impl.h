@@ -29,8 +29,12 @@
 
 namespace strokelab::server {
 
-// A job as the service shows it (GET /v1/jobs/{id}, lists, cancel replies).
+// A job as the service shows it (lists, cancel replies): id, kind, name, status, progress, times.
 nlohmann::json JobJson(const JobRecord& job);
+// One job in full (GET /v1/jobs/{id}, the saturation map's "job"): JobJson plus "spec" (as submitted)
+// and "resolved" (jobs::ResolvedJob: the model with every parameter, the grid's axes with their
+// values, the options with their defaults).
+nlohmann::json JobDetailJson(const JobRecord& job);
 
 struct Service::Impl {
   ServiceOptions options;

@@ -407,6 +407,31 @@ TEST(SweepSpecFromJobTest, LinearAxisValuesAreTheDecimalsTheAxisDefines) {
   EXPECT_EQ(SweepSpecFromJob(job).amplitude_v.Values()[1], 0.5 + 1.0 / 3.0);
 }
 
+// A job as it runs: presets and defaults spelled out (the service shows it as "resolved").
+TEST(ResolvedJobTest, SpellsOutModelGridMethodAndOptions) {
+  const json sweep = ResolvedJob(BaseEq1Sweep());
+  EXPECT_EQ(sweep["model"], ModelToJson(PaperModel()));
+  EXPECT_EQ(sweep["grid"]["frequency_hz"]["spacing"], "geometric");
+  EXPECT_EQ(sweep["grid"]["frequency_hz"]["values"].size(), 117u);
+  EXPECT_EQ(sweep["grid"]["amplitude_v"]["values"].dump(), "[0.1,0.2,0.3,0.4,0.5,0.6]");
+  EXPECT_EQ(sweep["thresholds"], true);
+  EXPECT_EQ(sweep["kind"], "sweep");
+
+  const json simulate = ResolvedJob(Without(Without(BaseSimulate(), "/method"), "/duration_s"));
+  EXPECT_EQ(simulate["duration_s"], 10.0);
+  EXPECT_EQ(simulate["method"], "exact (auto: the model is piecewise linear)");
+  EXPECT_EQ(simulate["model"]["mass_kg"], 0.032);
+
+  const json fit = ResolvedJob({{"kind", "fit"}, {"campaign", {{"id", "0123456789abcdef"}}}});
+  EXPECT_EQ(fit["model"], "paper");
+  EXPECT_EQ(fit["options"].size(), FitOptionFields().size());
+  const json diagnose = ResolvedJob({{"kind", "diagnose"}, {"campaign", {{"id", "0123456789abcdef"}}},
+                                     {"options", {{"max_seconds", 30}}}});
+  EXPECT_EQ(diagnose["options"]["max_seconds"], 30.0);
+  EXPECT_EQ(diagnose["options"].size(), FitOptionFields().size() + DiagnoseOptionFields().size());
+  EXPECT_THROW(ResolvedJob(With(BaseSimulate(), "/method", "rk4")), InputError);
+}
+
 TEST(SweepSpecFromJobTest, Eq1IsThePapersGrid) {
   // paper Eq. 1: w(n) = 10 pi 1.02^(n-1) rad/s; "from" defaults to 5 Hz.
   const SweepSpec spec = SweepSpecFromJob(BaseEq1Sweep());

@@ -155,5 +155,49 @@ TEST_F(ResultRoutesTest, ThresholdsAndJumpsAreTablesInCsvAndJson) {
   EXPECT_EQ(json::parse(c.Get(JobPath("/jumps?format=json"))->body)["jump"], map["jump"]);
 }
 
+// A job shows what it computed: the spec as submitted and as resolved, with every model parameter
+// (the preset's spelled out), the grid's axes with their values as the axis defines them, and the
+// options; in its status and in the saturation map.
+TEST_F(ResultRoutesTest, TheJobShowsItsSpecModelAndGrid) {
+  auto c = Client();
+  const json job = json::parse(c.Get(JobPath(""))->body);
+  EXPECT_EQ(job["spec"], kResultRoutesSweep);
+  const json& resolved = job["resolved"];
+  EXPECT_EQ(resolved["model"]["mass_kg"], 0.032);
+  EXPECT_TRUE(resolved["model"].contains("stiffness_n_per_m")) << resolved["model"].dump();
+  EXPECT_EQ(resolved["thresholds"], true);
+  const json& amplitudes = resolved["grid"]["amplitude_v"];
+  EXPECT_EQ(amplitudes["spacing"], "linear");
+  EXPECT_EQ(amplitudes["values"].dump(), "[0.1,0.15,0.2,0.25,0.3,0.35,0.4,0.45,0.5,0.55,0.6]");
+  EXPECT_EQ(resolved["grid"]["frequency_hz"]["values"].size(), 60u);
+  EXPECT_EQ(resolved["grid"]["frequency_hz"]["values"][0], 6.0);
+  const json map = json::parse(c.Get(JobPath("/saturation-map"))->body);
+  EXPECT_EQ(map["job"]["resolved"], resolved);
+  // The amplitudes the results carry are the grid's, printed as such.
+  auto csv = c.Get(JobPath("/points?format=csv&branch=up&frequency_max_hz=6"));
+  EXPECT_THAT(csv->body, HasSubstr("\n6,0.3,up,"));
+  EXPECT_THAT(csv->body, ::testing::Not(HasSubstr("0000000")));
+}
+
+// An amplitude off the grid is a 400 naming the nearest grid values, not an empty table; one a hair
+// from a grid value (as a float printed long) is that value.
+TEST_F(ResultRoutesTest, OffGridAmplitudesNameTheGridAndNearOnesSnap) {
+  auto c = Client();
+  for (const std::string& query : {"/points?amplitude_v=0.33", "/frf?amplitude_v=0.51", "/points?format=csv&amplitude_v=0.33"}) {
+    auto r = c.Get(JobPath(query));
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 400) << query;
+    const json error = json::parse(r->body)["error"];
+    EXPECT_EQ(error["code"], "off_grid");
+    EXPECT_EQ(error["field"], "amplitude_v");
+    EXPECT_THAT(error["message"].get<std::string>(), HasSubstr(query.find("0.33") != std::string::npos ? "nearest: 0.3 and 0.35 V" : "nearest: 0.5 and 0.55 V"));
+    EXPECT_THAT(error["message"].get<std::string>(), HasSubstr("0.1, 0.15, 0.2,"));
+  }
+  const json frf = json::parse(c.Get(JobPath("/frf?amplitude_v=0.30000000000000004"))->body);
+  EXPECT_EQ(frf["amplitude_v"].dump(), "0.3");
+  EXPECT_EQ(frf["branches"]["up"].size(), 60u);
+  EXPECT_EQ(json::parse(c.Get(JobPath("/points?branch=down&amplitude_v=0.2999999999"))->body)["points"].size(), 60u);
+}
+
 }  // namespace
 }  // namespace strokelab::server
