@@ -71,9 +71,9 @@ grid: {frequency_hz, amplitude_v}, model, wall_time_s, points_per_second}; non-f
                             dominates |H|. On top: the grazing and lowest-contact curves and the
                             jump intervals (horizontal segments at their amplitude)
   saturation_map_down.svg   the same for the down-sweep branch
-  frf_up.svg, frf_down.svg  |H| against frequency, one line per amplitude (paper Fig. 10), dots:
-                            unstable orbits
-  frf_phase.svg             arg H, up branch solid, down branch dashed
+  frf_up.svg, frf_down.svg  |H| against frequency, one line per amplitude coloured by amplitude
+                            (colour bar; paper Fig. 10), dots: unstable orbits, the jumps marked
+  frf_phase.svg             arg H [rad], up branch solid, down branch dashed
   model.json, summary.txt   the model swept and the text summary
 
 While running, a progress line is shown on stderr if it is a terminal. Ctrl-C cancels: the sweep

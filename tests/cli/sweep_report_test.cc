@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -173,7 +174,7 @@ TEST(SweepOutputTest, FolderHasTablesPicturesAndSummary) {
   EXPECT_THAT(map, HasSubstr("grazing amplitude"));
   EXPECT_THAT(map, HasSubstr("jump (bistable) interval"));
   EXPECT_THAT(ReadFile(dir / "nested/frf_up.svg"), HasSubstr("unstable orbits"));
-  EXPECT_THAT(ReadFile(dir / "nested/frf_up.svg"), HasSubstr("0.2 V"));
+  EXPECT_THAT(ReadFile(dir / "nested/frf_up.svg"), HasSubstr("drive amplitude [V]"));  // the colour bar
   EXPECT_EQ(ReadFile(dir / "nested/summary.txt"), SweepSummaryText(r));
   EXPECT_THAT(ReadFile(dir / "nested/model.json"), HasSubstr("\"mass_kg\": 0.032"));
 }
@@ -185,6 +186,42 @@ TEST(SweepOutputTest, ThePhasePlotIsInTheTablesUnit) {
   const std::string phase = ReadFile(dir / "frf_phase.svg");
   EXPECT_THAT(phase, HasSubstr("arg H [rad]"));
   EXPECT_THAT(phase, ::testing::Not(HasSubstr("deg")));
+}
+
+// An FRF family of 26 amplitudes (0.1 .. 0.6 V): each amplitude its own colour on a sequential map
+// with a colour bar (an 8-colour palette repeated, so that 0.1, 0.26, 0.42 and 0.58 V shared one),
+// no legend entry per amplitude, and the sweep's jumps marked where its branch leaves the
+// bistable interval (the up-sweep at its upper end, the down-sweep at its lower end).
+TEST(SweepOutputTest, ManyAmplitudesGetAColourBarAndTheJumpsAreMarked) {
+  SweepResult r;
+  r.frequency_hz = {5.0, 9.0, 10.0, 11.0, 12.0};
+  for (int k = 0; k < 26; ++k) r.amplitude_v.push_back(0.1 + 0.02 * k);
+  for (double v : r.amplitude_v) {
+    for (double f : r.frequency_hz) {
+      r.points.push_back(Point(f, v, Branch::kUp, std::complex<double>(v * f, 1.0)));
+      if (f >= 9.0 && f <= 11.0) r.points.push_back(Point(f, v, Branch::kDown, std::complex<double>(0.1 * v * f, 1.0)));
+    }
+  }
+  r.jump.push_back({0.5, 8.5, 11.5, "grazing", "fold"});
+  r.amplitude_v[20] = 0.5;  // the jump's amplitude exactly
+  for (SweepPoint& p : r.points)
+    if (std::abs(p.amplitude_v - 0.5) < 1e-9) p.amplitude_v = 0.5;
+  const std::string up = FrfMagnitudeSvg(r, Branch::kUp);
+  EXPECT_THAT(up, HasSubstr("<g class=\"colorbar\">"));
+  EXPECT_THAT(up, HasSubstr("drive amplitude [V]"));
+  EXPECT_THAT(up, ::testing::Not(HasSubstr(">0.1 V<")));  // no legend entry per amplitude
+  std::set<std::string> colours;
+  for (size_t at = up.find("<polyline"); at != std::string::npos; at = up.find("<polyline", at + 1)) {
+    const size_t stroke = up.find("stroke=\"", at) + 8;
+    colours.insert(up.substr(stroke, up.find('"', stroke) - stroke));
+  }
+  EXPECT_GE(colours.size(), 26u);  // 26 amplitudes, and the jump's black
+  EXPECT_THAT(up, HasSubstr("jump of the up-sweep"));
+  // The up-sweep jumps at 11.5 Hz, between its grid points at 11 and 12 Hz.
+  const std::string down = FrfMagnitudeSvg(r, Branch::kDown);
+  EXPECT_THAT(down, HasSubstr("jump of the down-sweep"));
+  r.jump.clear();
+  EXPECT_THAT(FrfMagnitudeSvg(r, Branch::kUp), ::testing::Not(HasSubstr("jump of the")));
 }
 
 TEST(SweepOutputTest, WithoutThresholdsTheTablesKeepTheirHeaders) {

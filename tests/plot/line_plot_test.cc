@@ -249,5 +249,31 @@ TEST(LinePlotTest, RejectsBadInputNamingTheField) {
   EXPECT_THAT(message({}, axes), HasSubstr("Axes.width_px"));
 }
 
+// Many curves coloured by a value (FRFs by drive amplitude): a colour bar instead of a legend entry
+// per curve, each curve its own colour on the sequential map, from viridis dark to yellow.
+TEST(LinePlotTest, ColourBarColoursCurvesByValue) {
+  const ColorBar bar{"drive amplitude [V]", 0.1, 0.6, false};
+  EXPECT_EQ(ColorBarColor(bar, 0.1), "#440154");
+  EXPECT_EQ(ColorBarColor(bar, 0.6), "#fde725");
+  EXPECT_EQ(ColorBarColor(bar, 9.0), "#fde725");  // beyond the range: the end colour
+  std::vector<Series> curves;
+  std::set<std::string> colours;
+  for (int k = 0; k < 26; ++k) {
+    const double v = 0.1 + 0.02 * k;
+    Series s = Line({1, 2, 3}, {v, 2 * v, v});
+    s.color = ColorBarColor(bar, v);
+    colours.insert(s.color);
+    curves.push_back(s);
+  }
+  EXPECT_EQ(colours.size(), 26u);
+  curves.push_back(Line({1, 3}, {0.5, 0.5}, "jumps"));
+  const std::string svg = LinePlot(curves, Axes{}, bar);
+  EXPECT_EQ(XmlProblem(svg), "");
+  EXPECT_THAT(Group(svg, "colorbar"), HasSubstr("drive amplitude [V]"));
+  EXPECT_THAT(Texts(Group(svg, "legend")), ElementsAre("jumps"));
+  EXPECT_THROW(LinePlot(curves, Axes{}, ColorBar{"x", 1, 1, false}), std::invalid_argument);
+  EXPECT_THROW(ColorBarColor(ColorBar{"x", 0, 1, true}, 0.5), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace strokelab::plot
