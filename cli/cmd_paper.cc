@@ -343,8 +343,9 @@ void SaturationOnset(Study& study) {
   axes.x_label = "frequency [Hz]";
   axes.y_label = "drive amplitude [V]";
   axes.log_x = true;
-  axes.y_min = 0;
-  axes.y_max = 1.0;
+  // From the data, on a log axis: the thresholds run from a few tenths of a volt at the resonance to
+  // 10 V and more far from it (a fixed 0 .. 1 V cut them off).
+  axes.log_y = true;
   WriteFile(study.out / "saturation_onset.svg", plot::LinePlot({graze, rest}, axes));
 
   study.summary << "\nSaturation onset (drive amplitude at which the stop is reached):\n";
