@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <regex>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -275,6 +276,52 @@ TEST(DiagnoseReportTest, NamedEffectTables) {
   ASSERT_EQ(levels.size(), 4u);
   EXPECT_EQ(levels[1], "0.1,5,31.2,0.3,0.002,0.003,");
   EXPECT_EQ(levels[3], "1,0,35.3,0.5,,,0.0009");
+}
+
+// One section of the page, from its <section id="..."> to its end.
+std::string PageSection(const std::string& html, const std::string& id) {
+  const size_t begin = html.find("<section id=\"" + id + "\">");
+  if (begin == std::string::npos) return "";
+  return html.substr(begin, html.find("</section>", begin) - begin);
+}
+
+// The x coordinates of the first dashed polyline of an SVG (the base model's line).
+std::vector<double> DashedLineXs(const std::string& svg) {
+  static const std::regex kDashed("<polyline points=\"([^\"]*)\"[^>]*stroke-dasharray");
+  std::smatch m;
+  std::vector<double> xs;
+  if (!std::regex_search(svg, m, kDashed)) return xs;
+  std::istringstream points(m[1].str());
+  std::string pair;
+  while (points >> pair) xs.push_back(std::stod(pair.substr(0, pair.find(','))));
+  return xs;
+}
+
+// With one amplitude level clear of the stop the resonance figure is one dot: the base model's
+// resonance is still a line across the axis (it had no length), and the caption says why there is
+// no trend to read.
+TEST(DiagnoseReportTest, ResonanceOfOneLevelKeepsTheModelLineAndSaysSo) {
+  Diagnosis d = Named();
+  d.signatures.levels[1].resonance_hz = d.signatures.levels[2].resonance_hz = NAN;
+  const std::string section = PageSection(DiagnosisHtml(d), "resonance");
+  ASSERT_THAT(section, HasSubstr("<svg"));
+  const std::vector<double> xs = DashedLineXs(section);
+  ASSERT_EQ(xs.size(), 2u) << section;
+  EXPECT_GT(xs[1] - xs[0], 100.0) << "the base model's line has (almost) no length";
+  EXPECT_THAT(section, HasSubstr("Only one amplitude level (0.1 V) has 3 or more records clear of the stop"));
+}
+
+// The per-level FRF: levels coloured by amplitude with a colour bar, and a legend of the line
+// styles only, above the data (a legend entry per level covered the points).
+TEST(DiagnoseReportTest, FrfPerLevelHasAColourBarAndALegendClearOfThePoints) {
+  const std::string section = PageSection(DiagnosisHtml(Named()), "frf");
+  EXPECT_THAT(section, HasSubstr("<g class=\"colorbar\">"));
+  EXPECT_THAT(section, HasSubstr("drive amplitude [V]"));
+  const size_t legend = section.find("<g class=\"legend\">");
+  ASSERT_NE(legend, std::string::npos);
+  const std::string legend_svg = section.substr(legend, section.find("</g>", legend) - legend);
+  EXPECT_THAT(legend_svg, Not(HasSubstr(" V<"))) << "a legend entry per level";
+  EXPECT_THAT(legend_svg, HasSubstr("dots: measured"));
 }
 
 TEST(DiagnoseReportTest, NothingMissingSaysSoAndSkipsPlotsWithoutData) {
