@@ -42,7 +42,7 @@ checked with PRAGMA integrity_check before it is renamed into place. Restore by 
 service and copying the backup over its --db file (removing FILE-wal and FILE-shm).
 
   --db FILE     the job store to copy                                  (required)
-  --to FILE     the backup to write; refused if it exists              (required)
+  --to FILE     the backup to write (its folder is created); refused if it exists (required)
   --force       overwrite --to if it exists
 
 Exit codes: 0 written, 2 bad input (a flag, no such database, not a job store, --to exists),
@@ -145,6 +145,11 @@ int RunBackup(const std::vector<std::string>& argv) {
     throw InputError("--db", db_path.string() + ": not a strokelab job store (schema version " + version +
                                  ", no jobs table)");
 
+  // The README's `--to backups/strokelab-DATE.db` names a folder that need not exist yet.
+  if (const fs::path parent = to.parent_path(); !parent.empty()) {
+    fs::create_directories(parent, ec);
+    if (ec) throw InputError("--to", "cannot create the folder " + parent.string() + ": " + ec.message());
+  }
   const fs::path partial = to.string() + ".partial";
   fs::remove(partial, ec);
   std::string jobs, rows, pages;

@@ -15,7 +15,9 @@
 #include <sstream>
 #include <thread>
 
+#include "ceres_log.h"
 #include "commands.h"
+#include "service_help.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/server/service.h"
 #include "strokelab/worker/remote_worker.h"
@@ -45,12 +47,29 @@ std::string ClientToken(const Args& args) {
   return "";
 }
 
+constexpr const char* kDefaultServerUrl = "http://127.0.0.1:8080";
+
+// The server for client commands and workers: --server, else $STROKELAB_SERVER, else the default.
+std::string ServerUrl(const Args& args) {
+  if (auto url = args.Get("--server")) return *url;
+  if (const char* env = std::getenv("STROKELAB_SERVER"); env && *env) return env;
+  return kDefaultServerUrl;
+}
+
+// Where the URL came from, for the message when nothing answers there.
+std::string ServerUrlSource(const Args& args) {
+  if (args.Get("--server")) return "--server";
+  if (const char* env = std::getenv("STROKELAB_SERVER"); env && *env) return "$STROKELAB_SERVER";
+  return "the default; give --server URL or set STROKELAB_SERVER";
+}
+
 httplib::Headers Headers(const std::string& token) {
   if (token.empty()) return {};
   return {{"Authorization", "Bearer " + token}};
 }
 
 struct Connection {
+  std::string url, url_source;
   std::string host;
   int port;
   std::string token;
@@ -63,21 +82,38 @@ struct Connection {
 };
 
 Connection Connect(const Args& args) {
-  const auto [host, port] = worker::ParseServerUrl(args.GetOr("--server", "http://127.0.0.1:8080"));
-  return {host, port, ClientToken(args)};
+  const std::string url = ServerUrl(args);
+  const auto [host, port] = worker::ParseServerUrl(url);
+  return {url, ServerUrlSource(args), host, port, ClientToken(args)};
 }
 
-// The body of a reply, or a one-line error naming the server's error code and field.
-json Expect(const httplib::Result& result, int status, const std::string& what) {
-  if (!result) throw std::runtime_error(what + ": cannot reach the server (" + httplib::to_string(result.error()) + ")");
+// The server's error object of a reply ({} when the body is not one).
+json ReplyError(const httplib::Result& result) {
+  try {
+    return json::parse(result->body).at("error");
+  } catch (...) {
+    return json::object();
+  }
+}
+
+// The body of a reply, or a one-line error naming the server's error code and field. A job the
+// server refuses as invalid (400 invalid_job, bad_json, job_too_large) is bad input: InputError,
+// exit code 2, the field prefixed with `input_name` (the job file).
+json Expect(const httplib::Result& result, int status, const std::string& what, const Connection* c = nullptr,
+            const std::string& input_name = "") {
+  if (!result) {
+    throw std::runtime_error(what + ": cannot reach the server" +
+                             (c ? " at " + c->url + " (" + c->url_source + ")" : std::string()) + ": " +
+                             httplib::to_string(result.error()) + " error");
+  }
   if (result->status != status) {
-    std::string message = "HTTP " + std::to_string(result->status);
-    try {
-      const json error = json::parse(result->body).at("error");
-      message = error.value("code", "") + ": " + error.value("message", "");
-      if (error.contains("field")) message = error["field"].get<std::string>() + ": " + message;
-    } catch (...) {
-    }
+    const json error = ReplyError(result);
+    const std::string code = error.value("code", "");
+    std::string message = error.empty() ? "HTTP " + std::to_string(result->status) : code + ": " + error.value("message", "");
+    const std::string field = error.contains("field") && error["field"].is_string() ? error["field"].get<std::string>() : "";
+    if (!input_name.empty() && result->status == 400)
+      throw InputError(input_name + (field.empty() ? "" : ":" + field), code + ": " + error.value("message", ""));
+    if (!field.empty()) message = field + ": " + message;
     throw std::runtime_error(what + ": " + message);
   }
   return result->body.empty() ? json() : json::parse(result->body);
@@ -97,7 +133,7 @@ json WaitForJob(const Connection& c, int64_t id) {
   httplib::Client client = c.client();
   const bool tty = isatty(STDERR_FILENO);
   for (;;) {
-    const json job = Expect(client.Get("/v1/jobs/" + std::to_string(id), Headers(c.token)), 200, "status");
+    const json job = Expect(client.Get("/v1/jobs/" + std::to_string(id), Headers(c.token)), 200, "status", &c);
     if (tty) PrintProgress(job);
     const std::string status = job["status"];
     if (status != "queued" && status != "running") {
@@ -149,6 +185,10 @@ int RunServe(const std::vector<std::string>& argv) {
   if (const auto parent = std::filesystem::path(options.db_path).parent_path(); !parent.empty())
     std::filesystem::create_directories(parent);
 
+  // The service's log is JSON lines: Ceres' lines, when asked for, join it as such (ceres_log.h).
+  CeresLogSettings ceres_log = CeresLogSettingsFrom(std::getenv("STROKELAB_CERES_LOG"));
+  ceres_log.json_lines = true;
+  RouteCeresLog(ceres_log);
   InstallStopSignals();
   server::Service service(options);
   const int port = service.Start();
@@ -173,11 +213,11 @@ int RunServe(const std::vector<std::string>& argv) {
 int RunWorker(const std::vector<std::string>& argv) {
   const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks"}, {"--help"});
   if (args.Has("--help")) {
-    std::cout << "usage: strokelab worker --server http://HOST:PORT [--token T] [--threads N] [--name NAME]\n";
+    std::cout << kWorkerHelp;
     return 0;
   }
   worker::RemoteWorkerOptions options;
-  options.server_url = args.GetOr("--server", "http://127.0.0.1:8080");
+  options.server_url = ServerUrl(args);
   worker::ParseServerUrl(options.server_url);
   options.token = ClientToken(args);
   options.threads = args.Integer("--threads", 1);
@@ -195,7 +235,7 @@ int RunWorker(const std::vector<std::string>& argv) {
 int RunSubmit(const std::vector<std::string>& argv) {
   const Args args(argv, {"--server", "--token"}, {"--wait", "--help"});
   if (args.Has("--help") || args.Positional().size() != 1) {
-    std::cout << "usage: strokelab submit JOB.json [--server URL] [--token T] [--wait]\n";
+    (args.Has("--help") ? std::cout : std::cerr) << kSubmitHelp;
     return args.Has("--help") ? 0 : 2;
   }
   const std::string path = args.Positional()[0];
@@ -205,7 +245,8 @@ int RunSubmit(const std::vector<std::string>& argv) {
   body << in.rdbuf();
   const Connection c = Connect(args);
   httplib::Client client = c.client();
-  const json reply = Expect(client.Post("/v1/jobs", Headers(c.token), body.str(), "application/json"), 201, path);
+  const json reply =
+      Expect(client.Post("/v1/jobs", Headers(c.token), body.str(), "application/json"), 201, "submit", &c, path);
   const int64_t id = reply["id"];
   std::cout << id << "\n";
   InstallStopSignals();
@@ -217,32 +258,37 @@ int RunSubmit(const std::vector<std::string>& argv) {
   return 0;
 }
 
+// A job id as the commands take it: digits only, named as the argument when it is not one.
+int64_t JobIdArgument(const std::string& text) {
+  if (text.empty() || text.size() > 18 || text.find_first_not_of("0123456789") != std::string::npos)
+    throw InputError("JOB_ID", "expected a job id (a whole number), got '" + text + "'");
+  return std::stoll(text);
+}
+
 int RunStatus(const std::vector<std::string>& argv) {
   const Args args(argv, {"--server", "--token"}, {"--wait", "--help"});
   if (args.Has("--help") || args.Positional().size() != 1) {
-    std::cout << "usage: strokelab status JOB_ID [--server URL] [--token T] [--wait]\n";
+    (args.Has("--help") ? std::cout : std::cerr) << kStatusHelp;
     return args.Has("--help") ? 0 : 2;
   }
+  const int64_t id = JobIdArgument(args.Positional()[0]);
   const Connection c = Connect(args);
   InstallStopSignals();
   json job;
   if (args.Has("--wait")) {
-    job = WaitForJob(c, std::stoll(args.Positional()[0]));
+    job = WaitForJob(c, id);
   } else {
     httplib::Client client = c.client();
-    job = Expect(client.Get("/v1/jobs/" + args.Positional()[0], Headers(c.token)), 200, "status");
+    job = Expect(client.Get("/v1/jobs/" + std::to_string(id), Headers(c.token)), 200, "status", &c);
   }
   std::cout << job.dump(2) << "\n";
   return 0;
 }
 
-int RunResults(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--server", "--token", "--branch", "--amplitude-v"}, {"--csv", "--help"});
-  if (args.Has("--help") || args.Positional().size() != 1) {
-    std::cout << "usage: strokelab results JOB_ID [--csv] [--branch up|down|unstable] [--amplitude-v V]\n";
-    return args.Has("--help") ? 0 : 2;
-  }
-  const Connection c = Connect(args);
+namespace {
+
+// A sweep's points over every page: {"points": [...]} or CSV with one header.
+void PrintSweepPoints(const Args& args, const Connection& c, int64_t id) {
   httplib::Client client = c.client();
   httplib::Headers headers = Headers(c.token);
   const bool csv = args.Has("--csv");
@@ -252,23 +298,53 @@ int RunResults(const std::vector<std::string>& argv) {
   if (auto a = args.Get("--amplitude-v")) query += "&amplitude_v=" + *a;
   json all = json::array();
   for (std::string cursor = "0";;) {
-    const std::string path = "/v1/jobs/" + args.Positional()[0] + "/points?" + query + "&cursor=" + cursor;
+    const std::string path = "/v1/jobs/" + std::to_string(id) + "/points?" + query + "&cursor=" + cursor;
     auto result = client.Get(path, headers);
     if (csv) {
-      if (!result || result->status != 200) Expect(result, 200, "results");
+      if (!result || result->status != 200) Expect(result, 200, "results", &c);
       std::string body = result->body;
       if (cursor != "0") body = body.substr(body.find('\n') + 1);  // header once
       std::cout << body;
       cursor = result->get_header_value("X-Next-Cursor");
       if (cursor.empty() || cursor == "0") break;
     } else {
-      const json page = Expect(result, 200, "results");
+      const json page = Expect(result, 200, "results", &c);
       for (const json& p : page["points"]) all.push_back(p);
       if (page["next_cursor"].is_null()) break;
       cursor = std::to_string(page["next_cursor"].get<int64_t>());
     }
   }
   if (!csv) std::cout << json({{"points", all}}).dump(2) << "\n";
+}
+
+}  // namespace
+
+int RunResults(const std::vector<std::string>& argv) {
+  const Args args(argv, {"--server", "--token", "--branch", "--amplitude-v"}, {"--csv", "--help"});
+  if (args.Has("--help") || args.Positional().size() != 1) {
+    (args.Has("--help") ? std::cout : std::cerr) << kResultsHelp;
+    return args.Has("--help") ? 0 : 2;
+  }
+  const int64_t id = JobIdArgument(args.Positional()[0]);
+  const Connection c = Connect(args);
+  httplib::Client client = c.client();
+  // The job's kind says where its results are: a sweep's points, a fit's or diagnosis's document.
+  const json job = Expect(client.Get("/v1/jobs/" + std::to_string(id), Headers(c.token)), 200, "results", &c);
+  const std::string kind = job.value("kind", "");
+  if (kind == "sweep") {
+    PrintSweepPoints(args, c, id);
+    return 0;
+  }
+  if (kind != "fit" && kind != "diagnose")
+    throw std::runtime_error("results: job " + std::to_string(id) + " is a " + kind +
+                             " job, whose results the service does not serve (only sweep, fit and diagnose jobs)");
+  for (const char* flag : {"--csv", "--branch", "--amplitude-v"})
+    if (args.Has(flag))
+      throw InputError(flag, "applies to sweep jobs; job " + std::to_string(id) + " is a " + kind +
+                                 " job, whose result is one JSON document");
+  const json result = Expect(client.Get("/v1/jobs/" + std::to_string(id) + "/result", Headers(c.token)), 200,
+                             "results", &c);
+  std::cout << result.dump(2) << "\n";
   return 0;
 }
 

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "format.h"
 #include "strokelab/base/json_number.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
@@ -118,6 +119,12 @@ int RunSimulate(const std::vector<std::string>& argv) {
   } catch (const InputError& e) {
     throw InputError(e.field() == "sample_rate_hz" ? "--sample-rate-hz" : "--duration-s", e.bare_message());
   }
+  // The summary's first harmonic needs the drive frequency below Nyquist (else the signal layer
+  // refuses it under its own name, "orders", after the whole simulation).
+  if (drive.frequency_hz >= options.sample_rate_hz / 2)
+    throw InputError("--sample-rate-hz", "must be more than twice --frequency-hz (" + General(drive.frequency_hz, 6) +
+                                             " Hz) for the summary's first harmonic, got " +
+                                             General(options.sample_rate_hz, 6));
   MethodChoice choice;
   try {
     choice = ChooseMethod(args.GetOr("--method", "auto"), model);

@@ -38,16 +38,17 @@ amplitude with a stable contacting response), per amplitude the jump (bistable) 
 
   --model NAME|FILE      preset (paper, linear) or a JSON model file             [paper]
   --set KEY=VALUE        override a model parameter (repeatable), e.g. --set k3=4e7
-  --frequency-hz A:B     drive frequency range [Hz]                              [5:50]
-  --frequency-points N   frequencies on the grid                                 [117]
+  --frequency-hz A:B|F   drive frequency range [Hz], or one frequency F          [5:50]
+  --frequency-points N   frequencies on the grid                  [117; 1 with one --frequency-hz]
   --grid G               frequency spacing: linear | geometric | eq1             [linear]
                          eq1: paper Eq. 1, f_n = 5 Hz * 1.02^(n-1) for n = 1..N with
                          N = --frequency-points (117: 5 .. 49.7 Hz). It fixes the range, so
                          --frequency-hz cannot be given with it.
-  --amplitude-v A:B      drive amplitude range [V], linear spacing               [0.1:0.6]
-  --amplitude-points N   amplitudes on the grid                                  [6]
+  --amplitude-v A:B|V    drive amplitude range [V], linear spacing, or one V     [0.1:0.6]
+  --amplitude-points N   amplitudes on the grid                   [6; 1 with one --amplitude-v]
   --threads N            worker threads; results do not depend on it             [hardware threads]
-  --no-thresholds        skip the saturation thresholds and jump intervals
+  --no-thresholds        skip the saturation thresholds (a root search per frequency); the jump
+                         intervals come with the amplitude rows and are still given
   --json                 print the result as one JSON object on stdout
   --out DIR              write tables, pictures and summary.txt into DIR (created if missing)
 
@@ -149,17 +150,35 @@ class ProgressLine {
   bool drawn_ = false;
 };
 
-// "A:B" -> {A, B}; errors name `flag`.
+// "A:B" -> {A, B}, a single value "V" -> {V, V}; errors name `flag`.
 std::pair<double, double> ParseRange(const Args& args, const std::string& flag, double from, double to) {
   const auto text = args.Get(flag);
   if (!text) return {from, to};
   const size_t colon = text->find(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == text->size())
-    throw InputError(flag, "expected FROM:TO, e.g. 5:50, got '" + *text + "'");
+  if (colon == std::string::npos) {
+    const double v = ParseNumber(*text, flag);
+    if (!std::isfinite(v)) throw InputError(flag, "must be finite, got '" + *text + "'");
+    return {v, v};
+  }
+  if (colon == 0 || colon + 1 == text->size())
+    throw InputError(flag, "expected FROM:TO or one value, e.g. 5:50 or 8, got '" + *text + "'");
   const double a = ParseNumber(text->substr(0, colon), flag);
   const double b = ParseNumber(text->substr(colon + 1), flag);
   if (!std::isfinite(a) || !std::isfinite(b)) throw InputError(flag, "must be finite, got '" + *text + "'");
   return {a, b};
+}
+
+// The points of an axis: `points_flag`, or 1 where `range_flag` gives one value (a FROM:TO range
+// takes `fallback`); one value with more points is refused naming the points flag.
+int AxisPoints(const Args& args, const std::string& range_flag, const std::string& points_flag, int fallback) {
+  const auto range = args.Get(range_flag);
+  const bool single = range && range->find(':') == std::string::npos;
+  if (!single) return args.Integer(points_flag, fallback);
+  const int points = args.Integer(points_flag, 1);
+  if (points != 1)
+    throw InputError(points_flag, "must be 1 with a single " + range_flag + " value ('" + *range +
+                                      "'); give " + range_flag + " FROM:TO for more points");
+  return points;
 }
 
 // SweepSpec::Validate names spec fields (frequency_hz.to, amplitude_v.points, threads, ...): the
@@ -205,7 +224,7 @@ SweepSpec SpecFromArgs(const Args& args) {
   if (grid != "linear" && grid != "geometric" && grid != "eq1")
     throw InputError("--grid", "unknown grid '" + grid + "' (known: linear, geometric, eq1)");
   const bool eq1 = grid == "eq1";
-  const int frequency_points = args.Integer("--frequency-points", 117);
+  const int frequency_points = AxisPoints(args, "--frequency-hz", "--frequency-points", 117);
   if (eq1) {
     if (args.Has("--frequency-hz"))
       throw InputError("--grid", "eq1 fixes the frequencies (5 Hz * 1.02^(n-1)); drop --frequency-hz");
@@ -217,7 +236,7 @@ SweepSpec SpecFromArgs(const Args& args) {
     spec.frequency_hz = GridAxis{from, to, frequency_points, grid == "geometric"};
   }
   const auto [v_from, v_to] = ParseRange(args, "--amplitude-v", 0.1, 0.6);
-  spec.amplitude_v = GridAxis{v_from, v_to, args.Integer("--amplitude-points", 6), false};
+  spec.amplitude_v = GridAxis{v_from, v_to, AxisPoints(args, "--amplitude-v", "--amplitude-points", 6), false};
   spec.threads = args.Integer("--threads", static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
   spec.thresholds = !args.Has("--no-thresholds");
   try {

@@ -1,9 +1,11 @@
 // strokelab: one binary for local studies and, later, the service.
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <string>
 #include <vector>
 
+#include "ceres_log.h"
 #include "commands.h"
 #include "strokelab/base/errors.h"
 
@@ -20,17 +22,20 @@ commands:
   synth      a synthetic measurement campaign (recordings layout) from a model, its truth apart
   fit        fit a model (paper, linear) to a campaign directory: parameters with standard errors
   diagnose   where a fitted model misses a campaign, the physics it left out, fitted, with the improvement
+  paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 service:
   serve      the REST service: SQLite job store, worker pool, web page at /
   worker     a remote worker leasing tasks from a server (--server http://HOST:PORT)
   submit     submit a job file to a server (--wait: progress bar until it finishes)
   status     a job's status (--wait: until it finishes)
-  results    a job's steady states as JSON or --csv
+  results    a finished job's results: a sweep's steady states (JSON or --csv), a fit's or diagnosis's document
   backup     a consistent copy of the service's job store, safe while it runs (--db F --to G)
-  paper      regenerate the paper's simulated figures (CSV + SVG) and a text summary into a folder
 
 Run 'strokelab COMMAND --help' for a command's options.
+
+Ceres' own log lines (the fits' solver) are dropped unless STROKELAB_CERES_LOG=LEVEL[:FILE] asks for
+them: LEVEL error, warning or info (and above), on stderr or appended to FILE (serve: as JSON lines).
 )";
 
 }  // namespace
@@ -43,6 +48,7 @@ int main(int argc, char** argv) {
   const std::string command = argv[1];
   const std::vector<std::string> rest(argv + 2, argv + argc);
   try {
+    strokelab::cli::RouteCeresLog(strokelab::cli::CeresLogSettingsFrom(std::getenv("STROKELAB_CERES_LOG")));
     if (command == "simulate") return strokelab::cli::RunSimulate(rest);
     if (command == "paper") return strokelab::cli::RunPaper(rest);
     if (command == "sweep") return strokelab::cli::RunSweep(rest);

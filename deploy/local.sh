@@ -86,9 +86,12 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # each process synthesises and fits the same campaign (~30 s here) before checking another figure.
 # DiagnosedModel*Test.* run a whole diagnosis through the binary (12 and ~20 s in Release); the
 # report and map code they reach runs in DiagnoseReportMapsTest and SweepDiagnosisMapsTest.
+# readme_commands runs the README's commands, a diagnosis among them (~20 s in Release), and
+# CeresLogTest.ADiagnosisPrintsOnlyItsProgress a small diagnosis (~6 s); the code they reach runs
+# in the CLI and server tests.
 # Then each harness's corpus is replayed (ctest) and each harness fuzzed for FUZZ_SECONDS.
 ASAN_DIR=build/asan
-ASAN_EXCLUDE='^(web_page|Library/DiagnoseTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*)$'
+ASAN_EXCLUDE='^(web_page|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*)$'
 asan_build() {
   configure_clang "$ASAN_DIR" -DSTROKELAB_SANITIZE=address,undefined -DSTROKELAB_FUZZ=ON
   cmake --build "$ASAN_DIR" -j "$(nproc)"

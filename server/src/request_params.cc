@@ -53,11 +53,33 @@ bool WantsCsv(const httplib::Request& req) {
   return format == "csv";
 }
 
+namespace {
+
+// What a refused request sent, in words: curl -d's default type is the usual mistake.
+std::string SentTypeWords(const std::string& type) {
+  if (type.empty()) return "no Content-Type";
+  if (type.rfind("application/x-www-form-urlencoded", 0) == 0)
+    return "Content-Type '" + type + "', which curl sends for -d and --data-binary unless told otherwise";
+  return "Content-Type '" + type + "'";
+}
+
+}  // namespace
+
+std::string UnsupportedJsonBodyMessage(const std::string& type) {
+  return "a JSON body needs the header 'Content-Type: application/json' (with curl: -H 'Content-Type: "
+         "application/json'); this request had " + SentTypeWords(type);
+}
+
+std::string UnsupportedCampaignMessage(const std::string& type) {
+  return "a campaign upload needs the header 'Content-Type: application/x-tar' for a tar archive (ustar or pax) "
+         "or 'Content-Type: application/zip' for a zip archive (with curl: -H 'Content-Type: application/x-tar' "
+         "--data-binary @campaign.tar); this request had " + SentTypeWords(type);
+}
+
 json JsonBody(const httplib::Request& req) {
   const std::string type = req.get_header_value("Content-Type");
   if (type.substr(0, type.find(';')) != "application/json")
-    throw HttpError{415, "unsupported_media_type",
-                    "send the body as Content-Type: application/json (got '" + type + "')", ""};
+    throw HttpError{415, "unsupported_media_type", UnsupportedJsonBodyMessage(type), ""};
   try {
     return json::parse(req.body);
   } catch (const json::exception& e) {

@@ -29,6 +29,9 @@ bool WantsCsv(const httplib::Request& req);
 // A JSON request body: sent as application/json (parameters such as charset allowed), and parsed.
 // The one place where a json::exception is the client's (400 bad_json).
 nlohmann::json JsonBody(const httplib::Request& req);
+// The 415 messages: the exact header to add (and its curl option), and what the request had.
+std::string UnsupportedJsonBodyMessage(const std::string& content_type);
+std::string UnsupportedCampaignMessage(const std::string& content_type);
 // ?limit=, an integer from 1 to `maximum` (`fallback` when absent).
 int QueryLimit(const httplib::Request& req, int fallback, int maximum);
 // The lease a worker's complete or fail request names.

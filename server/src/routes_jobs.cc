@@ -83,8 +83,8 @@ void Service::Impl::AddJobRoutes() {
   On("DELETE", R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
                 const JobRecord job = RequireJob(req.matches[1]);
                 if (!store->CancelJob(job.id, NowMs()))
-                  throw HttpError{409, "already_finished", "job " + std::to_string(job.id) + " has already " +
-                                                              ToString(job.status), ""};
+                  throw HttpError{409, "already_finished", "job " + std::to_string(job.id) + " has already finished (" +
+                                                              ToString(job.status) + ")", ""};
                 {
                   std::lock_guard<std::mutex> lock(cancel_mutex);
                   auto [begin, end] = running.equal_range(job.id);
@@ -98,10 +98,7 @@ void Service::Impl::AddJobRoutes() {
               const std::string type = req.get_header_value("Content-Type");
               const auto is = [&type](const char* media) { return type.rfind(media, 0) == 0; };
               if (!is("application/x-tar") && !is("application/zip") && !is("application/x-zip-compressed"))
-                throw HttpError{415, "unsupported_media_type",
-                                "send the campaign as a tar archive (ustar or pax) with Content-Type "
-                                "application/x-tar, or as a zip archive with Content-Type application/zip, "
-                                "not '" + type + "'", ""};
+                throw HttpError{415, "unsupported_media_type", UnsupportedCampaignMessage(type), ""};
               // The body's first bytes, not the type, choose the reader (campaign_upload.h).
               ArchiveLimits limits;
               limits.max_file_bytes = limits.max_total_bytes = options.max_campaign_bytes;

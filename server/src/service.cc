@@ -12,6 +12,7 @@
 #include "event_log.h"
 #include "http_reply.h"
 #include "now.h"
+#include "request_params.h"
 #include "service_impl.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/jobs/jobs.h"
@@ -125,7 +126,16 @@ void Service::Impl::SetUpRoutes() {
   });
   http.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
     if (!res.body.empty()) return;
-    if (res.status == 413) SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
+    const std::string type = req.get_header_value("Content-Type");
+    if (res.status == 413 && type.rfind("application/x-www-form-urlencoded", 0) == 0) {
+      // httplib refuses form bodies over 8 KiB as 413 before any route sees them, but the size is
+      // not what is wrong: no route takes a form (curl -d's default type), so say which type to send.
+      const bool campaign = req.path == "/v1/campaigns";
+      SendError(res, {415, "unsupported_media_type",
+                      campaign ? UnsupportedCampaignMessage(type) : UnsupportedJsonBodyMessage(type), ""});
+      res.set_header("Connection", "close");  // a body over the payload limit was left unread
+    }
+    else if (res.status == 413) SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
     else if (res.status == 404) {
       const std::string allowed = AllowedMethods(req.path);
       if (allowed.empty()) {

@@ -52,7 +52,8 @@ TEST(SweepCliTest, BadGridsNameTheFlag) {
   ExpectSweepInputError("--threads 0", "--threads: must be ");
   ExpectSweepInputError("--grid foo", "--grid: unknown grid 'foo' (known: linear, geometric, eq1)");
   ExpectSweepInputError("--grid eq1 --frequency-hz 5:9", "--grid: eq1 fixes the frequencies");
-  ExpectSweepInputError("--frequency-hz 5", "--frequency-hz: expected FROM:TO, e.g. 5:50, got '5'");
+  ExpectSweepInputError("--frequency-hz 5:", "--frequency-hz: expected FROM:TO or one value, e.g. 5:50 or 8, got '5:'");
+  ExpectSweepInputError("--frequency-hz 5 --frequency-points 3", "--frequency-points: must be 1 with a single");
   ExpectSweepInputError("--frequency-hz a:5", "--frequency-hz: expected a number, got 'a'");
   ExpectSweepInputError("--amplitude-v 0.1:inf", "--amplitude-v: must be finite, got '0.1:inf'");
   ExpectSweepInputError("--frequency-points 2.5", "--frequency-points: expected an integer, got '2.5'");

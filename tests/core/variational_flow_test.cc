@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/engines/engine.h"
 #include "strokelab/engines/variational_flow.h"
 #include "strokelab/model/model.h"
 #include "strokelab/steady/steady_state.h"
@@ -249,6 +250,42 @@ TEST(VariationalFlowTest, DriveDerivativesAreTheMapsFiniteDifferences) {
   }
 }
 
+// The samples on a record's grid from the dense output (what the fit's sampling correction analyses)
+// against the exact engine's record of the same motion: 51.2 kHz over two periods, through contacts,
+// a damped stop and clipping; displacement, velocity and force to 1e-8 of their largest values (the
+// 7th-order interpolant between steps at the flow's tolerance 1e-11).
+TEST(VariationalFlowTest, SamplesOnARecordsGridAreTheExactEnginesRecord) {
+  for (const PwlCase& c : PiecewiseLinearCases()) {
+    SCOPED_TRACE(c.name);
+    const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
+    const State start = SettledStart(c.model, drive);
+    SimulationOptions sim;
+    sim.sample_rate_hz = 51200.0;
+    sim.duration_s = 2.0 / c.frequency_hz;
+    sim.initial = start;
+    sim.record_velocity = true;
+    const Record exact = MakeExactEngine()->Simulate(c.model, drive, sim);
+    FlowRequest request;
+    request.sample_count = static_cast<int>(exact.displacement_m.size());
+    request.sample_interval_s = 1.0 / sim.sample_rate_hz;
+    const double end_s = (request.sample_count - 1) * request.sample_interval_s;
+    const FlowResult flow = Flow(c.model, drive, start, 0.0, end_s, request);
+    ASSERT_EQ(flow.samples.size(), exact.displacement_m.size());
+    ASSERT_EQ(flow.sample_force_n.size(), exact.force_n.size());
+    double x_max = 0, v_max = 0, f_max = 0;
+    for (size_t n = 0; n < exact.displacement_m.size(); ++n) {
+      x_max = std::max(x_max, std::abs(exact.displacement_m[n]));
+      v_max = std::max(v_max, std::abs(exact.velocity_m_per_s[n]));
+      f_max = std::max(f_max, std::abs(exact.force_n[n]));
+    }
+    for (size_t n = 0; n < exact.displacement_m.size(); ++n) {
+      ASSERT_NEAR(flow.samples[n].x_m, exact.displacement_m[n], 1e-8 * x_max) << "sample " << n;
+      ASSERT_NEAR(flow.samples[n].v_m_per_s, exact.velocity_m_per_s[n], 1e-8 * v_max) << "sample " << n;
+      ASSERT_NEAR(flow.sample_force_n[n], exact.force_n[n], 1e-8 * f_max) << "sample " << n;
+    }
+  }
+}
+
 TEST(VariationalFlowTest, BadOptionsAndIntervalsNameTheField) {
   FlowOptions options;
   options.relative_tolerance = 0.0;
@@ -259,6 +296,10 @@ TEST(VariationalFlowTest, BadOptionsAndIntervalsNameTheField) {
     EXPECT_EQ(e.field(), "relative_tolerance");
   }
   EXPECT_THROW(Flow(PaperModel(), {0.5, 8.0, 0.0}, {}, 0.1, 0.0, {}), InputError);
+  FlowRequest past_the_end;
+  past_the_end.sample_count = 11;
+  past_the_end.sample_interval_s = 0.01;  // the last at 0.1 s > t1
+  EXPECT_THROW(Flow(PaperModel(), {0.5, 8.0, 0.0}, {}, 0.0, 0.05, past_the_end), InputError);
 }
 
 TEST(VariationalFlowTest, ASpentStepBudgetIsANumericalError) {

@@ -112,6 +112,28 @@ TEST(ExtendedFitTest, AParameterTheRecordsDoNotConstrainIsNotIdentifiable) {
   }
 }
 
+// k3's range ends at 5e6 N/m^3, a third of the truth: the records push it against that bound. The fit
+// holds it there and converges in the others (Ceres alone crawls along the bound), and says so: no
+// standard error for k3, and a note naming it.
+TEST(ExtendedFitTest, AParameterPushedAgainstItsBoundIsHeldThereAndSaysSo) {
+  const CubicCampaign c = MakeCubicCampaign();
+  ExtendedProblem problem = CubicProblem();
+  problem.parameters.back().theta_max = 1.0 + 5.0;  // k3 <= 5e6 N/m^3
+  const ExtendedFitResult r = internal::FitExtended(c.records, c.synthesis.campaign.response, problem, ExtendedFitOptions{});
+  EXPECT_TRUE(r.converged) << r.report;
+  EXPECT_NE(r.report.find("held at a bound of its range (the records push it beyond): k3"), std::string::npos) << r.report;
+  for (const FitParameter& p : r.parameters) {
+    SCOPED_TRACE(p.name);
+    if (p.name == "k3") {
+      EXPECT_NEAR(p.value, 5e6, 1.0);
+      EXPECT_FALSE(p.identifiable);
+      EXPECT_TRUE(std::isnan(p.standard_error));
+    } else {
+      EXPECT_TRUE(std::isfinite(p.standard_error)) << p.note;
+    }
+  }
+}
+
 TEST(ExtendedFitTest, CutOffBeforeCeresConvergesSaysSo) {
   const CubicCampaign c = MakeCubicCampaign();
   ExtendedFitOptions options;

@@ -100,7 +100,7 @@ nlohmann::ordered_json StudyCampaign(const EffectCase& effect, uint64_t seed) {
                                             : std::numeric_limits<double>::quiet_NaN();
       nlohmann::ordered_json parameter = {{"name", p.name}, {"unit", p.unit}, {"estimate", p.value},
                                           {"standard_error", p.standard_error}, {"truth", truth}, {"z", z}};
-      if (!p.note.empty()) parameter["note"] = p.note;  // "on its bound"
+      if (!p.note.empty()) parameter["note"] = p.note;  // "held at a bound ..."
       parameters.push_back(parameter);
     }
     line["parameters"] = parameters;

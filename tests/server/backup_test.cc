@@ -155,5 +155,18 @@ TEST(Backup, RefusesWhatItCannotCopyInOneLine) {
   EXPECT_EQ(RawDb(taken).Int("PRAGMA user_version"), kLatestSchema);
 }
 
+// The README's `--to backups/strokelab-DATE.db`: a folder that does not exist yet is created.
+TEST(Backup, CreatesTheFolderOfTo) {
+  ScratchDirectory dir("strokelab-backup");
+  const std::string store = (dir.path() / "store.db").string();
+  {
+    ServeChild server(store, dir.path() / "serve.log", {"--workers", "0", "--quiet"});
+  }
+  const fs::path to = dir.path() / "backups" / "daily" / "store.db";
+  const CliRun run = RunCli("backup --db " + store + " --to " + to.string());
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_EQ(RawDb(to.string()).Int("PRAGMA user_version"), kLatestSchema);
+}
+
 }  // namespace
 }  // namespace strokelab::testing

@@ -378,7 +378,8 @@ TEST_F(CampaignJobsTest, BadArchivesAreRefusedNamingTheMember) {
   }
   const json wrong_type = Error(Upload(tar, "application/gzip"), 415);
   EXPECT_EQ(wrong_type["code"], "unsupported_media_type");
-  EXPECT_THAT(wrong_type.value("message", ""), HasSubstr("application/x-tar, or as a zip archive"));
+  EXPECT_THAT(wrong_type.value("message", ""), HasSubstr("'Content-Type: application/x-tar'"));
+  EXPECT_THAT(wrong_type.value("message", ""), HasSubstr("'Content-Type: application/zip'"));
   // Nothing is left behind by the refused uploads.
   const fs::path uploads = dir_ / "jobs.db.campaigns";
   EXPECT_TRUE(!fs::exists(uploads) || fs::is_empty(uploads));
@@ -388,6 +389,21 @@ TEST_F(CampaignJobsTest, BadArchivesAreRefusedNamingTheMember) {
   EXPECT_EQ(Error(Upload(tar), 413)["code"], "body_too_large");
   options_.max_campaign_bytes = tar.size();
   Restart();
+  UploadOk(tar);
+}
+
+// `curl --data-binary @campaign.tar` without -H sends the tar as a form (and httplib refused form
+// bodies over 8 KiB as 413 body_too_large): 415 naming the header to add, as with no type at all.
+TEST_F(CampaignJobsTest, AnUploadWithoutItsTypeIsToldWhichHeaderToAdd) {
+  const std::string tar = Tar(EntriesOf(campaign_dir(), "campaign-a/"));
+  ASSERT_GT(tar.size(), 8192u);
+  for (const char* type : {"application/x-www-form-urlencoded", ""}) {
+    for (const std::string& body : {tar, tar.substr(0, 4096)}) {
+      const json error = Error(Upload(body, type), 415);
+      EXPECT_EQ(error["code"], "unsupported_media_type") << "'" << type << "', " << body.size() << " bytes";
+      EXPECT_THAT(error.value("message", ""), HasSubstr("-H 'Content-Type: application/x-tar'")) << type;
+    }
+  }
   UploadOk(tar);
 }
 

@@ -145,6 +145,21 @@ TEST_F(ServiceTest, OversizeJobAndBodyNameTheLimit) {
   EXPECT_EQ(e2["code"], "body_too_large");
 }
 
+// curl -d sends application/x-www-form-urlencoded: refused (a form post from any web page must not
+// submit jobs), and the message names the header to add, whatever the body's size (httplib refuses
+// a form body over 8 KiB itself, which was answered 413 body_too_large).
+TEST_F(ServiceTest, AFormPostIsRefusedNamingTheHeaderToAdd) {
+  auto c = Client();
+  const std::string padded = json(kSmallSweep).dump() + std::string(20000, ' ');
+  for (const std::string& body : {json(kSmallSweep).dump(), padded}) {
+    for (const char* type : {"application/x-www-form-urlencoded", "text/plain", ""}) {
+      const json e = Error(c.Post("/v1/jobs", Auth(kSubmitToken), body, type), 415);
+      EXPECT_EQ(e["code"], "unsupported_media_type") << type << ", " << body.size() << " bytes";
+      EXPECT_THAT(e.value("message", ""), HasSubstr("-H 'Content-Type: application/json'")) << type;
+    }
+  }
+}
+
 TEST_F(ServiceTest, UnknownJobAndCancelOfAFinishedJob) {
   auto c = Client();
   EXPECT_EQ(Error(c.Get("/v1/jobs/12345", Auth(kReadToken)), 404)["code"], "unknown_job");
@@ -154,6 +169,20 @@ TEST_F(ServiceTest, UnknownJobAndCancelOfAFinishedJob) {
   const json e = Error(c.Delete("/v1/jobs/" + std::to_string(reply["id"].get<int64_t>()), Auth(kSubmitToken)), 409);
   EXPECT_EQ(e["code"], "already_finished");
   EXPECT_THAT(e["message"].get<std::string>(), HasSubstr("succeeded"));
+}
+
+// A second cancel said "job N has already cancelled": the job has finished, and how.
+TEST_F(ServiceTest, CancellingACancelledJobSaysItHasFinished) {
+  json job = kSmallSweep;
+  job["grid"]["frequency_hz"]["points"] = 400;
+  job["grid"]["amplitude_v"]["points"] = 60;
+  const std::string path = "/v1/jobs/" + std::to_string(Submit(job)["id"].get<int64_t>());
+  auto c = Client();
+  auto first = c.Delete(path, Auth(kSubmitToken));
+  ASSERT_TRUE(first && first->status == 200) << (first ? first->body : "no reply");
+  const json again = Error(c.Delete(path, Auth(kSubmitToken)), 409);
+  EXPECT_EQ(again["code"], "already_finished");
+  EXPECT_THAT(again.value("message", ""), ::testing::EndsWith("has already finished (cancelled)"));
 }
 
 TEST_F(ServiceTest, CancelStopsARunningJob) {

@@ -134,11 +134,13 @@ class FlowIntegrator {
   // One DOP853 step of size h from (t, y_) with K(0) = f(t, y_); y_new_, K(12) = f(t + h, y_new_).
   // Returns the scaled error norm.
   double Step(double t, double h);
-  // The dense output's coefficients over the step just taken (three more stages).
+  // The dense output's coefficients over the step just taken (three more stages), once per step.
   void PrepareDense(double t, double h);
   // The interpolated component i at theta in [0, 1] of the step.
   double Interpolate(int i, double theta) const;
   void Note(double t, double x, double v);
+  // The requested samples at instants up to t_until within the step just taken from t (size h).
+  void Sample(double t, double h, double t_until);
   // Cuts the step at theta, switches the mode across `surface`, applies the jump.
   void Switch(double t, double h, double theta, const variational::StopSurface& surface, bool entry);
   // Locates the first switch in the step just taken (and notes its apex); if there is one, cuts the
@@ -158,6 +160,8 @@ class FlowIntegrator {
   std::vector<variational::StopSurface> stops_;  // the penetration surface of each stop present
   double switch_time_ = 0.0;    // the instant of the last switch [s]
   double step_cos_ = 1.0, step_sin_ = 0.0;  // cos(wt), sin(wt) at the start of the step being taken
+  bool dense_ready_ = false;               // PrepareDense ran for the step just taken
+  int next_sample_ = 0;
   FlowResult result_;
 };
 
@@ -204,6 +208,7 @@ void FlowIntegrator::StageState(int s, double h) {
 }
 
 double FlowIntegrator::Step(double t, double h) {
+  dense_ready_ = false;
   step_cos_ = std::cos(field_.omega_rad_per_s() * t);
   step_sin_ = std::sin(field_.omega_rad_per_s() * t);
   for (int s = 1; s < dop853::kStages; ++s) {
@@ -235,6 +240,8 @@ double FlowIntegrator::Step(double t, double h) {
 
 void FlowIntegrator::PrepareDense(double t, double h) {
   // (step_cos_, step_sin_ still hold the step's start: Step set them.)
+  if (dense_ready_) return;
+  dense_ready_ = true;
   for (int s = dop853::kStages + 1; s < dop853::kExtendedStages; ++s) {
     StageState(s, h);
     EvaluateStage(s, t, h, stage_.data(), K(s));
@@ -268,8 +275,22 @@ void FlowIntegrator::Note(double t, double x, double v) {
   if (request_.figures) result_.peak_force_n = std::max(result_.peak_force_n, std::abs(field_.Force(t, x, v, mode_)));
 }
 
+void FlowIntegrator::Sample(double t, double h, double t_until) {
+  const int count = request_.sample_count;
+  while (next_sample_ < count) {
+    const double ts = request_.sample_start_s + next_sample_ * request_.sample_interval_s;
+    if (ts > t_until) return;
+    PrepareDense(t, h);
+    const double theta = (ts - t) / h, x = Interpolate(0, theta), v = Interpolate(1, theta);
+    result_.samples.push_back({x, v});
+    result_.sample_force_n.push_back(field_.Force(ts, x, v, mode_));
+    ++next_sample_;
+  }
+}
+
 void FlowIntegrator::Switch(double t, double h, double theta, const variational::StopSurface& surface, bool entry) {
   const double t_switch = t + theta * h;
+  Sample(t, h, t_switch);  // in the mode before the switch
   switch_time_ = t_switch;
   for (int i = 0; i < n_; ++i) y_new_[i] = Interpolate(i, theta);
   const double x = y_new_[0], v = y_new_[1];
@@ -301,10 +322,8 @@ void FlowIntegrator::Switch(double t, double h, double theta, const variational:
 }
 
 bool FlowIntegrator::HandleEvents(double t, double h) {
-  bool dense_ready = false;
   auto interpolated = [&](const variational::StopSurface& surface, double theta) {
-    if (!dense_ready) PrepareDense(t, h);
-    dense_ready = true;
+    PrepareDense(t, h);
     return surface.Value(model(), Interpolate(0, theta), Interpolate(1, theta));
   };
   double best_theta = 2.0;
@@ -341,8 +360,7 @@ bool FlowIntegrator::HandleEvents(double t, double h) {
   const bool watch_apex = request_.figures || !stops_.empty();
   if (watch_apex && ((v0 < 0 && v1 >= 0) || (v0 > 0 && v1 <= 0))) {
     auto velocity = [&](double theta) {
-      if (!dense_ready) PrepareDense(t, h);
-      dense_ready = true;
+      PrepareDense(t, h);
       return Interpolate(1, theta);
     };
     const double theta_apex = v1 == 0.0 ? 1.0 : LocateRootOnStep(velocity, v0, v1);
@@ -411,12 +429,18 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
       t = switch_time_;  // Switch moved y_ to the switch instant
       continue;
     }
-    t = to_boundary ? boundary : t + h_try;
+    const double t_end = to_boundary ? boundary : t + h_try;
+    Sample(t, h_try, t_end);
+    t = t_end;
     if (to_boundary) ++next_boundary;
     y_.swap(y_new_);
     std::copy_n(K(dop853::kStages), n_, K(0));  // first same as last
   }
   Note(t1, y_[0], y_[1]);
+  for (; next_sample_ < request_.sample_count; ++next_sample_) {  // the last instant's rounding past t1
+    result_.samples.push_back({y_[0], y_[1]});
+    result_.sample_force_n.push_back(field_.Force(t1, y_[0], y_[1], mode_));
+  }
   result_.end = {y_[0], y_[1]};
   result_.end_rate = {K(0)[0], K(0)[1]};  // f(t1, y(t1)): the last step's first-same-as-last stage
   for (int c = 0; c < l.columns; ++c) result_.columns.push_back({y_[l.Column(c)], y_[l.Column(c) + 1]});
@@ -443,6 +467,12 @@ FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start,
   if (!std::isfinite(t0_s) || !std::isfinite(t1_s) || !(t1_s >= t0_s))
     throw InputError("t1_s", "the interval must be finite with t1 >= t0");
   if (request.harmonics < 0) throw InputError("harmonics", "must be >= 0");
+  if (request.sample_count < 0) throw InputError("sample_count", "must be >= 0");
+  if (request.sample_count > 0) {
+    const double last_s = request.sample_start_s + (request.sample_count - 1) * request.sample_interval_s;
+    if (!(request.sample_start_s >= t0_s) || !(request.sample_interval_s > 0) || !(last_s <= t1_s * (1 + 1e-12)))
+      throw InputError("sample_start_s", "the samples must lie within [t0, t1] at a positive interval");
+  }
   return FlowIntegrator(model, drive, request, options).Run(start, t0_s, t1_s);
 }
 

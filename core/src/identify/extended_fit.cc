@@ -97,10 +97,23 @@ std::vector<Complex> CorrectionAt(const ActuatorModel& model, const Target& t, R
   return SamplingCorrection(model, *t.record, *orbit, kind, orders);
 }
 
-Eigen::MatrixXd DenseJacobian(const ceres::CRSMatrix& crs) {
-  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+bool OnBound(const FreeParameter& p, double theta) {
+  return std::abs(theta - p.theta_min) < 1e-6 || std::abs(theta - p.theta_max) < 1e-6;
+}
+
+// The Jacobian in every parameter with a zero column for each one held or on a bound (the errors of
+// the others are then those with it fixed there). Ceres gives it in the free parameters only (a held
+// one's column is left out): the columns not held, in order.
+Eigen::MatrixXd DenseJacobian(const ceres::CRSMatrix& crs, const std::vector<bool>& held, const ExtendedProblem& problem,
+                              const std::vector<double>& theta) {
+  std::vector<int> column;
+  for (size_t i = 0; i < held.size(); ++i)
+    if (!held[i]) column.push_back(static_cast<int>(i));
+  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, static_cast<Eigen::Index>(held.size()));
   for (int r = 0; r < crs.num_rows; ++r)
-    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, column[crs.cols[k]]) = crs.values[k];
+  for (size_t i = 0; i < held.size(); ++i)
+    if (OnBound(problem.parameters[i], theta[i])) j.col(static_cast<Eigen::Index>(i)).setZero();
   return j;
 }
 
@@ -242,6 +255,12 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
 
   // The sampling corrections depend on theta a little; they are frozen during a solve (its objective
   // stays one function for Ceres' convergence test) and refreshed between solves until theta stays.
+  // A parameter the records push against its bound is held there: Ceres projects its steps onto the
+  // bounds, so its quadratic model keeps predicting a descent the projection takes away, and the
+  // trust region shrinks to crawl along the bound until the iterations run out (an amplifier limit
+  // or a contact stiffness at the edge of its range). A solve that runs out of iterations holds the
+  // parameters it left on a bound and is followed by another solve.
+  std::vector<bool> held(p, false);
   bool ceres_converged = false, moved = true;
   for (int solve = 0; solve < options.max_passes && moved; ++solve) {
     const ActuatorModel model = problem.Decode(theta.data());
@@ -266,12 +285,23 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     result.passes = solve + 1;
     result.report = summary.BriefReport();
     ceres_converged = summary.termination_type == ceres::CONVERGENCE;
+    if (summary.termination_type == ceres::NO_CONVERGENCE) {
+      std::vector<int> constant;
+      bool newly_held = false;
+      for (int i = 0; i < p; ++i) {
+        if (!held[i] && OnBound(problem.parameters[i], theta[i])) held[i] = newly_held = true;
+        if (held[i]) constant.push_back(i);
+      }
+      if (!newly_held || constant.size() == static_cast<size_t>(p)) break;
+      ceres_problem.SetManifold(theta.data(), new ceres::SubsetManifold(p, constant));
+      continue;
+    }
     if (!ceres_converged) break;
     ceres::CRSMatrix jacobian;
     double cost = 0.0;
     if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian)) break;
     const double variance = 2.0 * cost / static_cast<double>(result.residuals - p);
-    const ParameterErrors errors = ErrorsFromJacobian(DenseJacobian(jacobian), variance);
+    const ParameterErrors errors = ErrorsFromJacobian(DenseJacobian(jacobian, held, problem, theta), variance);
     moved = false;
     for (int i = 0; i < p; ++i)
       if (errors.identifiable[i] && std::abs(theta[i] - before[i]) > kSolveTolerancePerError * std::sqrt(errors.covariance(i, i)))
@@ -291,10 +321,15 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
 
   ParameterErrors errors{Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN()),
                          std::vector<bool>(p, false)};
-  if (evaluates) errors = ErrorsFromJacobian(DenseJacobian(jacobian), result.residual_variance);
-  std::string unidentified;
-  for (int i = 0; i < p; ++i)
-    if (evaluates && !errors.identifiable[i]) unidentified += (unidentified.empty() ? "" : ", ") + problem.parameters[i].name;
+  if (evaluates) errors = ErrorsFromJacobian(DenseJacobian(jacobian, held, problem, theta), result.residual_variance);
+  // A parameter the solve left on a bound is reported as held there, as one the loop held.
+  for (int i = 0; i < p; ++i) held[i] = held[i] || OnBound(problem.parameters[i], theta[i]);
+  std::string unidentified, on_bound;
+  for (int i = 0; i < p; ++i) {
+    if (held[i]) on_bound += (on_bound.empty() ? "" : ", ") + problem.parameters[i].name;
+    else if (evaluates && !errors.identifiable[i]) unidentified += (unidentified.empty() ? "" : ", ") + problem.parameters[i].name;
+  }
+  if (!on_bound.empty()) result.report += "\nheld at a bound of its range (the records push it beyond): " + on_bound;
   if (!unidentified.empty()) {
     result.converged = false;
     result.report += "\nNOT IDENTIFIABLE from these records: " + unidentified;
@@ -308,10 +343,9 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     out.unit = fp.unit;
     out.value = fp.Value(theta[i]);
     out.standard_error = fp.StandardError(theta[i], errors.covariance(i, i));
-    out.identifiable = errors.identifiable[i];
-    if (!out.identifiable) out.note = "not identifiable from these records";
-    if (std::abs(theta[i] - fp.theta_min) < 1e-6 || std::abs(theta[i] - fp.theta_max) < 1e-6)
-      out.note += (out.note.empty() ? "" : "; ") + std::string("on its bound");
+    out.identifiable = errors.identifiable[i] && !held[i];
+    if (held[i]) out.note = "held at a bound of its range (the records push it beyond): no standard error";
+    else if (!out.identifiable) out.note = "not identifiable from these records";
     result.parameters.push_back(out);
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();

@@ -171,51 +171,61 @@ std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const Re
 }
 
 // What the record's sampling and least-squares fit make of the model's response, less the orbit's
-// continuous-time harmonics. The impacts have harmonics far above N and up to the sample rate; on the
-// record's grid (a period is not a whole number of samples) they alias and leak into C_1..C_N by a
-// few 1e-5 of the spike's harmonics, which is comparable with the noise's standard error and would
-// bias the fit by several standard errors. The model's orbit is sampled on the record's own grid
-// (the exact engine from the orbit's state at drive phase phi) and analysed as the record was. Zero
-// for orbits of period other than 1 (which of their periods the record starts in is unknown) and for
-// models that are not piecewise linear.
+// continuous-time harmonics (see SamplingCorrection): the orbit sampled on the record's own grid over
+// its analysis window, from the orbit's state at drive phase phi (the record's first sample). The
+// exact engine samples piecewise-linear models; the variational flow's dense output (7th order, the
+// flow's tolerances) samples any other. Empty for orbits of period other than 1 (which of their
+// periods the record starts in is unknown).
 std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                       ResponseKind kind) {
   if (orbit.anchor.period != 1) return {};
   const double f = a.drive.frequency_hz, period_s = 1.0 / f;
   double phase_time_s = a.drive.phase_rad / (fit_internal::kTwoPi * f);  // model time at which the drive phase is phi
   if (phase_time_s < 0) phase_time_s += period_s;
-  // The orbit's state at drive phase phi: the record's first sample.
-  State y = orbit.anchor.start;
+  const size_t count = a.window.end;
+  const double interval_s = 1.0 / a.sample_rate_hz;
+  std::vector<State> states;
+  std::vector<double> force_n;
   if (model.IsPiecewiseLinear()) {
+    State y = orbit.anchor.start;
     const PiecewiseLinearSystem system(model, SineDrive{a.drive.amplitude_v, f, 0.0});
     double t = 0.0;
     PwlMode mode = system.InitialMode(0.0, y);
     system.Advance(&t, &y, &mode, phase_time_s, [](const SwitchEvent&) {});
+    SimulationOptions sim;
+    sim.duration_s = static_cast<double>(count) * interval_s;
+    sim.sample_rate_hz = a.sample_rate_hz;
+    sim.initial = y;
+    sim.record_velocity = true;
+    const Record r = MakeExactEngine()->Simulate(model, SineDrive{a.drive.amplitude_v, f, a.drive.phase_rad}, sim);
+    for (size_t n = 0; n < r.displacement_m.size(); ++n) states.push_back({r.displacement_m[n], r.velocity_m_per_s[n]});
+    force_n = r.force_n;
   } else {
-    y = Flow(model, SineDrive{a.drive.amplitude_v, f, 0.0}, y, 0.0, phase_time_s, {}).end;
+    FlowRequest request;
+    request.sample_count = static_cast<int>(count);
+    request.sample_start_s = phase_time_s;
+    request.sample_interval_s = interval_s;
+    const double end_s = phase_time_s + static_cast<double>(count - 1) * interval_s;
+    FlowResult flow = Flow(model, SineDrive{a.drive.amplitude_v, f, 0.0}, orbit.anchor.start, 0.0, end_s, request);
+    states = std::move(flow.samples);
+    force_n = std::move(flow.sample_force_n);
   }
-  SimulationOptions sim;
-  sim.duration_s = static_cast<double>(a.window.end) / a.sample_rate_hz;
-  sim.sample_rate_hz = a.sample_rate_hz;
-  sim.initial = y;
-  sim.record_velocity = kind == ResponseKind::kVelocity;
-  const std::unique_ptr<Engine> engine = model.IsPiecewiseLinear() ? MakeExactEngine() : MakeCvodeEngine();
-  const Record r = engine->Simulate(model, SineDrive{a.drive.amplitude_v, f, a.drive.phase_rad}, sim);
-  std::vector<double> signal;
-  switch (kind) {
-    case ResponseKind::kForce:
-      signal = r.force_n;
-      break;
-    case ResponseKind::kAcceleration:
-      signal = r.force_n;
-      for (double& v : signal) v /= model.mass_kg;
-      break;
-    case ResponseKind::kVelocity:
-      signal = r.velocity_m_per_s;
-      break;
-    case ResponseKind::kDisplacement:
-      signal = r.displacement_m;
-      break;
+  std::vector<double> signal(states.size());
+  for (size_t n = 0; n < states.size(); ++n) {
+    switch (kind) {
+      case ResponseKind::kForce:
+        signal[n] = force_n[n];
+        break;
+      case ResponseKind::kAcceleration:
+        signal[n] = force_n[n] / model.mass_kg;
+        break;
+      case ResponseKind::kVelocity:
+        signal[n] = states[n].v_m_per_s;
+        break;
+      case ResponseKind::kDisplacement:
+        signal[n] = states[n].x_m;
+        break;
+    }
   }
   return signal;
 }

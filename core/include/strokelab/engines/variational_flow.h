@@ -41,6 +41,10 @@ struct FlowRequest {
   int harmonics = 0;                                // N: int x e^{-jhwt} dt for h = 1..N
   bool harmonic_sensitivities = false;              // and the same of every column's x
   bool figures = false;                             // extrema of x, peak force
+  // Samples of (x, v) and the force m_p x'' at t = sample_start_s + k sample_interval_s, k = 0 ..
+  // sample_count - 1, all within [t0, t1], from the dense output (7th order): a record's sample grid.
+  int sample_count = 0;
+  double sample_start_s = 0.0, sample_interval_s = 0.0;
 };
 
 struct FlowOptions {
@@ -66,6 +70,8 @@ struct FlowResult {
   double min_displacement_m = 0.0, max_displacement_m = 0.0;
   double peak_force_n = 0.0;  // max |f| at extrema of x, switches and step ends
   int contacts = 0;           // stop entries after t0
+  std::vector<State> samples;           // FlowRequest's sample instants
+  std::vector<double> sample_force_n;   // m_p x'' there
   long steps = 0, rejected_steps = 0;
   double last_step_s = 0.0;   // a good initial step for the next flow of the same orbit
 };

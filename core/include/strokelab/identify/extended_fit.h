@@ -47,7 +47,7 @@ struct ExtendedProblem {
 struct ExtendedFitOptions {
   int orders = 10;         // harmonics N
   int max_passes = 8;      // solves, each with the sampling corrections refreshed at its start
-  int max_iterations = 200; // Ceres iterations per solve (the cubic fit of campaign-a needs 59)
+  int max_iterations = 100; // Ceres iterations per solve (the cubic fits of campaign-a and a 72-record campaign need 20-60)
   double max_seconds = 120.0;
 };
 

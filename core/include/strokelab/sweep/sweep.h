@@ -30,7 +30,8 @@ struct SweepSpec {
   GridAxis frequency_hz{5.0, 50.0, 117, true};
   GridAxis amplitude_v{0.1, 0.6, 6, false};
   int threads = 1;
-  // Locate saturation thresholds per frequency and jump intervals per amplitude (the maps).
+  // Locate the saturation threshold per frequency (a root search per column). The jump intervals
+  // per amplitude come with the rows and are given either way.
   bool thresholds = true;
   // A row or column whose numerics fail (NumericalError) leaves a hole, listed in
   // SweepResult::failures (no steady states at that amplitude, NaN thresholds at that frequency),
