@@ -183,7 +183,7 @@ TEST_F(ResultRoutesTest, TheJobShowsItsSpecModelAndGrid) {
 // from a grid value (as a float printed long) is that value.
 TEST_F(ResultRoutesTest, OffGridAmplitudesNameTheGridAndNearOnesSnap) {
   auto c = Client();
-  for (const std::string& query : {"/points?amplitude_v=0.33", "/frf?amplitude_v=0.51", "/points?format=csv&amplitude_v=0.33"}) {
+  for (const std::string query : {"/points?amplitude_v=0.33", "/frf?amplitude_v=0.51", "/points?format=csv&amplitude_v=0.33"}) {
     auto r = c.Get(JobPath(query));
     ASSERT_TRUE(r);
     EXPECT_EQ(r->status, 400) << query;
