@@ -65,7 +65,7 @@ are in "base_parameters" and "missing_physics" as before.
   threshold_shift.csv  per map frequency: grazing and lowest contacting amplitude, base and
                        diagnosed, and the shifts
   jump_intervals.csv   the jump (bistable) intervals of both models
-  records.csv, candidates.csv, levels.csv, diagnosis.json (the JSON result)
+  records.csv, candidates.csv, candidate_parameters.csv, levels.csv, diagnosis.json (the JSON result)
 The maps sweep both models over the campaign's frequency x amplitude range after the diagnosis; a
 smooth model's map costs ~0.1 s per grid point today (40 x 12: a minute or two), so
 --map-frequency-points 0 skips them.
