@@ -56,8 +56,8 @@ are in "base_parameters" and "missing_physics" as before.
 --out DIR writes:
   model.json           the diagnosed model: strokelab sweep --model DIR/model.json and
                        strokelab simulate --model DIR/model.json take it as it is, a sweep job
-                       takes its content as "model"; simulate a smooth model (k2, k3, Hertzian
-                       contact, friction) with --method cvode
+                       takes its content as "model" (the engine for a smooth model is chosen
+                       as for any model: --method auto)
   index.html           the report: verdict, fit before and after, parameters, the saturation maps of
                        the base and the diagnosed model side by side with the saturation threshold
                        per frequency of both and its shift (V and %), the jump intervals of both,
@@ -65,7 +65,7 @@ are in "base_parameters" and "missing_physics" as before.
   threshold_shift.csv  per map frequency: grazing and lowest contacting amplitude, base and
                        diagnosed, and the shifts
   jump_intervals.csv   the jump (bistable) intervals of both models
-  records.csv, candidates.csv, levels.csv, diagnosis.json (the JSON result)
+  records.csv, candidates.csv, candidate_parameters.csv, levels.csv, diagnosis.json (the JSON result)
 The maps sweep both models over the campaign's frequency x amplitude range after the diagnosis; a
 smooth model's map costs ~0.1 s per grid point today (40 x 12: a minute or two), so
 --map-frequency-points 0 skips them.

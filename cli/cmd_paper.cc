@@ -250,7 +250,7 @@ void FrequencyResponses(Study& study) {
       const std::complex<double> h = results[a][i].h;
       const double w = 2 * std::numbers::pi * grid_hz[i];
       mag.y.push_back(std::abs(h));
-      ph.y.push_back(std::arg(h) * 180 / std::numbers::pi);
+      ph.y.push_back(std::arg(h));  // rad, as every phase strokelab writes
       disp.y.push_back(std::abs(h) / (study.model.mass_kg * w * w) * 1e3);
       re.push_back(h.real());
       im.push_back(h.imag());
@@ -272,7 +272,7 @@ void FrequencyResponses(Study& study) {
   axes.y_label = "|H| [N/V]";
   WriteFile(study.out / "fig10_frf_magnitude.svg", plot::LinePlot(magnitude, axes));
   axes.title = "First-order FRF phase (Fig. 4b), stepped-sine up-sweep";
-  axes.y_label = "arg H [deg]";
+  axes.y_label = "arg H [rad]";
   WriteFile(study.out / "fig4b_frf_phase.svg", plot::LinePlot(phase, axes));
   axes.title = "First-order displacement-voltage FRF |H_p| (Fig. 5)";
   axes.y_label = "|H_p| [mm/V]";
@@ -343,8 +343,9 @@ void SaturationOnset(Study& study) {
   axes.x_label = "frequency [Hz]";
   axes.y_label = "drive amplitude [V]";
   axes.log_x = true;
-  axes.y_min = 0;
-  axes.y_max = 1.0;
+  // From the data, on a log axis: the thresholds run from a few tenths of a volt at the resonance to
+  // 10 V and more far from it (a fixed 0 .. 1 V cut them off).
+  axes.log_y = true;
   WriteFile(study.out / "saturation_onset.svg", plot::LinePlot({graze, rest}, axes));
 
   study.summary << "\nSaturation onset (drive amplitude at which the stop is reached):\n";

@@ -55,7 +55,7 @@ amplitude with a stable contacting response), per amplitude the jump (bistable) 
 Without --json or --out a short summary is printed. --json and --out exclude each other.
 
 --json: {points: [{frequency_hz, amplitude_v, branch (up|down|unstable), stable, period (drive
-periods, or "aperiodic"), first_harmonic_force_n, first_harmonic_phase_rad, h_re, h_im,
+periods, or "aperiodic"), first_harmonic_force_n, first_harmonic_phase_rad, h_re_n_per_v, h_im_n_per_v,
 min_displacement_m, max_displacement_m, peak_force_n, contacts_per_period, max_multiplier}],
 saturation_threshold: [{frequency_hz, grazing_amplitude_v, lowest_contact_amplitude_v}],
 jump: [{amplitude_v, bistable_from_hz, bistable_to_hz, from_kind, to_kind}],
@@ -72,9 +72,9 @@ grid: {frequency_hz, amplitude_v}, model, wall_time_s, points_per_second}; non-f
                             dominates |H|. On top: the grazing and lowest-contact curves and the
                             jump intervals (horizontal segments at their amplitude)
   saturation_map_down.svg   the same for the down-sweep branch
-  frf_up.svg, frf_down.svg  |H| against frequency, one line per amplitude (paper Fig. 10), dots:
-                            unstable orbits
-  frf_phase.svg             arg H, up branch solid, down branch dashed
+  frf_up.svg, frf_down.svg  |H| against frequency, one line per amplitude coloured by amplitude
+                            (colour bar; paper Fig. 10), dots: unstable orbits, the jumps marked
+  frf_phase.svg             arg H [rad], up branch solid, down branch dashed
   model.json, summary.txt   the model swept and the text summary
 
 While running, a progress line is shown on stderr if it is a terminal. Ctrl-C cancels: the sweep

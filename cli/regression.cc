@@ -156,10 +156,10 @@ Tolerances Tolerances::Defaults() {
                             "contacts", "method", "from_kind", "to_kind"})
     r[field] = Tolerance::Exact();
   // Steady-state harmonics and forces [N/V, N]: converged to ~1e-12 relative by Newton; 1e-9 leaves
-  // room for another compiler or CPU. The floor keeps a component near zero (h_re at resonance)
+  // room for another compiler or CPU. The floor keeps a component near zero (h_re_n_per_v at resonance)
   // from turning rounding into a large relative deviation.
-  r["h_re"] = Tolerance::Numeric(1e-9, 1e-12);
-  r["h_im"] = Tolerance::Numeric(1e-9, 1e-12);
+  r["h_re_n_per_v"] = Tolerance::Numeric(1e-9, 1e-12);
+  r["h_im_n_per_v"] = Tolerance::Numeric(1e-9, 1e-12);
   r["first_harmonic_force_n"] = Tolerance::Numeric(1e-9, 1e-12);
   r["peak_force_n"] = Tolerance::Numeric(1e-9, 1e-12);
   r["first_harmonic_phase_rad"] = Tolerance::Numeric(0.0, 1e-9, /*angle=*/true);

@@ -82,7 +82,7 @@ ValueCheck CompareValue(const nlohmann::json& baseline, const nlohmann::json& no
 
 // The value that came closest to (or furthest past) its tolerance.
 struct Worst {
-  std::string where;  // "points[f=8 Hz, V=0.5 V, up].h_re"
+  std::string where;  // "points[f=8 Hz, V=0.5 V, up].h_re_n_per_v"
   ValueCheck check;
 };
 

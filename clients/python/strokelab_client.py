@@ -141,10 +141,20 @@ class Client:
             if cursor is None:
                 return
 
-    def points_csv(self, job_id: int, limit: int = 10000, **filters: Any) -> str:
-        """The first page (up to limit rows) of points as CSV text with a header line."""
-        query = dict(filters, limit=limit)
+    def points_csv(self, job_id: int, limit: Optional[int] = None, **filters: Any) -> str:
+        """Points as CSV text with a header line: every row that passes the filters, or the first
+        page of up to limit rows. The whole table is also pandas.read_csv(f"{url}/points?format=csv")."""
+        query = dict(filters, format="csv", limit=limit)
         return self.request("GET", f"/v1/jobs/{int(job_id)}/points", query=query, accept="text/csv")
+
+    def thresholds_csv(self, job_id: int) -> str:
+        """The saturation threshold per frequency as CSV text (frequency_hz, grazing_amplitude_v,
+        lowest_contact_amplitude_v; an empty cell where the stop is not reached)."""
+        return self.request("GET", f"/v1/jobs/{int(job_id)}/thresholds", query={"format": "csv"}, accept="text/csv")
+
+    def jumps_csv(self, job_id: int) -> str:
+        """The jump (bistable) intervals per amplitude as CSV text."""
+        return self.request("GET", f"/v1/jobs/{int(job_id)}/jumps", query={"format": "csv"}, accept="text/csv")
 
     def saturation_map(self, job_id: int) -> Dict[str, Any]:
         """{"job", "saturation_threshold": [{frequency_hz, grazing_amplitude_v,
@@ -158,7 +168,7 @@ class Client:
 
     def frf(self, job_id: int, amplitude_v: float) -> Dict[str, Any]:
         """FRF branches at one of the job's amplitudes: {"amplitude_v", "branches": {"up": [...],
-        "down": [...], "unstable": [...]}}, each entry {frequency_hz, h_re, h_im, magnitude_n_per_v}."""
+        "down": [...], "unstable": [...]}}, each entry {frequency_hz, h_re_n_per_v, h_im_n_per_v, magnitude_n_per_v}."""
         return self.request("GET", f"/v1/jobs/{int(job_id)}/frf", query={"amplitude_v": repr(float(amplitude_v))})
 
     def frf_svg(self, job_id: int, branch: str = "up") -> str:

@@ -136,7 +136,7 @@ class SweepEndToEnd(unittest.TestCase):
         self.assertEqual(len(up), 20 * 4)
         for p in whole:
             self.assertIn(p["branch"], ("up", "down", "unstable"))
-            for key in ("h_re", "h_im", "peak_force_n", "min_displacement_m", "max_displacement_m"):
+            for key in ("h_re_n_per_v", "h_im_n_per_v", "peak_force_n", "min_displacement_m", "max_displacement_m"):
                 self.assertIn(key, p)
 
     def test_points_filters(self):
@@ -155,6 +155,17 @@ class SweepEndToEnd(unittest.TestCase):
         lines = text.strip().splitlines()
         self.assertTrue(lines[0].startswith("frequency_hz,amplitude_v,branch"), lines[0])
         self.assertEqual(len(lines), 1 + 20 * 4)
+        every = self.client.points_csv(self.job_id).strip().splitlines()
+        self.assertEqual(len(every) - 1, len(list(self.client.points(self.job_id))))
+        self.assertEqual(len(self.client.points_csv(self.job_id, limit=7).strip().splitlines()), 1 + 7)
+
+    def test_thresholds_and_jumps_csv(self):
+        lines = self.client.thresholds_csv(self.job_id).strip().splitlines()
+        self.assertEqual(lines[0], "frequency_hz,grazing_amplitude_v,lowest_contact_amplitude_v")
+        self.assertEqual(len(lines), 1 + 20)
+        jumps = self.client.jumps_csv(self.job_id).strip().splitlines()
+        self.assertEqual(jumps[0], "amplitude_v,bistable_from_hz,bistable_to_hz,from_kind,to_kind")
+        self.assertEqual(len(jumps) - 1, len(self.client.saturation_map(self.job_id)["jump"]))
 
     def test_saturation_map(self):
         result = self.client.saturation_map(self.job_id)
@@ -183,7 +194,7 @@ class SweepEndToEnd(unittest.TestCase):
         up = frf["branches"]["up"]
         self.assertEqual(len(up), 20)
         for p in up:
-            self.assertAlmostEqual(p["magnitude_n_per_v"], (p["h_re"] ** 2 + p["h_im"] ** 2) ** 0.5, places=12)
+            self.assertAlmostEqual(p["magnitude_n_per_v"], (p["h_re_n_per_v"] ** 2 + p["h_im_n_per_v"] ** 2) ** 0.5, places=12)
         self.assertIn("<svg", self.client.frf_svg(self.job_id, branch="down"))
 
     def test_cancel_of_a_finished_job_is_409(self):

@@ -175,14 +175,24 @@ AxisTicks PowerTicks(Range r, const std::vector<int>& labelled_mantissas, int ev
   return t;
 }
 
+// Whether the labelled ticks reach near both ends of the axis: neither end lies further from its
+// nearest label than a quarter of the axis (in decades). Labels at 6, 7, 8, 9, 10 on an axis to
+// 14 Hz left its last third, where records at 11 and 13 Hz were, without a label.
+bool LabelsCoverRange(const AxisTicks& t, Range r) {
+  if (t.major.empty()) return false;
+  const double quarter = 0.25 * std::log10(r.hi / r.lo);
+  return std::log10(t.major.front() / r.lo) <= quarter && std::log10(r.hi / t.major.back()) <= quarter;
+}
+
 // Log ticks: labelled decades (every k-th when crowded; 1, 2 and 5 in each when roomy) with minor
 // ticks at 2..9 times each decade. A range of less than two decades gets labels at 1, 2, 5 (or all
-// of 1..9) times a power of ten, and failing that, linear ticks.
+// of 1..9) times a power of ten, and failing that (labels that collide or leave an end of the axis
+// bare), linear ticks.
 AxisTicks LogTicks(const Scale& s, double spacing_px, bool horizontal) {
   const double px_per_decade = s.PxPerUnit();
   if (px_per_decade >= 4 * spacing_px) {  // roomy decades: label 1, 2 and 5 in each
     AxisTicks t = PowerTicks(s.range, {1, 2, 5}, 1);
-    if (t.major.size() >= 2 && LabelsFit(t, s, horizontal)) return t;
+    if (t.major.size() >= 2 && LabelsFit(t, s, horizontal) && LabelsCoverRange(t, s.range)) return t;
   }
   for (int every : {1, 2, 3, 5, 10, 20, 25, 50, 100, 200}) {  // label every k-th decade
     AxisTicks t = PowerTicks(s.range, {1}, every);
@@ -195,7 +205,7 @@ AxisTicks LogTicks(const Scale& s, double spacing_px, bool horizontal) {
   }
   for (const std::vector<int>& mantissas : {std::vector<int>{1, 2, 5}, std::vector<int>{1, 2, 3, 4, 5, 6, 7, 8, 9}}) {
     AxisTicks t = PowerTicks(s.range, mantissas, 1);
-    if (t.major.size() >= 2 && LabelsFit(t, s, horizontal)) return t;
+    if (t.major.size() >= 2 && LabelsFit(t, s, horizontal) && LabelsCoverRange(t, s.range)) return t;
   }
   return LinearTicks(s, spacing_px, horizontal);  // well under a decade: a 1-2-5 grid reads best
 }

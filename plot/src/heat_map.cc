@@ -46,16 +46,6 @@ std::string Hex(const std::array<double, 3>& rgb) {
   return buf;
 }
 
-// viridis at t in [0, 1].
-std::string Viridis(double t) {
-  const double s = std::clamp(t, 0.0, 1.0) * (kViridis.size() - 1);
-  const size_t k = std::min(static_cast<size_t>(s), kViridis.size() - 2);
-  const double f = s - static_cast<double>(k);
-  std::array<double, 3> rgb;
-  for (int c = 0; c < 3; ++c) rgb[c] = kViridis[k][c] + f * (kViridis[k + 1][c] - kViridis[k][c]);
-  return Hex(rgb);
-}
-
 void CheckGrid(const std::vector<double>& v, const char* name, bool log) {
   if (v.empty()) throw std::invalid_argument(std::string("HeatMap.") + name + ": is empty");
   for (size_t i = 0; i < v.size(); ++i) {
@@ -159,12 +149,23 @@ std::string Cells(const HeatMap& map, const ColorScale& color, const Scale& xs, 
 
 constexpr double kColorBarGapPx = 22, kColorBarWidthPx = 14;
 
+}  // namespace
+
+std::string Viridis(double t) {
+  const double s = std::clamp(t, 0.0, 1.0) * (kViridis.size() - 1);
+  const size_t k = std::min(static_cast<size_t>(s), kViridis.size() - 2);
+  const double f = s - static_cast<double>(k);
+  std::array<double, 3> rgb;
+  for (int c = 0; c < 3; ++c) rgb[c] = kViridis[k][c] + f * (kViridis[k + 1][c] - kViridis[k][c]);
+  return Hex(rgb);
+}
+
 double ColorBarWidth(const AxisTicks& z_ticks, const std::string& z_label) {
   return kColorBarGapPx + kColorBarWidthPx + kTickLenPx + kTickLabelGapPx + z_ticks.MaxLabelWidthPx() +
          (z_label.empty() ? 0 : 10 + kLabelFontPx) + kOuterPadPx;
 }
 
-std::string ColorBar(const Frame& f, const Scale& zs, const AxisTicks& zt, const std::string& z_label) {
+std::string ColorBarSvg(const Frame& f, const Scale& zs, const AxisTicks& zt, const std::string& z_label) {
   const double x0 = f.right() + kColorBarGapPx;
   std::string out = "<g class=\"colorbar\">\n";
   // The gradient runs bottom (low) to top (high); on log_z the colour is linear in log10(z), as is the bar.
@@ -213,7 +214,6 @@ std::string ColorBar(const Frame& f, const Scale& zs, const AxisTicks& zt, const
   return out + "</g>\n";
 }
 
-}  // namespace
 }  // namespace strokelab::plot::svg_internal
 
 namespace strokelab::plot {
@@ -237,7 +237,7 @@ std::string HeatMapPlot(const HeatMap& map, const std::vector<Series>& overlays,
   out += Cells(map, color, g.xs, g.ys, g.frame);
   out += AllSeries(overlays, g.frame, g.xs, g.ys, /*halo=*/true);
   out += AxesDecoration(g.frame, axes, g.xs, g.xt, g.ys, g.yt);
-  out += ColorBar(g.frame, zs, zt, map.z_label);
+  out += ColorBarSvg(g.frame, zs, zt, map.z_label);
   out += Legend(overlays, g.frame, /*cased=*/true);
   return out + "</svg>\n";
 }

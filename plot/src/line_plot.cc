@@ -172,20 +172,56 @@ std::string AllSeries(const std::vector<Series>& series, const Frame& f, const S
 
 namespace strokelab::plot {
 
-std::string LinePlot(const std::vector<Series>& series, const Axes& axes) {
+namespace {
+
+// A line plot, with a colour bar on the right when `bar` is given.
+std::string LinePlotWith(const std::vector<Series>& series, const Axes& axes, const ColorBar* bar) {
   using namespace svg_internal;
   CheckAxes(axes);
   CheckSeries(series, "series");
+  std::optional<Scale> zs;
+  AxisTicks zt;
+  double right_margin_px = kRightMarginPx;
+  if (bar) {
+    zs = Scale{{bar->min, bar->max}, bar->log, TopMargin(axes) + PlotHeight(axes), TopMargin(axes)};
+    zt = MakeTicks(*zs, kYTickSpacingPx, false);
+    right_margin_px = std::max(right_margin_px, ColorBarWidth(zt, bar->label));
+  }
   const PlotGeometry g = Layout(axes, SeriesExtent(series, true, axes.log_x), SeriesExtent(series, false, axes.log_y),
-                                Fit::kSnapToTicks, Fit::kPadToHalfTick, kRightMarginPx);
+                                Fit::kSnapToTicks, Fit::kPadToHalfTick, right_margin_px);
 
   std::string out = OpenSvg(axes);
   out += ClipPathDef(g.frame);
   out += Grid(g.frame, g.xs, g.xt, g.ys, g.yt);
   out += AllSeries(series, g.frame, g.xs, g.ys, /*halo=*/false);
   out += AxesDecoration(g.frame, axes, g.xs, g.xt, g.ys, g.yt);
+  if (bar) out += ColorBarSvg(g.frame, *zs, zt, bar->label);
   out += Legend(series, g.frame, /*cased=*/false);
   return out + "</svg>\n";
+}
+
+void CheckColorBar(const ColorBar& bar) {
+  if (!std::isfinite(bar.min) || !std::isfinite(bar.max) || !(bar.min < bar.max))
+    throw std::invalid_argument("ColorBar.max: min and max must be finite with min < max");
+  if (bar.log && !(bar.min > 0)) throw std::invalid_argument("ColorBar.min: must be positive on a log scale");
+}
+
+}  // namespace
+
+std::string LinePlot(const std::vector<Series>& series, const Axes& axes) {
+  return LinePlotWith(series, axes, nullptr);
+}
+
+std::string LinePlot(const std::vector<Series>& series, const Axes& axes, const ColorBar& bar) {
+  CheckColorBar(bar);
+  return LinePlotWith(series, axes, &bar);
+}
+
+std::string ColorBarColor(const ColorBar& bar, double value) {
+  CheckColorBar(bar);
+  const auto t = [&](double v) { return bar.log ? std::log10(v) : v; };
+  if (std::isnan(value) || (bar.log && !(value > 0))) return svg_internal::Viridis(0);
+  return svg_internal::Viridis((t(value) - t(bar.min)) / (t(bar.max) - t(bar.min)));
 }
 
 }  // namespace strokelab::plot

@@ -201,4 +201,14 @@ std::string AllSeries(const std::vector<Series>& series, const Frame& f, const S
 // line samples in grey, as overlays on a heat map may be white.
 std::string Legend(const std::vector<Series>& series, const Frame& f, bool cased);
 
+// ---------------------------------------------------------------------------------------------
+// The sequential colour map and its bar (heat_map.cc), shared by heat maps and coloured line plots.
+
+// viridis at t in [0, 1] (clamped).
+std::string Viridis(double t);
+// Width of a colour bar right of the plot area, with its tick labels and label.
+double ColorBarWidth(const AxisTicks& z_ticks, const std::string& z_label);
+// The bar right of the plot area `f`, its gradient running bottom (zs.range.lo) to top.
+std::string ColorBarSvg(const Frame& f, const Scale& zs, const AxisTicks& zt, const std::string& z_label);
+
 }  // namespace strokelab::plot::svg_internal

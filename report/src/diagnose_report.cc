@@ -225,10 +225,10 @@ std::string EvidenceSection(const Diagnosis& d) {
   std::string rows;
   for (const Signatures::Hotspot& h : s.hotspots) {
     rows += "<tr>" + Td(h.record) + NumTd(h.frequency_hz) + NumTd(h.amplitude_v) + Td(std::to_string(h.harmonic), "num") +
-            NumTd(100 * h.magnitude_error, 3) + NumTd(h.phase_error_rad * 180 / std::numbers::pi, 3) + NumTd(h.chi2_per_residual, 3) +
+            NumTd(100 * h.magnitude_error, 3) + NumTd(h.phase_error_rad, 3) + NumTd(h.chi2_per_residual, 3) +
             "</tr>\n";
   }
-  return out + Table({"record", "f [Hz]", "V [V]", "harmonic", "magnitude error [%]", "phase error [deg]",
+  return out + Table({"record", "f [Hz]", "V [V]", "harmonic", "magnitude error [%]", "phase error [rad]",
                       "chi2 per residual"},
                      rows);
 }
@@ -271,7 +271,8 @@ std::string RecordsSection(const Diagnosis& d) {
                 "chi2 chosen", "model period base / chosen"},
                rows) +
          "</details>\n<p class=\"meta\">Tables: <a href=\"records.csv\">records.csv</a>, "
-         "<a href=\"candidates.csv\">candidates.csv</a>, <a href=\"levels.csv\">levels.csv</a>; the diagnosed model: "
+         "<a href=\"candidates.csv\">candidates.csv</a>, <a href=\"candidate_parameters.csv\">candidate_parameters.csv</a>, "
+         "<a href=\"levels.csv\">levels.csv</a>; the diagnosed model: "
          "<a href=\"model.json\">model.json</a>.</p>\n";
 }
 

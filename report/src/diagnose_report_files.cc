@@ -137,18 +137,23 @@ void WriteRecords(const Diagnosis& d, const std::filesystem::path& path) {
 void WriteCandidates(const Diagnosis& d, const std::filesystem::path& path) {
   std::vector<std::vector<std::string>> rows = {
       {"label", "chosen", "fitted", "converged", "heldout_gain", "fit_gain", "nrmse", "heldout_nrmse", "chi2",
-       "heldout_chi2", "residual_variance", "effect_parameters", "passes", "seconds", "note"}};
+       "heldout_chi2", "residual_variance", "passes", "wall_time_s", "note"}};
   for (size_t i = 0; i < d.candidates.size(); ++i) {
     const CandidateFit& c = d.candidates[i];
-    std::string parameters;  // "name=value;se=...;unit" items separated by spaces
-    for (const FitParameter& p : c.effect_parameters) {
-      parameters += (parameters.empty() ? "" : " ") + p.name + "=" + Cell(p.value) + ";se=" + Cell(p.standard_error) +
-                    ";" + p.unit;
-    }
     rows.push_back({c.label, static_cast<int>(i) == d.chosen ? "1" : "0", c.fitted ? "1" : "0",
                     c.converged ? "1" : "0", Cell(c.heldout_gain), Cell(c.fit_gain), Cell(c.figures.nrmse),
                     Cell(c.figures.heldout_nrmse), Cell(c.figures.chi2), Cell(c.figures.heldout_chi2),
-                    Cell(c.figures.residual_variance), parameters, std::to_string(c.passes), Cell(c.seconds), c.note});
+                    Cell(c.figures.residual_variance), std::to_string(c.passes), Cell(c.seconds), c.note});
+  }
+  WriteRows(path, rows);
+}
+
+// The candidates' effect parameters, one per row (a parameter's unit is its own, so it is a column).
+void WriteCandidateParameters(const Diagnosis& d, const std::filesystem::path& path) {
+  std::vector<std::vector<std::string>> rows = {{"candidate", "parameter", "value", "standard_error", "unit"}};
+  for (const CandidateFit& c : d.candidates) {
+    for (const FitParameter& p : c.effect_parameters)
+      rows.push_back({c.label, p.name, Cell(p.value), Cell(p.standard_error), p.unit});
   }
   WriteRows(path, rows);
 }
@@ -207,9 +212,9 @@ void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& 
 }  // namespace
 
 const std::vector<std::string>& DiagnosisReportFiles() {
-  static const std::vector<std::string> files = {"index.html",      "records.csv",         "candidates.csv",
-                                                 "levels.csv",      "threshold_shift.csv", "jump_intervals.csv",
-                                                 "model.json"};
+  static const std::vector<std::string> files = {
+      "index.html",          "records.csv",         "candidates.csv", "candidate_parameters.csv", "levels.csv",
+      "threshold_shift.csv", "jump_intervals.csv",  "model.json"};
   return files;
 }
 
@@ -225,6 +230,7 @@ void WriteDiagnosisReport(const Diagnosis& d, const std::filesystem::path& dir, 
   write_text("index.html", DiagnosisHtml(d, maps));
   WriteRecords(d, dir / "records.csv");
   WriteCandidates(d, dir / "candidates.csv");
+  WriteCandidateParameters(d, dir / "candidate_parameters.csv");
   WriteLevels(d, dir / "levels.csv");
   WriteThresholdShifts(maps, dir / "threshold_shift.csv");
   WriteJumpIntervals(maps, dir / "jump_intervals.csv");

@@ -54,18 +54,26 @@ Figure ResonanceFigure(const Diagnosis& d) {
   std::vector<plot::Series> series = {bars, points};
   const ActuatorModel& m = d.base.model;
   const double natural_hz = std::sqrt(m.stiffness_n_per_m / m.mass_kg) / (2 * std::numbers::pi);
-  if (std::isfinite(natural_hz) && natural_hz > 0) {
+  const bool with_base = std::isfinite(natural_hz) && natural_hz > 0;
+  if (with_base) {
     plot::Series base = Line("base model sqrt(k_p/m_p)/2pi", kBaseColor, true);
-    const auto [lo, hi] = std::minmax_element(points.x.begin(), points.x.end());
-    base.x = {*lo, *hi};
+    base.x = {points.x.front(), points.x.front()};
     base.y = {natural_hz, natural_hz};
     series.push_back(std::move(base));
   }
-  fig.svgs.push_back(plot::LinePlot(
-      series, LevelAxes("Resonance per amplitude level", "resonance [Hz]", series, d.signatures.levels, false,
-                        series.size())));
-  fig.caption = "A linear suspension keeps its resonance at every amplitude; a drift with amplitude points to a "
-                "stiffness nonlinearity (up: hardening, down: softening).";
+  const plot::Axes axes = LevelAxes("Resonance per amplitude level", "resonance [Hz]", series, d.signatures.levels,
+                                    false, series.size());
+  // The base model's resonance is one number for every amplitude: a line across the whole axis
+  // (between the levels that have a resonance it had no length when only one has).
+  if (with_base) series.back().x = {axes.x_min, axes.x_max};
+  fig.svgs.push_back(plot::LinePlot(series, axes));
+  fig.caption = points.x.size() == 1
+                    ? Format("Only one amplitude level (%s V) has 3 or more records clear of the stop, so no trend "
+                             "with amplitude can be read here. ",
+                             Num(points.x.front(), 3).c_str())
+                    : std::string();
+  fig.caption += "A linear suspension keeps its resonance at every amplitude; a drift with amplitude points to a "
+                 "stiffness nonlinearity (up: hardening, down: softening).";
   return fig;
 }
 

@@ -69,9 +69,6 @@ constexpr size_t kWorstRecords = 3;  // records whose harmonics are shown
 // Two pictures side by side fit a 1200 px wide window.
 constexpr int kHalfWidthPx = 560;
 constexpr const char* kStyleColor = "#7F7F7F";  // legend entries that explain a line style
-// Amplitude levels, as the plot library's default palette.
-constexpr const char* kPalette[] = {"#0072B2", "#D55E00", "#009E73", "#CC79A7",
-                                    "#E69F00", "#56B4E9", "#000000", "#7F7F7F"};
 // Residual bins from small (blue) to large (red): RdYlBu without its pale middle, which would vanish
 // on the white page.
 constexpr const char* kResidualColors[] = {"#313695", "#4575b4", "#74add1", "#fdae61",
@@ -87,22 +84,22 @@ bool AnyFinite(const std::vector<plot::Series>& series) {
   return false;
 }
 
-// Degrees on (-180, 180].
-double WrappedDeg(std::complex<double> c) { return std::abs(c) > 0 ? std::arg(c) * 180.0 / std::numbers::pi : NAN; }
+// The phase in rad on (-pi, pi] (rad: the unit of every phase strokelab writes).
+double WrappedRad(std::complex<double> c) { return std::abs(c) > 0 ? std::arg(c) : NAN; }
 
-// Phases of c[0..n) in degrees on (-180, 180] against h = 1..n; the line breaks where the wrapped
-// phase jumps by more than 180 deg between neighbours, rather than sweeping across the plot.
+// Phases of c[0..n) in rad on (-pi, pi] against h = 1..n; the line breaks where the wrapped phase
+// jumps by more than pi between neighbours, rather than sweeping across the plot.
 void AddPhases(const std::vector<std::complex<double>>& c, size_t n, plot::Series* s) {
   double previous = NAN;
   for (size_t h = 0; h < n; ++h) {
-    const double deg = h < c.size() ? WrappedDeg(c[h]) : NAN;
-    if (std::abs(deg - previous) > 180) {
+    const double rad = h < c.size() ? WrappedRad(c[h]) : NAN;
+    if (std::abs(rad - previous) > std::numbers::pi) {
       s->x.push_back(static_cast<double>(h) + 0.5);
       s->y.push_back(NAN);
     }
     s->x.push_back(static_cast<double>(h + 1));
-    s->y.push_back(deg);
-    previous = deg;
+    s->y.push_back(rad);
+    previous = rad;
   }
 }
 
@@ -158,13 +155,13 @@ Figure HarmonicsFigure(const Diagnosis& d, const char* unit) {
     axes.log_y = true;
     PadRange(magnitude, false, true, 0.04, 0.08, &axes.y_min, &axes.y_max);
     fig.svgs.push_back(plot::LinePlot(magnitude, axes));
-    axes = MakeAxes(rec.name + ": phase", "harmonic order h", "arg C_h [deg]", kHalfWidthPx, 340);
-    axes.y_min = -180;
-    axes.y_max = 180;
+    axes = MakeAxes(rec.name + ": phase", "harmonic order h", "arg C_h [rad]", kHalfWidthPx, 340);
+    axes.y_min = -std::numbers::pi;
+    axes.y_max = std::numbers::pi;
     fig.svgs.push_back(plot::LinePlot(phase, axes));
   }
   fig.caption = Format("The %zu records the base model fits worst (largest chi-square): measured harmonics as dots, "
-                       "the base model dashed%s. Phases relative to the drive, wrapped to +-180 deg.",
+                       "the base model dashed%s. Phases relative to the drive in rad, wrapped to \u00b1\u03c0.",
                        order.size(), chosen ? (", " + ChosenLabel(d) + " solid").c_str() : " (nothing was added)");
   return fig;
 }
@@ -175,6 +172,13 @@ Figure FrfFigure(const Diagnosis& d, const char* unit) {
   Figure fig{"frf", "First-harmonic FRF per amplitude level", {}, {}, ""};
   const AmplitudeLevels levels = GroupAmplitudes(d.before);
   const bool chosen = HasChosen(d);
+  // Levels coloured by amplitude with a colour bar (as the sweep's FRF families): a legend entry per
+  // level covered the points.
+  std::optional<plot::ColorBar> bar;
+  if (levels.amplitude_v.size() >= 2) {
+    const double lo = levels.amplitude_v.front(), hi = levels.amplitude_v.back();
+    bar = plot::ColorBar{"drive amplitude [V]", lo, hi, lo > 0 && hi >= 4 * lo};
+  }
   std::vector<plot::Series> series;
   for (size_t level = 0; level < levels.amplitude_v.size(); ++level) {
     std::vector<size_t> members;
@@ -183,8 +187,8 @@ Figure FrfFigure(const Diagnosis& d, const char* unit) {
     }
     std::sort(members.begin(), members.end(),
               [&](size_t a, size_t b) { return d.before[a].frequency_hz < d.before[b].frequency_hz; });
-    const char* color = kPalette[level % std::size(kPalette)];
-    plot::Series measured = Dots(Num(levels.amplitude_v[level], 3) + " V", color, 2.0);
+    const std::string color = bar ? plot::ColorBarColor(*bar, levels.amplitude_v[level]) : std::string(kChosenColor);
+    plot::Series measured = Dots(bar ? "" : Num(levels.amplitude_v[level], 3) + " V", color, 2.0);
     plot::Series base = Line("", color, true), after = Line("", color);
     for (size_t i : members) {
       const RecordMatch& rec = d.before[i];
@@ -203,14 +207,19 @@ Figure FrfFigure(const Diagnosis& d, const char* unit) {
     fig.caption = "No record has a first harmonic: no FRF to show.";
     return fig;
   }
+  if (bar) series.push_back(Dots("dots: measured", kStyleColor, 2.0));
   series.push_back(Line("dashed: base model", kStyleColor, true));
   if (chosen) series.push_back(Line("solid: " + ChosenLabel(d), kStyleColor));
   plot::Axes axes = MakeAxes("|C_1| / V against frequency, per drive amplitude", "drive frequency [Hz]",
                              Format("|C_1| / V [%s/V]", unit), 1000, 480);
   axes.log_x = axes.log_y = true;
-  fig.svgs.push_back(plot::LinePlot(series, axes));
-  fig.caption = "Dots: measured first harmonic over the drive amplitude, one colour per amplitude level; lines: "
-                "the models at the same drive.";
+  // Room above the data for the legend's rows, so that it covers no point.
+  size_t legend_rows = 0;
+  for (const plot::Series& s : series) legend_rows += s.label.empty() ? 0 : 1;
+  PadRange(series, false, true, 0.06, 0.1 + 0.09 * static_cast<double>(legend_rows), &axes.y_min, &axes.y_max);
+  fig.svgs.push_back(bar ? plot::LinePlot(series, axes, *bar) : plot::LinePlot(series, axes));
+  fig.caption = "Dots: measured first harmonic over the drive amplitude, coloured by amplitude level (the colour "
+                "bar); lines: the models at the same drive.";
   return fig;
 }
 

@@ -20,11 +20,18 @@ namespace {
 
 using nlohmann::json;
 
-// The plot library's default palette, spelled out so that a series and its unstable-orbit markers
-// (and its down-branch phase line) share one colour per amplitude.
-constexpr const char* kPalette[] = {"#0072B2", "#D55E00", "#009E73", "#CC79A7",
-                                    "#E69F00", "#56B4E9", "#000000", "#7F7F7F"};
-const char* AmplitudeColor(size_t i) { return kPalette[i % std::size(kPalette)]; }
+// The FRF families colour each amplitude on a sequential colour map with a colour bar (as the
+// saturation map does), so that 26 amplitudes keep 26 colours and no legend covers the curves. One
+// amplitude has no range to colour: it gets a legend entry instead.
+constexpr const char* kSingleAmplitudeColor = "#0072B2";
+std::optional<plot::ColorBar> AmplitudeBar(const SweepResult& r) {
+  if (r.amplitude_v.size() < 2) return std::nullopt;
+  return plot::ColorBar{"drive amplitude [V]", r.amplitude_v.front(), r.amplitude_v.back(), false};
+}
+std::string AmplitudeColor(const SweepResult& r, size_t i) {
+  const std::optional<plot::ColorBar> bar = AmplitudeBar(r);
+  return bar ? plot::ColorBarColor(*bar, r.amplitude_v[i]) : std::string(kSingleAmplitudeColor);
+}
 
 json Numbers(const std::vector<double>& values) {
   json list = json::array();
@@ -112,13 +119,14 @@ std::string AxisText(const std::vector<double>& v, const char* unit) {
 
 std::string VoltsOrDash(double v) { return std::isfinite(v) ? Format("%8.4f V", v) : std::string("       - "); }
 
-// Phase in degrees on (-90, 270]: paper Eq. 3 runs from 180 deg (below resonance) to 0 deg (above)
-// without wrapping there, and a response past 180 deg stays continuous.
-double PhaseDeg(double rad) {
-  double deg = rad * 180.0 / std::numbers::pi;
-  while (deg <= -90.0) deg += 360.0;
-  while (deg > 270.0) deg -= 360.0;
-  return deg;
+// Phase in rad, the unit of the tables' first_harmonic_phase_rad, on (-pi/2, 3 pi/2]: paper Eq. 3
+// runs from pi (below resonance) to 0 (above) without wrapping there, and a response past pi stays
+// continuous.
+double PhaseRad(double rad) {
+  constexpr double kPi = std::numbers::pi;
+  while (rad <= -kPi / 2) rad += 2 * kPi;
+  while (rad > 3 * kPi / 2) rad -= 2 * kPi;
+  return rad;
 }
 
 plot::Series Curve(std::string label, std::string color) {
@@ -183,35 +191,63 @@ std::string SaturationMap(const SweepResult& r, const BranchGrid& grid, Branch b
   return plot::HeatMapPlot(map, overlays, axes);
 }
 
-// |H| (or arg H) against frequency, one line per amplitude, for one branch; unstable orbits as dots.
+// |H| or arg H [rad] of the steady state at point k.
+double FrfValue(const SweepResult& r, size_t k, bool phase) {
+  return phase ? PhaseRad(std::arg(r.points[k].h)) : std::abs(r.points[k].h);
+}
+
+// Where a sweep along `branch` jumps at amplitude index ia: each jump interval's end that the sweep
+// leaves it by (the up-sweep at bistable_to_hz, the down-sweep at bistable_from_hz), drawn as a
+// vertical segment at that frequency from the last grid point on the branch before the jump to the
+// first after it, with a dot at each end.
+void AddJumps(const SweepResult& r, const BranchGrid& grid, Branch branch, size_t ia, bool phase, plot::Series* jumps) {
+  const std::vector<double>& f = r.frequency_hz;
+  for (const JumpInterval& j : r.jump) {
+    if (std::abs(j.amplitude_v - r.amplitude_v[ia]) > 1e-9 * std::max(1.0, std::abs(j.amplitude_v))) continue;
+    const double at_hz = branch == Branch::kUp ? j.bistable_to_hz : j.bistable_from_hz;
+    if (!std::isfinite(at_hz) || f.size() < 2 || at_hz <= f.front() || at_hz >= f.back()) continue;
+    const size_t after = static_cast<size_t>(std::upper_bound(f.begin(), f.end(), at_hz) - f.begin());
+    const size_t from = branch == Branch::kUp ? after - 1 : after, to = branch == Branch::kUp ? after : after - 1;
+    const size_t k_from = grid.On(branch, ia, from), k_to = grid.On(branch, ia, to);
+    if (k_from == BranchGrid::kNone || k_to == BranchGrid::kNone) continue;
+    jumps->x.insert(jumps->x.end(), {at_hz, at_hz, NAN});
+    jumps->y.insert(jumps->y.end(), {FrfValue(r, k_from, phase), FrfValue(r, k_to, phase), NAN});
+  }
+}
+
+// |H| (or arg H) against frequency, one line per amplitude coloured by amplitude, for one branch;
+// unstable orbits as dots; the jumps of the sweep along the branch marked.
 std::vector<plot::Series> FrfSeries(const SweepResult& r, const BranchGrid& grid, Branch branch, bool phase,
                                     bool with_unstable) {
   std::vector<plot::Series> series;
+  plot::Series jumps = Curve("jump of the " + std::string(ToString(branch)) + "-sweep", "#000000");
+  jumps.markers = true;
+  jumps.line_width = 1.2;
+  jumps.dashed = true;
   for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
-    plot::Series s = Curve(Format("%g V", r.amplitude_v[ia]), AmplitudeColor(ia));
+    plot::Series s = Curve(AmplitudeBar(r) ? "" : Format("%g V", r.amplitude_v[ia]), AmplitudeColor(r, ia));
     s.x = r.frequency_hz;
     for (size_t jf = 0; jf < r.frequency_hz.size(); ++jf) {
       const size_t k = grid.On(branch, ia, jf);
-      const double value = k == BranchGrid::kNone ? NAN
-                           : phase                ? PhaseDeg(std::arg(r.points[k].h))
-                                                  : std::abs(r.points[k].h);
-      s.y.push_back(value);
+      s.y.push_back(k == BranchGrid::kNone ? NAN : FrfValue(r, k, phase));
     }
     series.push_back(std::move(s));
+    AddJumps(r, grid, branch, ia, phase, &jumps);
   }
-  if (!with_unstable) return series;
   bool any = false;
-  for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
-    plot::Series dots = Curve("", AmplitudeColor(ia));
-    dots.line = false;
-    dots.markers = true;
-    dots.line_width = 1.2;
-    for (size_t k : grid.unstable[ia]) {
-      dots.x.push_back(r.points[k].frequency_hz);
-      dots.y.push_back(phase ? PhaseDeg(std::arg(r.points[k].h)) : std::abs(r.points[k].h));
+  if (with_unstable) {
+    for (size_t ia = 0; ia < r.amplitude_v.size(); ++ia) {
+      plot::Series dots = Curve("", AmplitudeColor(r, ia));
+      dots.line = false;
+      dots.markers = true;
+      dots.line_width = 1.2;
+      for (size_t k : grid.unstable[ia]) {
+        dots.x.push_back(r.points[k].frequency_hz);
+        dots.y.push_back(FrfValue(r, k, phase));
+      }
+      any = any || !dots.x.empty();
+      series.push_back(std::move(dots));
     }
-    any = any || !dots.x.empty();
-    series.push_back(std::move(dots));
   }
   if (any) {
     plot::Series legend = Curve("dots: unstable orbits", "#7F7F7F");
@@ -220,7 +256,14 @@ std::vector<plot::Series> FrfSeries(const SweepResult& r, const BranchGrid& grid
     legend.line_width = 1.2;
     series.push_back(std::move(legend));
   }
+  if (!jumps.x.empty()) series.push_back(std::move(jumps));  // on top
   return series;
+}
+
+// A family of curves, with the amplitude colour bar when there are several amplitudes.
+std::string FrfPlot(const SweepResult& r, const std::vector<plot::Series>& series, const plot::Axes& axes) {
+  const std::optional<plot::ColorBar> bar = AmplitudeBar(r);
+  return bar ? plot::LinePlot(series, axes, *bar) : plot::LinePlot(series, axes);
 }
 
 plot::Axes FrfAxes(std::string title, std::string y_label) {
@@ -318,10 +361,10 @@ std::string SaturationMapSvg(const SweepResult& r, Branch branch, const Saturati
 }
 
 std::string FrfMagnitudeSvg(const SweepResult& r, Branch branch) {
-  return plot::LinePlot(FrfSeries(r, BranchGrid(r), branch, false, true),
-                        FrfAxes(branch == Branch::kUp ? "First-order FRF |H|, up-sweep branch (paper Fig. 10)"
-                                                      : "First-order FRF |H|, down-sweep branch",
-                                "|H| [N/V]"));
+  return FrfPlot(r, FrfSeries(r, BranchGrid(r), branch, false, true),
+                 FrfAxes(branch == Branch::kUp ? "First-order FRF |H|, up-sweep branch (paper Fig. 10)"
+                                               : "First-order FRF |H|, down-sweep branch",
+                         "|H| [N/V]"));
 }
 
 void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const std::filesystem::path& dir) {
@@ -342,6 +385,7 @@ void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const st
   WriteFile(dir / "frf_down.svg", FrfMagnitudeSvg(r, Branch::kDown));
   std::vector<plot::Series> phase = FrfSeries(r, grid, Branch::kUp, true, false);
   for (plot::Series& s : FrfSeries(r, grid, Branch::kDown, true, false)) {
+    if (s.color == "#000000") continue;  // the down-sweep's jumps: the up-sweep's are drawn
     s.label.clear();  // one legend entry per amplitude
     s.dashed = true;
     phase.push_back(std::move(s));
@@ -352,8 +396,7 @@ void WriteSweepFolder(const SweepResult& r, const ActuatorModel& model, const st
     phase.push_back(std::move(style));
   }
   WriteFile(dir / "frf_phase.svg",
-            plot::LinePlot(phase, FrfAxes("First-order FRF phase: up branch solid, down branch dashed",
-                                          "arg H [deg]")));
+            FrfPlot(r, phase, FrfAxes("First-order FRF phase: up branch solid, down branch dashed", "arg H [rad]")));
   WriteFile(dir / "summary.txt", SweepSummaryText(r));
 }
 

@@ -46,6 +46,13 @@ bool WantsSvg(const httplib::Request& req) {
   return format == "svg";
 }
 
+bool WantsCsv(const httplib::Request& req) {
+  if (!req.has_param("format")) return req.get_header_value("Accept").find("text/csv") != std::string::npos;
+  const std::string format = req.get_param_value("format");
+  if (format != "json" && format != "csv") throw HttpError{400, "bad_query", "must be json or csv", "format"};
+  return format == "csv";
+}
+
 namespace {
 
 // What a refused request sent, in words: curl -d's default type is the usual mistake.

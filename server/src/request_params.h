@@ -23,6 +23,9 @@ double QueryNumber(const httplib::Request& req, const std::string& name);
 int64_t QueryInteger(const httplib::Request& req, const std::string& name);
 // ?format= of the picture endpoints: absent or "json" (JSON), "svg" (a picture).
 bool WantsSvg(const httplib::Request& req);
+// Whether a table endpoint answers in CSV: ?format=csv, or Accept: text/csv without ?format=
+// (?format= is "json" or "csv"; anything else is 400 naming format).
+bool WantsCsv(const httplib::Request& req);
 // A JSON request body: sent as application/json (parameters such as charset allowed), and parsed.
 // The one place where a json::exception is the client's (400 bad_json).
 nlohmann::json JsonBody(const httplib::Request& req);

@@ -5,6 +5,7 @@
 #include "http_reply.h"
 #include "now.h"
 #include "request_params.h"
+#include "strokelab/base/errors.h"
 #include "strokelab/jobs/job_spec.h"
 #include "strokelab/jobs/jobs.h"
 
@@ -24,6 +25,17 @@ json JobJson(const JobRecord& job) {
   if (job.spec.contains("name")) j["name"] = job.spec["name"];
   if (job.started_ms) j["elapsed_s"] = ((job.finished_ms ? job.finished_ms : NowMs()) - job.started_ms) / 1000.0;
   if (!job.error.empty()) j["error"] = job.error;
+  return j;
+}
+
+json JobDetailJson(const JobRecord& job) {
+  json j = JobJson(job);
+  j["spec"] = job.spec;
+  try {
+    j["resolved"] = jobs::ResolvedJob(job.spec);
+  } catch (const InputError&) {
+    j["resolved"] = nullptr;  // a spec stored by an older strokelab that this one no longer takes
+  }
   return j;
 }
 
@@ -66,7 +78,7 @@ void Service::Impl::AddJobRoutes() {
                             {"next_before", static_cast<int>(jobs.size()) == limit ? json(last) : json(nullptr)}});
            }));
   On("GET", R"(/v1/jobs/(\d+))", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
-             SendJson(res, JobJson(RequireJob(req.matches[1])));
+             SendJson(res, JobDetailJson(RequireJob(req.matches[1])));
            }));
   On("DELETE", R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
                 const JobRecord job = RequireJob(req.matches[1]);

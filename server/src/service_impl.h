@@ -29,8 +29,12 @@
 
 namespace strokelab::server {
 
-// A job as the service shows it (GET /v1/jobs/{id}, lists, cancel replies).
+// A job as the service shows it (lists, cancel replies): id, kind, name, status, progress, times.
 nlohmann::json JobJson(const JobRecord& job);
+// One job in full (GET /v1/jobs/{id}, the saturation map's "job"): JobJson plus "spec" (as submitted)
+// and "resolved" (jobs::ResolvedJob: the model with every parameter, the grid's axes with their
+// values, the options with their defaults).
+nlohmann::json JobDetailJson(const JobRecord& job);
 
 struct Service::Impl {
   ServiceOptions options;
@@ -84,6 +88,9 @@ struct Service::Impl {
 
   // The job of a path's id (404 when there is none).
   JobRecord RequireJob(const std::string& id_text);
+
+  // A sweep job's stored saturation thresholds, in order of frequency.
+  std::vector<nlohmann::json> ThresholdRows(const JobRecord& job);
 
   // The stored results of a sweep job as a SweepResult (for the pictures).
   SweepResult SweepResultOf(const JobRecord& job);

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <regex>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -226,7 +227,8 @@ TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
            "<td class=\"num\">4.10 \u00b1 0.50</td><td class=\"num\">8.2</td>",
            "<td>quadratic_stiffness + cubic_stiffness</td>",
            "<td>rec&lt;&amp;&gt;7</td><td class=\"num\">32</td>",
-           "<td class=\"num\">12.5</td><td class=\"num\">-11.5</td>",
+           "<td class=\"num\">12.5</td><td class=\"num\">-0.2</td>",  // phase in rad, as everywhere
+           "phase error [rad]", "arg C_h [rad]",
            // The residual near contacts in the contact figure's caption.
            "0.05 N within +-2 ms of the contacts, 0.0125 N elsewhere (ratio 4)",
        }) {
@@ -234,7 +236,7 @@ TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
   }
   EXPECT_EQ(Count(html, "<tr class=\"chosen\">"), 1u);
   EXPECT_THAT(html, Not(HasSubstr(kOddName)));
-  for (const char* bad : {">nan", ">inf", "-nan", "nan<"}) EXPECT_THAT(html, Not(HasSubstr(bad))) << bad;
+  for (const char* bad : {">nan", ">inf", "-nan", "nan<", "[deg]"}) EXPECT_THAT(html, Not(HasSubstr(bad))) << bad;
   // One SVG per plot: 3 worst records x (magnitude, phase), FRF, 2 residual maps, resonance,
   // contact times, harmonic ratios.
   EXPECT_EQ(Count(html, "<svg"), 12u);
@@ -259,13 +261,67 @@ TEST(DiagnoseReportTest, NamedEffectTables) {
   EXPECT_THAT(records[8], ::testing::StartsWith("rec<&>7,32,0.3,1,1,0.0255,"));
   const auto candidates = Lines(ReadFile(dir / "candidates.csv"));
   ASSERT_EQ(candidates.size(), 4u);
-  EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,"
-                                                   "k3=2345600;se=120000;N/m^3,3,12.5,"));
-  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,,0,0,skipped: <1 s of the budget left");
+  // One value per cell: the effect parameters are a table of their own, one row per parameter.
+  EXPECT_EQ(candidates[0],
+            "label,chosen,fitted,converged,heldout_gain,fit_gain,nrmse,heldout_nrmse,chi2,heldout_chi2,"
+            "residual_variance,passes,wall_time_s,note");
+  EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,3,12.5,"));
+  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,0,0,skipped: <1 s of the budget left");
+  const auto parameters = Lines(ReadFile(dir / "candidate_parameters.csv"));
+  ASSERT_EQ(parameters.size(), 3u);
+  EXPECT_EQ(parameters[0], "candidate,parameter,value,standard_error,unit");
+  EXPECT_EQ(parameters[1], "cubic_stiffness,k3,2345600,120000,N/m^3");
+  EXPECT_EQ(parameters[2], "quadratic_stiffness,k2,150,400,N/m^2");
   const auto levels = Lines(ReadFile(dir / "levels.csv"));
   ASSERT_EQ(levels.size(), 4u);
   EXPECT_EQ(levels[1], "0.1,5,31.2,0.3,0.002,0.003,");
   EXPECT_EQ(levels[3], "1,0,35.3,0.5,,,0.0009");
+}
+
+// One section of the page, from its <section id="..."> to its end.
+std::string PageSection(const std::string& html, const std::string& id) {
+  const size_t begin = html.find("<section id=\"" + id + "\">");
+  if (begin == std::string::npos) return "";
+  return html.substr(begin, html.find("</section>", begin) - begin);
+}
+
+// The x coordinates of the first dashed polyline of an SVG (the base model's line).
+std::vector<double> DashedLineXs(const std::string& svg) {
+  static const std::regex kDashed("<polyline points=\"([^\"]*)\"[^>]*stroke-dasharray");
+  std::smatch m;
+  std::vector<double> xs;
+  if (!std::regex_search(svg, m, kDashed)) return xs;
+  std::istringstream points(m[1].str());
+  std::string pair;
+  while (points >> pair) xs.push_back(std::stod(pair.substr(0, pair.find(','))));
+  return xs;
+}
+
+// With one amplitude level clear of the stop the resonance figure is one dot: the base model's
+// resonance is still a line across the axis (it had no length), and the caption says why there is
+// no trend to read.
+TEST(DiagnoseReportTest, ResonanceOfOneLevelKeepsTheModelLineAndSaysSo) {
+  Diagnosis d = Named();
+  d.signatures.levels[1].resonance_hz = d.signatures.levels[2].resonance_hz = NAN;
+  const std::string section = PageSection(DiagnosisHtml(d), "resonance");
+  ASSERT_THAT(section, HasSubstr("<svg"));
+  const std::vector<double> xs = DashedLineXs(section);
+  ASSERT_EQ(xs.size(), 2u) << section;
+  EXPECT_GT(xs[1] - xs[0], 100.0) << "the base model's line has (almost) no length";
+  EXPECT_THAT(section, HasSubstr("Only one amplitude level (0.1 V) has 3 or more records clear of the stop"));
+}
+
+// The per-level FRF: levels coloured by amplitude with a colour bar, and a legend of the line
+// styles only, above the data (a legend entry per level covered the points).
+TEST(DiagnoseReportTest, FrfPerLevelHasAColourBarAndALegendClearOfThePoints) {
+  const std::string section = PageSection(DiagnosisHtml(Named()), "frf");
+  EXPECT_THAT(section, HasSubstr("<g class=\"colorbar\">"));
+  EXPECT_THAT(section, HasSubstr("drive amplitude [V]"));
+  const size_t legend = section.find("<g class=\"legend\">");
+  ASSERT_NE(legend, std::string::npos);
+  const std::string legend_svg = section.substr(legend, section.find("</g>", legend) - legend);
+  EXPECT_THAT(legend_svg, Not(HasSubstr(" V<"))) << "a legend entry per level";
+  EXPECT_THAT(legend_svg, HasSubstr("dots: measured"));
 }
 
 TEST(DiagnoseReportTest, NothingMissingSaysSoAndSkipsPlotsWithoutData) {

@@ -39,7 +39,7 @@ InputError ApplyError(const json& overrides) {
 }
 
 json Point(double f, double v, const std::string& branch, double h_re = 1.0) {
-  return {{"frequency_hz", f}, {"amplitude_v", v}, {"branch", branch}, {"h_re", h_re}, {"period", 1}};
+  return {{"frequency_hz", f}, {"amplitude_v", v}, {"branch", branch}, {"h_re_n_per_v", h_re}, {"period", 1}};
 }
 
 TEST(RegressionToleranceTest, DefaultsByField) {
@@ -48,12 +48,12 @@ TEST(RegressionToleranceTest, DefaultsByField) {
   EXPECT_FALSE(Passes("frequency_hz", 5.0, std::nextafter(5.0, 6.0)));
   EXPECT_FALSE(Passes("amplitude_v", 0.3, 0.30000000000000004));
   // Harmonics: relative 1e-9 ...
-  EXPECT_TRUE(Passes("h_re", 2.0, 2.0 * (1 + 0.9e-9)));
-  EXPECT_FALSE(Passes("h_re", 2.0, 2.0 * (1 + 1.1e-9)));
+  EXPECT_TRUE(Passes("h_re_n_per_v", 2.0, 2.0 * (1 + 0.9e-9)));
+  EXPECT_FALSE(Passes("h_re_n_per_v", 2.0, 2.0 * (1 + 1.1e-9)));
   EXPECT_FALSE(Passes("first_harmonic_force_n", 0.0774, 0.0774 * (1 + 2e-9)));
   // ... with an absolute floor of 1e-12 near zero.
-  EXPECT_TRUE(Passes("h_im", 0.0, 0.9e-12));
-  EXPECT_FALSE(Passes("h_im", 0.0, 1.1e-12));
+  EXPECT_TRUE(Passes("h_im_n_per_v", 0.0, 0.9e-12));
+  EXPECT_FALSE(Passes("h_im_n_per_v", 0.0, 1.1e-12));
   // Displacements: absolute 1e-12 m whatever their size.
   EXPECT_TRUE(Passes("min_displacement_m", -1e-3, -1e-3 + 0.9e-12));
   EXPECT_FALSE(Passes("max_displacement_m", 1.4e-3, 1.4e-3 + 1.1e-12));
@@ -133,7 +133,7 @@ TEST(RegressionToleranceTest, OverridesReplaceTheDefaultRule) {
   t.Apply({{"first_harmonic_force_n", {{"relative", 1e-6}}},
            {"points.peak_force_n", {{"absolute", 0.5}}},
            {"max_multiplier", "ignore"},
-           {"h_re", {{"exact", true}}},
+           {"h_re_n_per_v", {{"exact", true}}},
            {"first_harmonic_phase_rad", {{"absolute", 1e-3}}}});
   const Tolerance force = t.For("records", "first_harmonic_force_n");
   EXPECT_EQ(force.kind, Tolerance::Kind::kNumeric);
@@ -144,7 +144,7 @@ TEST(RegressionToleranceTest, OverridesReplaceTheDefaultRule) {
   EXPECT_EQ(t.For("points", "peak_force_n").absolute, 0.5);
   EXPECT_EQ(t.For("records", "peak_force_n").absolute, 1e-12);
   EXPECT_EQ(t.For("points", "max_multiplier").kind, Tolerance::Kind::kIgnore);
-  EXPECT_EQ(t.For("points", "h_re").kind, Tolerance::Kind::kExact);
+  EXPECT_EQ(t.For("points", "h_re_n_per_v").kind, Tolerance::Kind::kExact);
   // A phase stays an angle under a new tolerance.
   EXPECT_TRUE(t.For("points", "first_harmonic_phase_rad").angle);
   // "exact" and "ignore" as strings.
@@ -161,15 +161,15 @@ TEST(RegressionToleranceTest, BadOverridesNameTheirPointer) {
   const Case cases[] = {
       {json::array(), "/tolerances", "must be an object"},
       {{{"first_harmonic_forc_n", {{"relative", 1e-6}}}}, "/tolerances/first_harmonic_forc_n", "is not a result field"},
-      {{{"pointz.h_re", "exact"}}, "/tolerances/pointz.h_re", "unknown table 'pointz'"},
-      {{{"h_re", {{"relative", -1}}}}, "/tolerances/h_re/relative", "must be a number >= 0"},
-      {{{"h_re", {{"relative", "1e-6"}}}}, "/tolerances/h_re/relative", "must be a number >= 0"},
-      {{{"h_re", {{"rel", 1e-6}}}}, "/tolerances/h_re/rel", "unknown key (known: relative, absolute, exact, ignore)"},
-      {{{"h_re", json::object()}}, "/tolerances/h_re", "give relative and/or absolute"},
-      {{{"h_re", "loose"}}, "/tolerances/h_re", "expected \"exact\", \"ignore\""},
-      {{{"h_re", 1e-6}}, "/tolerances/h_re", "expected \"exact\", \"ignore\""},
-      {{{"h_re", {{"exact", false}}}}, "/tolerances/h_re/exact", "must be true"},
-      {{{"h_re", {{"ignore", true}, {"relative", 1}}}}, "/tolerances/h_re/ignore", "cannot be combined"},
+      {{{"pointz.h_re_n_per_v_n_per_v", "exact"}}, "/tolerances/pointz.h_re_n_per_v_n_per_v", "unknown table 'pointz'"},
+      {{{"h_re_n_per_v", {{"relative", -1}}}}, "/tolerances/h_re_n_per_v/relative", "must be a number >= 0"},
+      {{{"h_re_n_per_v", {{"relative", "1e-6"}}}}, "/tolerances/h_re_n_per_v/relative", "must be a number >= 0"},
+      {{{"h_re_n_per_v", {{"rel", 1e-6}}}}, "/tolerances/h_re_n_per_v/rel", "unknown key (known: relative, absolute, exact, ignore)"},
+      {{{"h_re_n_per_v", json::object()}}, "/tolerances/h_re_n_per_v", "give relative and/or absolute"},
+      {{{"h_re_n_per_v", "loose"}}, "/tolerances/h_re_n_per_v", "expected \"exact\", \"ignore\""},
+      {{{"h_re_n_per_v", 1e-6}}, "/tolerances/h_re_n_per_v", "expected \"exact\", \"ignore\""},
+      {{{"h_re_n_per_v", {{"exact", false}}}}, "/tolerances/h_re_n_per_v/exact", "must be true"},
+      {{{"h_re_n_per_v", {{"ignore", true}, {"relative", 1}}}}, "/tolerances/h_re_n_per_v/ignore", "cannot be combined"},
       {{{"a/b", "exact"}}, "/tolerances/a~1b", "is not a result field"},
   };
   for (const Case& c : cases) {
@@ -179,8 +179,8 @@ TEST(RegressionToleranceTest, BadOverridesNameTheirPointer) {
   }
   // A bad entry leaves the rules as they were.
   Tolerances t = Tolerances::Defaults();
-  EXPECT_THROW(t.Apply({{"h_re", "exact"}, {"h_im", "loose"}}), InputError);
-  EXPECT_EQ(t.For("points", "h_re").kind, Tolerance::Kind::kNumeric);
+  EXPECT_THROW(t.Apply({{"h_re_n_per_v", "exact"}, {"h_im_n_per_v", "loose"}}), InputError);
+  EXPECT_EQ(t.For("points", "h_re_n_per_v").kind, Tolerance::Kind::kNumeric);
 }
 
 TEST(RegressionCompareTest, IdenticalTablesPass) {
@@ -237,12 +237,12 @@ TEST(RegressionCompareTest, MissingAndExtraRowsAndTables) {
 TEST(RegressionCompareTest, FieldsPresentOnOneSideOnly) {
   json old_row = Point(5, 0.1, "up");
   json new_row = old_row;
-  new_row.erase("h_re");
+  new_row.erase("h_re_n_per_v");
   new_row["max_multiplier"] = 0.5;
   new_row["wall_time_s"] = 0.01;  // ignored fields may come and go
   const Comparison c = CompareTables({{"points", {old_row}}}, {{"points", {new_row}}}, Tolerances::Defaults());
   ASSERT_EQ(c.regressions.size(), 2u) << ::testing::PrintToString(c.regressions);
-  EXPECT_EQ(c.regressions[0], "points[f=5 Hz, V=0.1 V, up].h_re: missing now (baseline 1.0)");
+  EXPECT_EQ(c.regressions[0], "points[f=5 Hz, V=0.1 V, up].h_re_n_per_v: missing now (baseline 1.0)");
   EXPECT_EQ(c.regressions[1], "points[f=5 Hz, V=0.1 V, up].max_multiplier: new field, not in the baseline (now 0.5)");
 }
 
@@ -253,17 +253,17 @@ TEST(RegressionCompareTest, RegressionLinesAndTheWorstValue) {
   const Comparison pass = CompareTables(baseline, now, Tolerances::Defaults());
   EXPECT_TRUE(pass.Passed());
   ASSERT_TRUE(pass.worst.has_value());
-  EXPECT_EQ(pass.worst->where, "points[f=6 Hz, V=0.1 V, up].h_re");
+  EXPECT_EQ(pass.worst->where, "points[f=6 Hz, V=0.1 V, up].h_re_n_per_v");
   EXPECT_NEAR(pass.worst->check.relative, 6e-10, 1e-15);
   EXPECT_NEAR(pass.worst->check.used, 0.6, 1e-5);
 
   json broken = now;
-  broken["points"][2]["h_re"] = 4.0 * (1 + 1e-6);
+  broken["points"][2]["h_re_n_per_v"] = 4.0 * (1 + 1e-6);
   broken["points"][0]["period"] = "aperiodic";
   const Comparison fail = CompareTables(baseline, broken, Tolerances::Defaults());
   ASSERT_EQ(fail.regressions.size(), 2u) << ::testing::PrintToString(fail.regressions);
   EXPECT_EQ(fail.regressions[0], "points[f=5 Hz, V=0.1 V, up].period: \"aperiodic\" now, 1 in the baseline (exact)");
-  EXPECT_THAT(fail.regressions[1], HasSubstr("points[f=7 Hz, V=0.1 V, up].h_re: 4.000004 now, 4.0 in the baseline"));
+  EXPECT_THAT(fail.regressions[1], HasSubstr("points[f=7 Hz, V=0.1 V, up].h_re_n_per_v: 4.000004 now, 4.0 in the baseline"));
   EXPECT_THAT(fail.regressions[1], HasSubstr("relative deviation 1e-06 beyond tolerance relative 1e-09, absolute 1e-12"));
   // The worst: a mismatch (infinitely beyond) before a value 1000 x its tolerance.
   ASSERT_TRUE(fail.worst.has_value());
@@ -271,10 +271,10 @@ TEST(RegressionCompareTest, RegressionLinesAndTheWorstValue) {
 
   // Null where a number was.
   json lost = baseline;
-  lost["points"][1]["h_re"] = nullptr;
+  lost["points"][1]["h_re_n_per_v"] = nullptr;
   const Comparison nulls = CompareTables(baseline, lost, Tolerances::Defaults());
   ASSERT_EQ(nulls.regressions.size(), 1u);
-  EXPECT_THAT(nulls.regressions[0], HasSubstr("points[f=6 Hz, V=0.1 V, up].h_re: null now, 3.0 in the baseline"));
+  EXPECT_THAT(nulls.regressions[0], HasSubstr("points[f=6 Hz, V=0.1 V, up].h_re_n_per_v: null now, 3.0 in the baseline"));
 }
 
 TEST(RegressionCompareTest, MalformedTablesAreInputErrors) {

@@ -95,7 +95,7 @@ TEST(SweepCliTest, SmallSweepAsJson) {
   size_t up_points = 0;
   for (const auto& p : j["points"]) {
     for (const char* key : {"frequency_hz", "amplitude_v", "branch", "stable", "period", "first_harmonic_force_n",
-                            "first_harmonic_phase_rad", "h_re", "h_im", "min_displacement_m", "max_displacement_m",
+                            "first_harmonic_phase_rad", "h_re_n_per_v", "h_im_n_per_v", "min_displacement_m", "max_displacement_m",
                             "peak_force_n", "contacts_per_period", "max_multiplier"})
       ASSERT_TRUE(p.contains(key)) << key;
     ASSERT_THAT(p["branch"].get<std::string>(), ::testing::AnyOf("up", "down", "unstable"));
@@ -105,7 +105,7 @@ TEST(SweepCliTest, SmallSweepAsJson) {
     // 0.1 V: far below every grazing amplitude, a linear steady state.
     if (p["amplitude_v"].get<double>() == 0.1) {
       const double w = 2 * std::numbers::pi * p["frequency_hz"].get<double>();
-      const std::complex<double> h(p["h_re"].get<double>(), p["h_im"].get<double>());
+      const std::complex<double> h(p["h_re_n_per_v"].get<double>(), p["h_im_n_per_v"].get<double>());
       EXPECT_REL_NEAR(h, strokelab::ForceFrf(model, w), 1e-6) << p.dump();
       EXPECT_EQ(p["contacts_per_period"].get<double>(), 0.0);
       EXPECT_EQ(p["period"], 1);

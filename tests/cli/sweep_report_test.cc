@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -93,7 +94,7 @@ TEST(SweepOutputTest, JsonHasThePromisedKeys) {
   ASSERT_EQ(j["points"].size(), r.points.size());
   for (const auto& p : j["points"]) {
     for (const char* key : {"frequency_hz", "amplitude_v", "branch", "stable", "period", "first_harmonic_force_n",
-                            "first_harmonic_phase_rad", "h_re", "h_im", "min_displacement_m", "max_displacement_m",
+                            "first_harmonic_phase_rad", "h_re_n_per_v", "h_im_n_per_v", "min_displacement_m", "max_displacement_m",
                             "peak_force_n", "contacts_per_period", "max_multiplier"})
       EXPECT_TRUE(p.contains(key)) << key << " in " << p.dump();
   }
@@ -102,8 +103,8 @@ TEST(SweepOutputTest, JsonHasThePromisedKeys) {
   EXPECT_EQ(j["points"][1]["period"], 2);
   EXPECT_EQ(j["points"][2]["period"], "aperiodic");
   EXPECT_TRUE(j["points"][3]["max_multiplier"].is_null());
-  EXPECT_DOUBLE_EQ(j["points"][0]["h_re"].get<double>(), r.points[0].h.real());
-  EXPECT_DOUBLE_EQ(j["points"][0]["h_im"].get<double>(), r.points[0].h.imag());
+  EXPECT_DOUBLE_EQ(j["points"][0]["h_re_n_per_v"].get<double>(), r.points[0].h.real());
+  EXPECT_DOUBLE_EQ(j["points"][0]["h_im_n_per_v"].get<double>(), r.points[0].h.imag());
   size_t down = 0, unstable = 0;
   for (const auto& p : j["points"]) {
     down += p["branch"] == "down";
@@ -148,7 +149,7 @@ TEST(SweepOutputTest, FolderHasTablesPicturesAndSummary) {
   const auto points = Lines(ReadFile(dir / "nested/points.csv"));
   ASSERT_EQ(points.size(), r.points.size() + 1);
   EXPECT_EQ(points[0],
-            "frequency_hz,amplitude_v,branch,stable,period,first_harmonic_force_n,first_harmonic_phase_rad,h_re,h_im,"
+            "frequency_hz,amplitude_v,branch,stable,period,first_harmonic_force_n,first_harmonic_phase_rad,h_re_n_per_v,h_im_n_per_v,"
             "min_displacement_m,max_displacement_m,peak_force_n,contacts_per_period,max_multiplier");
   const auto aperiodic = Cells(points[3]);
   ASSERT_EQ(aperiodic.size(), 14u) << points[3];
@@ -173,9 +174,54 @@ TEST(SweepOutputTest, FolderHasTablesPicturesAndSummary) {
   EXPECT_THAT(map, HasSubstr("grazing amplitude"));
   EXPECT_THAT(map, HasSubstr("jump (bistable) interval"));
   EXPECT_THAT(ReadFile(dir / "nested/frf_up.svg"), HasSubstr("unstable orbits"));
-  EXPECT_THAT(ReadFile(dir / "nested/frf_up.svg"), HasSubstr("0.2 V"));
+  EXPECT_THAT(ReadFile(dir / "nested/frf_up.svg"), HasSubstr("drive amplitude [V]"));  // the colour bar
   EXPECT_EQ(ReadFile(dir / "nested/summary.txt"), SweepSummaryText(r));
   EXPECT_THAT(ReadFile(dir / "nested/model.json"), HasSubstr("\"mass_kg\": 0.032"));
+}
+
+// One unit for phase: the tables' first_harmonic_phase_rad is in rad, and so is the phase plot.
+TEST(SweepOutputTest, ThePhasePlotIsInTheTablesUnit) {
+  const std::filesystem::path dir = FreshDir("sweep_phase_unit");
+  WriteSweepFolder(Synthetic(), PaperModel(), dir);
+  const std::string phase = ReadFile(dir / "frf_phase.svg");
+  EXPECT_THAT(phase, HasSubstr("arg H [rad]"));
+  EXPECT_THAT(phase, ::testing::Not(HasSubstr("deg")));
+}
+
+// An FRF family of 26 amplitudes (0.1 .. 0.6 V): each amplitude its own colour on a sequential map
+// with a colour bar (an 8-colour palette repeated, so that 0.1, 0.26, 0.42 and 0.58 V shared one),
+// no legend entry per amplitude, and the sweep's jumps marked where its branch leaves the
+// bistable interval (the up-sweep at its upper end, the down-sweep at its lower end).
+TEST(SweepOutputTest, ManyAmplitudesGetAColourBarAndTheJumpsAreMarked) {
+  SweepResult r;
+  r.frequency_hz = {5.0, 9.0, 10.0, 11.0, 12.0};
+  for (int k = 0; k < 26; ++k) r.amplitude_v.push_back(0.1 + 0.02 * k);
+  for (double v : r.amplitude_v) {
+    for (double f : r.frequency_hz) {
+      r.points.push_back(Point(f, v, Branch::kUp, std::complex<double>(v * f, 1.0)));
+      if (f >= 9.0 && f <= 11.0) r.points.push_back(Point(f, v, Branch::kDown, std::complex<double>(0.1 * v * f, 1.0)));
+    }
+  }
+  r.jump.push_back({0.5, 8.5, 11.5, "grazing", "fold"});
+  r.amplitude_v[20] = 0.5;  // the jump's amplitude exactly
+  for (SweepPoint& p : r.points)
+    if (std::abs(p.amplitude_v - 0.5) < 1e-9) p.amplitude_v = 0.5;
+  const std::string up = FrfMagnitudeSvg(r, Branch::kUp);
+  EXPECT_THAT(up, HasSubstr("<g class=\"colorbar\">"));
+  EXPECT_THAT(up, HasSubstr("drive amplitude [V]"));
+  EXPECT_THAT(up, ::testing::Not(HasSubstr(">0.1 V<")));  // no legend entry per amplitude
+  std::set<std::string> colours;
+  for (size_t at = up.find("<polyline"); at != std::string::npos; at = up.find("<polyline", at + 1)) {
+    const size_t stroke = up.find("stroke=\"", at) + 8;
+    colours.insert(up.substr(stroke, up.find('"', stroke) - stroke));
+  }
+  EXPECT_GE(colours.size(), 26u);  // 26 amplitudes, and the jump's black
+  EXPECT_THAT(up, HasSubstr("jump of the up-sweep"));
+  // The up-sweep jumps at 11.5 Hz, between its grid points at 11 and 12 Hz.
+  const std::string down = FrfMagnitudeSvg(r, Branch::kDown);
+  EXPECT_THAT(down, HasSubstr("jump of the down-sweep"));
+  r.jump.clear();
+  EXPECT_THAT(FrfMagnitudeSvg(r, Branch::kUp), ::testing::Not(HasSubstr("jump of the")));
 }
 
 TEST(SweepOutputTest, WithoutThresholdsTheTablesKeepTheirHeaders) {

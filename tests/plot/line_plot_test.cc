@@ -249,5 +249,46 @@ TEST(LinePlotTest, RejectsBadInputNamingTheField) {
   EXPECT_THAT(message({}, axes), HasSubstr("Axes.width_px"));
 }
 
+// Many curves coloured by a value (FRFs by drive amplitude): a colour bar instead of a legend entry
+// per curve, each curve its own colour on the sequential map, from viridis dark to yellow.
+TEST(LinePlotTest, ColourBarColoursCurvesByValue) {
+  const ColorBar bar{"drive amplitude [V]", 0.1, 0.6, false};
+  EXPECT_EQ(ColorBarColor(bar, 0.1), "#440154");
+  EXPECT_EQ(ColorBarColor(bar, 0.6), "#fde725");
+  EXPECT_EQ(ColorBarColor(bar, 9.0), "#fde725");  // beyond the range: the end colour
+  std::vector<Series> curves;
+  std::set<std::string> colours;
+  for (int k = 0; k < 26; ++k) {
+    const double v = 0.1 + 0.02 * k;
+    Series s = Line({1, 2, 3}, {v, 2 * v, v});
+    s.color = ColorBarColor(bar, v);
+    colours.insert(s.color);
+    curves.push_back(s);
+  }
+  EXPECT_EQ(colours.size(), 26u);
+  curves.push_back(Line({1, 3}, {0.5, 0.5}, "jumps"));
+  const std::string svg = LinePlot(curves, Axes{}, bar);
+  EXPECT_EQ(XmlProblem(svg), "");
+  EXPECT_THAT(Group(svg, "colorbar"), HasSubstr("drive amplitude [V]"));
+  EXPECT_THAT(Texts(Group(svg, "legend")), ElementsAre("jumps"));
+  EXPECT_THROW(LinePlot(curves, Axes{}, ColorBar{"x", 1, 1, false}), std::invalid_argument);
+  EXPECT_THROW(ColorBarColor(ColorBar{"x", 0, 1, true}, 0.5), std::invalid_argument);
+}
+
+// A log axis over less than a decade (records at 5.5 .. 13 Hz) has labels up to its end: 1..9 times a
+// power of ten labelled 6, 7, 8, 9, 10 and left 11 .. 14 Hz bare; 1-2-5 steps reach it.
+TEST(LinePlotTest, LogAxisUnderADecadeIsLabelledToItsEnds) {
+  Axes axes;
+  axes.log_x = true;
+  axes.width_px = 480;
+  axes.x_min = 5.2;  // padded limits, as the diagnosis report's residual maps set them
+  axes.x_max = 13.8;
+  const std::string svg = LinePlot({Line({5.5, 8, 11, 13}, {1, 2, 3, 4})}, axes);
+  const std::vector<double> labels = Numbers(Texts(Group(svg, "x-axis")));
+  ASSERT_GE(labels.size(), 3u);
+  EXPECT_GE(labels.back(), 12.0);
+  EXPECT_LE(labels.front(), 6.0);
+}
+
 }  // namespace
 }  // namespace strokelab::plot

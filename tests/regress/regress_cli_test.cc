@@ -197,7 +197,7 @@ TEST(RegressCliTest, BadInputIsExitCodeTwo) {
   unknown["colour"] = "red";
   WriteJson(dir / "unknown.json", unknown);
   json tolerance = SmallSimulate();
-  tolerance["tolerances"] = {{"h_re", {{"relative", -1}}}};
+  tolerance["tolerances"] = {{"h_re_n_per_v", {{"relative", -1}}}};
   WriteJson(dir / "tolerance.json", tolerance);
   WriteJson(dir / "array.json", json::array());
 
@@ -207,7 +207,7 @@ TEST(RegressCliTest, BadInputIsExitCodeTwo) {
   ExpectBadInput(good + " " + (dir / "bad.json").string() + base, (dir / "bad.json").string() + ": /duration_s: ");
   ExpectBadInput((dir / "unknown.json").string() + base, (dir / "unknown.json").string() + ": /colour: ");
   ExpectBadInput((dir / "tolerance.json").string() + base,
-                 (dir / "tolerance.json").string() + ": /tolerances/h_re/relative: must be a number >= 0");
+                 (dir / "tolerance.json").string() + ": /tolerances/h_re_n_per_v/relative: must be a number >= 0");
   ExpectBadInput((dir / "array.json").string() + base, "array.json: a job file must hold one JSON object");
   ExpectBadInput((dir / "missing.json").string() + base, "missing.json: cannot read the file");
   ExpectBadInput(good, "--baseline: required");

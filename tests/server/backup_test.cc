@@ -21,7 +21,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr int kLatestSchema = 2;  // schema/migrations/002_job_events.sql
+constexpr int kLatestSchema = 3;  // schema/migrations/003_result_units.sql
 constexpr int kAmplitudes = 40;   // the sweep's amplitude points: one task each (thresholds off)
 
 struct CliRun {

@@ -240,6 +240,11 @@ void QueryCases(std::vector<BadRequest>& out, const Tokens& tokens, const KnownJ
     add(sweep + "/saturation-map?format=" + format, "bad_query", "format");
     add(sweep + "/frf?amplitude_v=0.1&format=" + format, "bad_query", "format");
   }
+  for (const std::string format : {"svg", "CSV", "", "tsv"}) {
+    add(sweep + "/points?format=" + format, "bad_query", "format");
+    add(sweep + "/thresholds?format=" + format, "bad_query", "format");
+  }
+  add(simulate + "/jumps?format=csv", "not_a_sweep", "");
   add(sweep + "/frf?format=svg&branch=sideways", "bad_query", "branch");
   add(sweep + "/frf", "bad_query", "amplitude_v");
   add(simulate + "/saturation-map", "not_a_sweep", "");

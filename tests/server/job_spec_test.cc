@@ -388,6 +388,50 @@ TEST(SweepSpecFromJobTest, ConvertsGridModelAndThresholds) {
   EXPECT_FALSE(linear.model.HasLowerStop());
 }
 
+// A linear axis between decimal end points has the decimals in between as its values, not their
+// rounded neighbours: 0.1 .. 0.6 V in 26 points is 0.1, 0.12, ..., 0.3 (not 0.30000000000000004, as
+// 0.1 + 0.2 is), so that they print and are queried as the axis defines them.
+TEST(SweepSpecFromJobTest, LinearAxisValuesAreTheDecimalsTheAxisDefines) {
+  json job = BaseSweep();
+  job["grid"]["amplitude_v"] = {{"from", 0.1}, {"to", 0.6}, {"points", 26}};
+  const std::vector<double> values = SweepSpecFromJob(job).amplitude_v.Values();
+  ASSERT_EQ(values.size(), 26u);
+  for (int i = 0; i < 26; ++i) {
+    char decimal[16];
+    std::snprintf(decimal, sizeof decimal, "%.2f", 0.1 + 0.02 * i);
+    EXPECT_EQ(values[i], std::stod(decimal)) << i;
+    EXPECT_LE(json(values[i]).dump().size(), 4u) << json(values[i]).dump();
+  }
+  // Values that are no short decimal keep the nearest double: 0.5 .. 1.5 in 4 points.
+  job["grid"]["amplitude_v"] = {{"from", 0.5}, {"to", 1.5}, {"points", 4}};
+  EXPECT_EQ(SweepSpecFromJob(job).amplitude_v.Values()[1], 0.5 + 1.0 / 3.0);
+}
+
+// A job as it runs: presets and defaults spelled out (the service shows it as "resolved").
+TEST(ResolvedJobTest, SpellsOutModelGridMethodAndOptions) {
+  const json sweep = ResolvedJob(BaseEq1Sweep());
+  EXPECT_EQ(sweep["model"], ModelToJson(PaperModel()));
+  EXPECT_EQ(sweep["grid"]["frequency_hz"]["spacing"], "geometric");
+  EXPECT_EQ(sweep["grid"]["frequency_hz"]["values"].size(), 117u);
+  EXPECT_EQ(sweep["grid"]["amplitude_v"]["values"].dump(), "[0.1,0.2,0.3,0.4,0.5,0.6]");
+  EXPECT_EQ(sweep["thresholds"], true);
+  EXPECT_EQ(sweep["kind"], "sweep");
+
+  const json simulate = ResolvedJob(Without(Without(BaseSimulate(), "/method"), "/duration_s"));
+  EXPECT_EQ(simulate["duration_s"], 10.0);
+  EXPECT_EQ(simulate["method"], "exact (auto: the model is piecewise linear)");
+  EXPECT_EQ(simulate["model"]["mass_kg"], 0.032);
+
+  const json fit = ResolvedJob({{"kind", "fit"}, {"campaign", {{"id", "0123456789abcdef"}}}});
+  EXPECT_EQ(fit["model"], "paper");
+  EXPECT_EQ(fit["options"].size(), FitOptionFields().size());
+  const json diagnose = ResolvedJob({{"kind", "diagnose"}, {"campaign", {{"id", "0123456789abcdef"}}},
+                                     {"options", {{"max_seconds", 30}}}});
+  EXPECT_EQ(diagnose["options"]["max_seconds"], 30.0);
+  EXPECT_EQ(diagnose["options"].size(), FitOptionFields().size() + DiagnoseOptionFields().size());
+  EXPECT_THROW(ResolvedJob(With(BaseSimulate(), "/method", "rk4")), InputError);
+}
+
 TEST(SweepSpecFromJobTest, Eq1IsThePapersGrid) {
   // paper Eq. 1: w(n) = 10 pi 1.02^(n-1) rad/s; "from" defaults to 5 Hz.
   const SweepSpec spec = SweepSpecFromJob(BaseEq1Sweep());

@@ -392,7 +392,7 @@ json ResultDefinition(const std::string& name) {
 TEST(BuiltInSchemaTest, ResultSchemaDescribesPointsAndStatus) {
   const json point = {{"frequency_hz", 8.0},   {"amplitude_v", 0.4},        {"branch", "up"},
                       {"stable", true},        {"period", 1},               {"first_harmonic_force_n", 0.1},
-                      {"first_harmonic_phase_rad", -1.2}, {"h_re", 0.1},    {"h_im", -0.2},
+                      {"first_harmonic_phase_rad", -1.2}, {"h_re_n_per_v", 0.1}, {"h_im_n_per_v", -0.2},
                       {"min_displacement_m", -1e-3},      {"max_displacement_m", 2e-3},
                       {"peak_force_n", 0.5},   {"contacts_per_period", 1.0}, {"max_multiplier", 0.3}};
   EXPECT_EQ(Outcome(ResultDefinition("sweep_point"), point), "ok");
@@ -407,8 +407,8 @@ TEST(BuiltInSchemaTest, ResultSchemaDescribesPointsAndStatus) {
   bad["period"] = 0;
   EXPECT_EQ(Outcome(ResultDefinition("sweep_point"), bad), "/period: must be >= 1");
   bad = point;
-  bad.erase("h_im");
-  EXPECT_EQ(Outcome(ResultDefinition("sweep_point"), bad), "/h_im: is required");
+  bad.erase("h_im_n_per_v");
+  EXPECT_EQ(Outcome(ResultDefinition("sweep_point"), bad), "/h_im_n_per_v: is required");
 
   const json status = {{"id", 3},
                        {"kind", "sweep"},

@@ -163,6 +163,27 @@ TEST(Migration, EveryEarlierVersionReachesTheLatestWithItsDataIntact) {
   }
 }
 
+// 003_result_units.sql: sweep points stored with h_re and h_im (version 2) read with the names of
+// today's columns, h_re_n_per_v and h_im_n_per_v, values (and a null) kept; other rows untouched.
+TEST(Migration, StoredPointsTakeTheFrfColumnsUnitNames) {
+  ASSERT_GE(Latest(), 3);
+  ScratchDirectory dir("strokelab-migrate");
+  const std::string path = (dir.path() / "jobs.db").string();
+  BuildAtVersion(path, 2);
+  RawDb(path).Exec(R"sql(
+    INSERT INTO results (job_id, table_name, task_idx, row_idx, frequency_hz, amplitude_v, branch, json)
+    VALUES (1, 'points', 2, 0, 8, 0.3, 'up', '{"frequency_hz":8,"amplitude_v":0.3,"branch":"up","h_re":-0.25,"h_im":null}');
+  )sql");
+  auto store = Store::Open(path);
+  Store::Filter at;
+  at.frequency_min_hz = 8;
+  const std::vector<json> rows = store->Results(1, "points", at, 0, 10).rows;
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0], json::parse(R"({"frequency_hz":8,"amplitude_v":0.3,"branch":"up","h_re_n_per_v":-0.25,
+                                     "h_im_n_per_v":null})"));
+  EXPECT_EQ(store->Results(1, "points", {}, 0, 10).rows[0], json::parse(R"({"frequency_hz":5,"amplitude_v":0.1,"branch":"up"})"));
+}
+
 TEST(Migration, NewerVersionIsRefusedAndLeftUntouched) {
   ScratchDirectory dir("strokelab-migrate");
   const std::string path = (dir.path() / "jobs.db").string();

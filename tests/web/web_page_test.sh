@@ -7,7 +7,8 @@
 # Starts `BINARY serve --port 0` on a temporary database, submits a small Eq. 1 sweep of the paper
 # model with the Python client, waits until it succeeds, loads http://127.0.0.1:PORT/?job=ID and
 #   - checks the DOM: the job is listed as succeeded, the map's title and the FRF titles are there
-#     as inline SVG, the jump-interval line is there, and no "cannot list jobs" message;
+#     as inline SVG, the jump-interval line is there, the job's grid and model (its resolved spec)
+#     are shown, and no "cannot list jobs" message;
 #   - checks the console: Chromium's log (--enable-logging=stderr) has no CONSOLE line at all
 #     (uncaught exceptions, console.error/warn/log, failed resource loads); a page with a known
 #     uncaught error is loaded first to prove that such lines are caught;
@@ -122,6 +123,8 @@ grep -q '<td class="status-succeeded">succeeded</td>' "$dom" || fail "the job li
 [ "$(grep -o '<svg' "$dom" | wc -l)" -ge 3 ] || fail "fewer than 3 inline SVG pictures (map, FRF up, FRF down)"
 grep -q 'First-order FRF |H|, up-sweep branch' "$dom" || fail "the up-sweep FRF family is missing"
 grep -q 'First-order FRF |H|, down-sweep branch' "$dom" || fail "the down-sweep FRF family is missing"
+grep -q '<details id="spec">' "$dom" && grep -q 'mass_kg = 0.032' "$dom" && grep -q 'amplitude: [0-9]* values' "$dom" ||
+  fail "the job's grid and model (its resolved spec) are not shown"
 grep -q 'id="jobs-note"></p>' "$dom" || fail "the job list shows a note: $(grep -o 'id="jobs-note">[^<]*' "$dom")"
 # Error messages in the rendered page (the script's own text, which contains them, left out).
 sed '/<script>/,/<\/script>/d' "$dom" > "$tmp/dom-body.html"

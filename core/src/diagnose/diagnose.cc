@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <sstream>
 
@@ -94,6 +95,8 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
   c.min_amplitude_v = kInf;
   std::vector<double> penetrations;
   for (const RecordAnalysis& a : analyses) {
+    const double nyquist_rad_per_s = std::numbers::pi * a.sample_rate_hz;  // 2 pi (fs / 2)
+    c.max_contact_stiffness_n_per_m = std::min(c.max_contact_stiffness_n_per_m, m.mass_kg * nyquist_rad_per_s * nyquist_rad_per_s);
     c.min_amplitude_v = std::min(c.min_amplitude_v, a.drive.amplitude_v);
     c.max_amplitude_v = std::max(c.max_amplitude_v, a.drive.amplitude_v);
     try {

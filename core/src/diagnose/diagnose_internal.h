@@ -1,6 +1,8 @@
 // The diagnosis's parts (diagnose.h), shared by diagnose.cc, effects.cc, diagnose_signatures.cc.
 #pragma once
 
+#include <limits>
+
 #include <span>
 #include <vector>
 
@@ -17,6 +19,10 @@ struct EffectContext {
   double penetration_m = 0;       // typical (median) stop penetration of the contacting orbits
   double min_amplitude_v = 0, max_amplitude_v = 0;  // drive amplitudes of the campaign
   bool contacts = false;          // some record reaches the stop
+  // The stiffest (linear) contact the records resolve: one whose natural frequency sqrt(k_s / m_p) / 2pi
+  // reaches the Nyquist frequency fs / 2 of the records sampled slowest, k_s = m_p (pi fs)^2. A stiffer
+  // stop rings between samples; the records cannot tell it from a rigid one.
+  double max_contact_stiffness_n_per_m = std::numeric_limits<double>::infinity();
 };
 
 // The refinement problem of the base parameters (from `start`) extended by `effects`. Effect

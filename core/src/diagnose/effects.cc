@@ -56,9 +56,10 @@ namespace internal {
 namespace {
 
 constexpr double kBaseRange = 2.0;      // base parameters: theta within a factor 2 of the base fit
-// Contact stiffness: a factor 1000 either way of the base fit's. A base fit without the missing
-// effect puts what it misses into the stop: on a campaign with a concealed k3 = 1.5e7 N/m^3 its k_s
-// was 30 times the truth, so a factor 30 held the extended fit on its bound just above the truth.
+// Contact stiffness: a factor 1000 either way of the base fit's, and no stiffer than the records
+// resolve (EffectContext). A base fit without the missing effect puts what it misses into the stop:
+// on a campaign with a concealed k3 = 1.5e7 N/m^3 its k_s was 30 times the truth, so a factor 30 held
+// the extended fit on its bound just above the truth.
 constexpr double kContactRange = 1000.0;
 // Start values of the effects whose response is flat where they do not act, as fractions of the
 // campaign's scale (largest stroke, largest drive): the best of them (by chi-square) starts the fit.
@@ -90,6 +91,14 @@ FreeParameter LinearParameter(std::string name, std::string unit, double Actuato
   p.scale = scale;
   p.theta_min = 1.0 + low;
   p.theta_max = 1.0 + high;
+  return p;
+}
+
+// The contact stiffness k_s from `start`, within kContactRange and at most `resolved` [N/m] as a
+// linear stop's stiffness (a Hertzian one's at the typical penetration p: k_s,H p^(1/2)).
+FreeParameter ContactStiffness(std::string unit, double start, double resolved) {
+  FreeParameter p = LogParameter("k_s", std::move(unit), &ActuatorModel::contact_stiffness, start, kContactRange);
+  p.theta_max = std::max(1.0, std::min(p.theta_max, 1.0 + std::log(resolved / start)));
   return p;
 }
 
@@ -138,9 +147,10 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
       const double hertz_start = start.contact_law == ContactLaw::kHertzian
                                      ? start.contact_stiffness
                                      : start.contact_stiffness / std::sqrt(std::max(context.penetration_m, 1e-9));
-      p.push_back(LogParameter("k_s", "N/m^1.5", &ActuatorModel::contact_stiffness, hertz_start, kContactRange));
+      const double resolved = context.max_contact_stiffness_n_per_m / std::sqrt(std::max(context.penetration_m, 1e-9));
+      p.push_back(ContactStiffness("N/m^1.5", hertz_start, resolved));
     } else {
-      p.push_back(LogParameter("k_s", "N/m", &ActuatorModel::contact_stiffness, start.contact_stiffness, kContactRange));
+      p.push_back(ContactStiffness("N/m", start.contact_stiffness, context.max_contact_stiffness_n_per_m));
     }
     if (start.contact_damping_n_s_per_m > 0 || Has(effects, Effect::kContactDamping)) {
       // Linear in c_s from 2 % of the contact's critical damping 2 sqrt(k_s m_p), down to 0 (no

@@ -24,6 +24,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // fraction of its standard error (a change no test on the estimate could see).
 constexpr double kSolveTolerancePerError = 0.01;
 constexpr int kAperiodicSettlePeriods = 64;  // plain periods before harmonics of an aperiodic anchor
+const std::vector<double ActuatorModel::*> kNoFields;
 
 // One record's target: its measured harmonics, the orbit the next evaluations start from, and the
 // sampling correction (frozen during a solve).
@@ -60,14 +61,17 @@ class OrbitCost : public ceres::CostFunction {
       } else {
         for (int i = 0; i < kAperiodicSettlePeriods; ++i) start = map.Apply(start);
       }
-      const OrbitSlopes slopes = OrbitHarmonicSlopes(model, record, start, period, kind_, orders_, fields_);
+      // Ceres asks for residuals alone at trial steps: then the harmonics without their slopes.
+      const bool jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+      const OrbitSlopes slopes =
+          OrbitHarmonicSlopes(model, record, start, period, kind_, orders_, jacobian ? fields_ : kNoFields);
       const size_t p = fields_.size();
       for (int h = 0; h < orders_; ++h) {
         const double weight = record.usable[h] ? target_->weight : 0.0;
         const Complex r = weight * (record.harmonics[h] - slopes.harmonics[h] - target_->correction[h]);
         residuals[2 * h] = r.real();
         residuals[2 * h + 1] = r.imag();
-        if (jacobians == nullptr || jacobians[0] == nullptr) continue;
+        if (!jacobian) continue;
         for (size_t j = 0; j < p; ++j) {
           const Complex d = -weight * slopes.d_harmonics[j][h] * problem_->parameters[j].ValuePerTheta(theta[j]);
           jacobians[0][(2 * h) * p + j] = d.real();

@@ -79,22 +79,26 @@ OrbitSlopes OrbitHarmonicSlopes(const ActuatorModel& model, const RecordAnalysis
   const double f = record.drive.frequency_hz, omega = fit_internal::kTwoPi * f;
   const int periods = period > 0 ? period : kAperiodicPeriods;
   const double duration_s = periods / f;
+  // No parameters: the harmonics alone (a cost evaluation without Jacobian), a flow of 2 + 2N
+  // components instead of 2 + 2 (2 + P) (N + 1).
+  const bool slopes = !parameters.empty();
   FlowRequest request;
-  request.monodromy = true;
+  request.monodromy = slopes;
   request.parameters = parameters;
   request.harmonics = orders;
-  request.harmonic_sensitivities = true;
+  request.harmonic_sensitivities = slopes;
   const FlowResult flow = Flow(model, SineDrive{record.drive.amplitude_v, f, 0.0}, start, 0.0, duration_s, request);
-  // dy*/dp_j = (I - M)^{-1} dP/dp_j on a periodic orbit; 0 on a fixed stretch of aperiodic motion.
-  const State mx = flow.columns[0], mv = flow.columns[1];
-  const double a = 1.0 - mx.x_m, b = -mv.x_m, c = -mx.v_m_per_s, d = 1.0 - mv.v_m_per_s;
-  const double det = a * d - b * c;
-  if (period > 0 && !(std::abs(det) > 0.0)) throw NumericalError("the orbit's monodromy has a multiplier of 1");
   const double scale = 2.0 / duration_s;  // C_h = (2 / pT) int x e^{-jhwt} dt
   OrbitSlopes out;
   out.harmonics.resize(orders);
   for (int h = 1; h <= orders; ++h)
     out.harmonics[h - 1] = ResponseHarmonic(scale * flow.harmonic_integrals[h - 1], h, omega, kind, model.mass_kg);
+  if (!slopes) return out;
+  // dy*/dp_j = (I - M)^{-1} dP/dp_j on a periodic orbit; 0 on a fixed stretch of aperiodic motion.
+  const State mx = flow.columns[0], mv = flow.columns[1];
+  const double a = 1.0 - mx.x_m, b = -mv.x_m, c = -mx.v_m_per_s, d = 1.0 - mv.v_m_per_s;
+  const double det = a * d - b * c;
+  if (period > 0 && !(std::abs(det) > 0.0)) throw NumericalError("the orbit's monodromy has a multiplier of 1");
   for (size_t j = 0; j < parameters.size(); ++j) {
     const State dp = flow.columns[2 + j];
     double dx0 = 0.0, dv0 = 0.0;

@@ -7,7 +7,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <exception>
+#include <limits>
 #include <mutex>
 #include <numbers>
 #include <sstream>
@@ -225,11 +228,27 @@ SaturationThreshold SweepColumn(const ActuatorModel& model, double f_hz, const s
   return t;
 }
 
+namespace {
+
+// `value` as the decimal it rounds from: from + (to - from) s lands a few ulps off the decimal the
+// axis defines (0.1 + 0.2 = 0.30000000000000004 on 0.1 .. 0.6 V), which then prints and is queried as
+// such. The decimal of 12 significant digits is taken when it lies within 4 ulps (a value that is no
+// short decimal, 0.5 + 1/3, is 1e-13 or more from it and is left as computed).
+double NearestShortDecimal(double value) {
+  if (value == 0 || !std::isfinite(value)) return value;
+  char text[32];
+  std::snprintf(text, sizeof text, "%.12g", value);
+  const double decimal = std::strtod(text, nullptr);
+  return std::abs(decimal - value) <= 4 * std::numeric_limits<double>::epsilon() * std::abs(value) ? decimal : value;
+}
+
+}  // namespace
+
 std::vector<double> GridAxis::Values() const {
   std::vector<double> values(points);
   for (int i = 0; i < points; ++i) {
     const double s = points == 1 ? 0.0 : static_cast<double>(i) / (points - 1);
-    values[i] = geometric ? from * std::pow(to / from, s) : from + (to - from) * s;
+    values[i] = NearestShortDecimal(geometric ? from * std::pow(to / from, s) : from + (to - from) * s);
   }
   if (points > 1) values.back() = to;
   return values;

@@ -56,7 +56,8 @@ std::optional<ModelOrbit> SolveOrbit(const ActuatorModel& model, const RecordAna
 // the orbit y* solves P(y*, p) = y*, so dy*/dp = (I - M)^{-1} dP/dp (M the monodromy), and
 //   dC_h/dp = dC_h/dy0 . dy*/dp + dC_h/dp|y0.
 // With period = 0 (no periodic orbit: `start` on a settled aperiodic motion, harmonics over
-// kAperiodicPeriods) only the second term: the derivative of a fixed stretch of the motion.
+// kAperiodicPeriods) only the second term: the derivative of a fixed stretch of the motion. With no
+// parameters, the harmonics alone (no monodromy, no sensitivities: a far smaller flow).
 struct OrbitSlopes {
   std::vector<std::complex<double>> harmonics;               // response units, relative to the drive
   std::vector<std::vector<std::complex<double>>> d_harmonics;  // [j][h - 1]: d C_h / d parameters[j]

@@ -63,6 +63,14 @@ SweepSpec SweepSpecFromJob(const nlohmann::json& job);
 FitOptions FitOptionsFromJob(const nlohmann::json& job);
 DiagnoseOptions DiagnoseOptionsFromJob(const nlohmann::json& job);
 
+// A valid job as it runs (src/job_resolved.cc): the submitted spec with every default and preset
+// spelled out. sweep: "model" as ModelToJson (every parameter), each grid axis as {from, to, points,
+// spacing (linear | geometric; eq1 is geometric), values: every grid value, as the results carry
+// it}, "thresholds"; simulate: "model", "duration_s", "sample_rate_hz", "method" as run ("cvode
+// (auto: ...)"); fit, diagnose: "model" (the fit model's name) and "options", every option by its
+// job name. Throws as ValidateJob on a job that is not valid.
+nlohmann::json ResolvedJob(const nlohmann::json& job);
+
 // Throws JobLimitError at /grid when frequency_points x amplitude_points > kMaxGridPoints.
 void CheckGridSize(long long frequency_points, long long amplitude_points);
 

@@ -28,6 +28,20 @@ struct Axes {
 
 std::string LinePlot(const std::vector<Series>& series, const Axes& axes);
 
+// A colour bar beside a line plot whose curves are coloured by a value (one FRF per drive
+// amplitude): the heat maps' sequential colour map (viridis) over [min, max], so that many curves
+// stay told apart where a palette would repeat and a legend would cover them.
+struct ColorBar {
+  std::string label;
+  double min = 0.0, max = 1.0;  // finite, min < max (positive on a log scale)
+  bool log = false;
+};
+// The colour of `value` on the bar's colour map (values beyond the range take the end colour).
+std::string ColorBarColor(const ColorBar& bar, double value);
+// LinePlot with `bar` on the right; series colour themselves (ColorBarColor) and only labelled
+// series enter the legend.
+std::string LinePlot(const std::vector<Series>& series, const Axes& axes, const ColorBar& bar);
+
 // A heat map of z over a rectilinear grid (x ascending, y ascending; z[iy][ix], NaN: no data) with
 // a colour bar labelled `z_label`, and curves drawn on top of it (threshold, jump boundaries).
 // Spacing may vary (log-spaced frequencies): cell edges lie midway between grid values as the

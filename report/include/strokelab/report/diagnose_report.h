@@ -36,7 +36,9 @@ const std::vector<std::string>& DiagnosisReportFiles();
 // Writes DiagnosisReportFiles() into `dir` (created if missing):
 //   index.html           DiagnosisHtml
 //   records.csv          per record: drive, held out, clear, nrmse / chi2 / period of base and chosen model
-//   candidates.csv       per candidate: label, fitted, converged, gains, figures, effect parameters, note
+//   candidates.csv       per candidate: label, fitted, converged, gains, figures, passes, wall time, note
+//   candidate_parameters.csv  per effect parameter of each candidate: candidate, parameter, value,
+//                        standard error and unit, one value per cell
 //   levels.csv           Signatures::levels
 //   threshold_shift.csv  per map frequency: grazing and lowest contacting amplitude of the base and
 //                        the diagnosed model, their differences in V and % (header only without maps)

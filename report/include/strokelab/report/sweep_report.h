@@ -51,9 +51,11 @@ const std::vector<std::string>& SweepFolderFiles();
 //   saturation_map.svg        SpikeFactor of the up branch over (frequency, amplitude), with the
 //                             grazing and lowest-contact curves and the jump intervals on top
 //   saturation_map_down.svg   the same for the down branch
-//   frf_up.svg, frf_down.svg  |H| against frequency, one line per amplitude (paper Fig. 10), log
-//                             frequency axis; dots: unstable orbits
-//   frf_phase.svg             arg H, up branch solid, down branch dashed
+//   frf_up.svg, frf_down.svg  |H| against frequency, one line per amplitude coloured by amplitude
+//                             with a colour bar (paper Fig. 10), log frequency axis; dots: unstable
+//                             orbits; the sweep's jumps marked (up: at the bistable interval's upper
+//                             end, down: at its lower end)
+//   frf_phase.svg             arg H [rad], up branch solid, down branch dashed
 //   summary.txt               SweepSummaryText
 // Throws std::runtime_error if a file cannot be written.
 void WriteSweepFolder(const SweepResult& result, const ActuatorModel& model, const std::filesystem::path& dir);
