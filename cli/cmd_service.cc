@@ -19,6 +19,7 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/server/service.h"
 #include "strokelab/worker/remote_worker.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::cli {
 namespace {
@@ -73,14 +74,14 @@ json Expect(const httplib::Result& result, int status, const std::string& what) 
   if (result->status != status) {
     std::string message = "HTTP " + std::to_string(result->status);
     try {
-      const json error = json::parse(result->body).at("error");
+      const json error = ParseJson(result->body).at("error");
       message = error.value("code", "") + ": " + error.value("message", "");
       if (error.contains("field")) message = error["field"].get<std::string>() + ": " + message;
     } catch (...) {
     }
     throw std::runtime_error(what + ": " + message);
   }
-  return result->body.empty() ? json() : json::parse(result->body);
+  return result->body.empty() ? json() : ParseJson(result->body);
 }
 
 void PrintProgress(const json& job) {

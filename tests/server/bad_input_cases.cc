@@ -131,14 +131,15 @@ void BodyCases(std::vector<BadRequest>& out, const Tokens& tokens) {
     add(std::string("top level ") + scalar, scalar, "invalid_job");
   add("no kind", "{}", "invalid_job");
   add("kind fit (planned, unknown)", R"({"kind":"fit"})", "invalid_job");
-  // Deep nesting where a string belongs, and as the whole body (a recursive parser would overflow).
-  for (int depth : {64, 10000, 200000}) {
+  // Deep nesting where a string belongs, and as the whole body: at most 64 levels are parsed
+  // (ParseJson; copying or dumping a value recurses once per level).
+  for (int depth : {63, 64, 65, 10000, 200000}) {
     const std::string deep = std::string(depth, '[') + std::string(depth, ']');
     if (deep.size() < kMaxBodyBytes / 2) {
       add("name nested " + std::to_string(depth) + " deep",
-          valid.substr(0, valid.size() - 1) + ",\"name2\":" + deep + "}", "invalid_job");
+          valid.substr(0, valid.size() - 1) + ",\"name2\":" + deep + "}", depth + 1 > 64 ? "bad_json" : "invalid_job");
     }
-    add("body nested " + std::to_string(depth) + " deep", deep, "invalid_job");
+    add("body nested " + std::to_string(depth) + " deep", deep, depth > 64 ? "bad_json" : "invalid_job");
     add("objects nested " + std::to_string(depth) + " deep, unclosed", std::string(depth, '{'), "bad_json");
   }
   // Huge arrays and numbers.
@@ -325,6 +326,13 @@ void WorkerCases(std::vector<BadRequest>& out, const Tokens& tokens) {
   add("complete", R"({"job_id":1,"lease_token":"x","rows":[{"table":"points","values":{}},{"table":3,"values":{}}]})",
       400, "bad_request", "/rows/1/table");
   add("complete", R"({"job_id":1,"lease_token":"not-held","rows":[]})", 409, "lease_lost", "");
+  // Values nested deeply in a completion: refused as they are parsed, lease or not (200,000 levels
+  // crashed the server when the rows were copied before the lease was checked).
+  for (int depth : {65, 200000}) {
+    const std::string deep = std::string(depth, '[') + std::string(depth, ']');
+    add("complete", R"({"job_id":1,"lease_token":"bogus","rows":[{"table":"points","values":{"x":)" + deep + "}}]}",
+        400, "bad_json", "");
+  }
   for (const char* body : {"[]", "{\"worker\":5}", "{\"worker\":", "\"w\""})
     out.push_back({"worker", std::string("lease ") + body,
                    MakeRequest("POST", "/v1/tasks/lease", Auth(tokens.worker), body), 400, "", std::nullopt});

@@ -13,6 +13,7 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/jobs/jobs.h"
 #include "strokelab/sweep/sweep.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::worker {
 namespace {
@@ -112,7 +113,7 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         Pause(1000, stop);
         continue;
       }
-      const json task = json::parse(lease->body);
+      const json task = ParseJson(lease->body);
       json reply = {{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}};
       std::string endpoint = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>());
       try {
