@@ -92,7 +92,24 @@ httplib::Server::HandlerResponse Service::Impl::RefuseOversizeBody(const httplib
 // When this thread's current request was routed (steady clock); unset for requests refused before.
 static thread_local std::optional<std::chrono::steady_clock::time_point> t_request_start;
 
+// Health and the task routes a worker polls go to the gate's priority pool: they answer while the
+// main pool is busy with slow bodies or heavy pictures.
+static bool IsPriorityRequest(std::string_view request_line) {
+  static const std::regex priority(R"((GET /v1/health|POST /v1/tasks/(lease|\d+/renew))[ ?].*)");
+  return std::regex_match(request_line.begin(), request_line.end(), priority);
+}
+
 void Service::Impl::SetUpRoutes() {
+  GateLimits& gate = http.limits();
+  gate.header_timeout = std::chrono::milliseconds(options.header_timeout_ms);
+  gate.max_pending_per_address = options.max_pending_per_address;
+  gate.threads = options.http_threads;
+  gate.is_priority = IsPriorityRequest;
+  if (!options.quiet) {
+    gate.on_refused = [](int status, const std::string& remote) {
+      internal::WriteLogLine(internal::RequestLogLine(NowMs(), "", "", status, std::nullopt, remote, 0));
+    };
+  }
   http.set_payload_max_length(std::max(options.max_body_bytes, options.max_campaign_bytes));
   // Before routing: the access log's start time, and the body limit of all but campaign uploads.
   // The access log (event_log.h): every request, routed or not, one JSON line.
@@ -174,6 +191,9 @@ std::optional<FieldError> ServiceOptions::IsValid() const {
   if (lease_ms < 1) return FieldError{"lease_ms", "must be positive"};
   if (max_body_bytes < 1) return FieldError{"max_body_bytes", "must be at least 1"};
   if (max_campaign_bytes < 1) return FieldError{"max_campaign_bytes", "must be at least 1"};
+  if (header_timeout_ms < 1) return FieldError{"header_timeout_ms", "must be positive"};
+  if (max_pending_per_address < 1) return FieldError{"max_pending_per_address", "must be at least 1"};
+  if (http_threads < 1 || http_threads > 1024) return FieldError{"http_threads", "must be between 1 and 1024"};
   if (!data_root.empty() && !std::filesystem::is_directory(data_root))
     return FieldError{"data_root", "'" + data_root + "' is not a directory"};
   return std::nullopt;

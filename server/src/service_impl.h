@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "http_gate.h"
 #include "metrics.h"
 #include "storage_health.h"
 #include "strokelab/jobs/campaigns.h"
@@ -36,7 +37,7 @@ struct Service::Impl {
   ServiceOptions options;
   std::unique_ptr<Store> store;
   TokenTable tokens;
-  httplib::Server http;
+  internal::GatedServer http;  // cpp-httplib behind a gate for slow clients (http_gate.h)
   internal::Metrics metrics;
   std::vector<std::thread> workers;
   std::thread http_thread;
