@@ -22,73 +22,6 @@ namespace strokelab::server {
 using nlohmann::json;
 using namespace internal;
 
-void Service::Impl::Authorize(const httplib::Request& req, Role required) {
-  if (!tokens.enabled()) return;
-  const std::string header = req.get_header_value("Authorization");
-  const std::string prefix = "Bearer ";
-  if (header.rfind(prefix, 0) != 0)
-    throw HttpError{401, "unauthorized", "missing bearer token (Authorization: Bearer TOKEN)", ""};
-  const std::optional<Role> role = tokens.Lookup(header.substr(prefix.size()));
-  if (!role) throw HttpError{401, "unauthorized", "unknown token", ""};
-  if (!TokenTable::Allows(*role, required))
-    throw HttpError{403, "forbidden",
-                    required == Role::kWorker ? "this token may not lease tasks (needs a worker or submit token)"
-                                              : "this token may not do that (needs a submit token)",
-                    ""};
-}
-
-void Service::Impl::On(const std::string& method, const std::string& pattern, httplib::Server::Handler handler) {
-  route_methods.emplace_back(std::regex(pattern), method);
-  if (method == "GET") {
-    http.Get(pattern, std::move(handler));
-  } else if (method == "POST") {
-    http.Post(pattern, std::move(handler));
-  } else if (method == "DELETE") {
-    http.Delete(pattern, std::move(handler));
-  } else {
-    BrokenInvariant("no route registration for method " + method);
-  }
-}
-
-std::string Service::Impl::AllowedMethods(const std::string& path) const {
-  std::string allowed;
-  for (const auto& [pattern, method] : route_methods)
-    if (std::regex_match(path, pattern) && allowed.find(method) == std::string::npos)
-      allowed += (allowed.empty() ? "" : ", ") + method;
-  return allowed;
-}
-
-httplib::Server::Handler Service::Impl::Route(Role required, std::function<void(const httplib::Request&, httplib::Response&)> h) {
-  return [this, required, h](const httplib::Request& req, httplib::Response& res) {
-    const auto start = std::chrono::steady_clock::now();
-    try {
-      Authorize(req, required);
-      if (req.body.size() > options.max_body_bytes && req.path != "/v1/campaigns")  // chunked: RefuseOversizeBody
-        throw HttpError{413, "body_too_large", "request body exceeds the limit", ""};
-      h(req, res);
-      // A write route that answered with content wrote to the store.
-      if (required != Role::kRead && res.status < 300 && res.status != 204) storage.WriteSucceeded();
-    } catch (const StoreError& e) {
-      storage.WriteFailed(e.what(), NowMs());
-      SendError(res, ErrorReply(std::current_exception(), req));
-    } catch (...) {
-      SendError(res, ErrorReply(std::current_exception(), req));
-    }
-    metrics.ObserveRequest(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  };
-}
-
-httplib::Server::HandlerResponse Service::Impl::RefuseOversizeBody(const httplib::Request& req, httplib::Response& res) {
-  if (req.path == "/v1/campaigns" || !req.has_header("Content-Length")) return httplib::Server::HandlerResponse::Unhandled;
-  const std::string length = req.get_header_value("Content-Length");
-  if (length.size() < 19 && length.find_first_not_of("0123456789") == std::string::npos &&
-      std::stoull("0" + length) <= options.max_body_bytes)
-    return httplib::Server::HandlerResponse::Unhandled;
-  SendError(res, {413, "body_too_large", "request body exceeds the limit", ""});
-  res.set_header("Connection", "close");  // the unread body must not be taken for the next request
-  return httplib::Server::HandlerResponse::Handled;
-}
-
 // When this thread's current request was routed (steady clock); unset for requests refused before.
 static thread_local std::optional<std::chrono::steady_clock::time_point> t_request_start;
 
@@ -111,11 +44,11 @@ void Service::Impl::SetUpRoutes() {
     };
   }
   http.set_payload_max_length(std::max(options.max_body_bytes, options.max_campaign_bytes));
-  // Before routing: the access log's start time, and the body limit of all but campaign uploads.
+  // Before routing: the access log's start time, and the checks on the headers (route_table.cc).
   // The access log (event_log.h): every request, routed or not, one JSON line.
   http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     if (!options.quiet) t_request_start = std::chrono::steady_clock::now();
-    return RefuseOversizeBody(req, res);
+    return RefuseBeforeBody(req, res);
   });
   if (!options.quiet) {
     http.set_logger([](const httplib::Request& req, const httplib::Response& res) {

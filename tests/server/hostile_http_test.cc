@@ -109,5 +109,55 @@ TEST_F(HostileHttpTest, TooManyOrTooLargeHeadersGet431) {
   EXPECT_FALSE(open) << "the server read 400,000 header lines";
 }
 
+// Sends `chunk` until the server stops taking it or `total` bytes went; the bytes sent.
+size_t SendUntilRefused(RawConnection& c, const std::string& chunk, size_t total) {
+  size_t sent = 0;
+  while (sent < total && c.Send(chunk)) sent += chunk.size();
+  return sent;
+}
+
+constexpr size_t kMiB = size_t{1} << 20;
+
+// Item 4: a 200 MB upload without a token was read to its end before the 401 (RSS 17 -> 279 MB).
+TEST_F(HostileHttpTest, AnUploadWithoutATokenIsRefusedBeforeItsBody) {
+  Start();
+  RawConnection upload(port_);
+  upload.Send("POST /v1/campaigns HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-tar\r\nContent-Length: " +
+              std::to_string(200 * kMiB) + "\r\n\r\n");
+  const std::string megabyte(kMiB, '\0');
+  upload.Send(megabyte);
+  EXPECT_EQ(upload.Status(), 401);
+  EXPECT_LT(SendUntilRefused(upload, megabyte, 200 * kMiB), 100 * kMiB) << "the body was read on";
+}
+
+// Item 4: a chunked body was read in full whatever its route (cpp-httplib 0.11 bounds only a
+// declared Content-Length); now each route reads within its own limit, and a route without a body
+// (or a method it does not take) refuses on the headers.
+TEST_F(HostileHttpTest, ChunkedBodiesAreHeldToTheirRoutesLimit) {
+  Start();
+  const std::string chunk = "100000\r\n" + std::string(kMiB, ' ') + "\r\n";  // 1 MiB chunks
+  for (const std::string& target : {"POST /v1/jobs", "POST /v1/health", "DELETE /v1/jobs/1"}) {
+    RawConnection post(port_);
+    post.Send(target + " HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " + kSubmitToken +
+              "\r\nContent-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n");
+    post.Send(chunk + chunk);
+    EXPECT_EQ(post.Status(), target == "POST /v1/health" ? 405 : 413) << target;
+    EXPECT_LT(SendUntilRefused(post, chunk, 200 * kMiB), 100 * kMiB) << target << ": the body was read on";
+  }
+}
+
+// Items 4 and 7: PUT /v1/jobs without a length was read until the client gave up (400 after 5 s);
+// compressed bodies (which cpp-httplib inflates without a bound) are refused.
+TEST_F(HostileHttpTest, MethodsAndEncodingsAreRefusedOnTheHeaders) {
+  Start();
+  RawConnection put(port_);
+  put.Send(std::string("PUT /v1/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer ") + kSubmitToken + "\r\n\r\n");
+  EXPECT_EQ(put.Status(), 405);
+  auto gzip = Client().Post("/v1/jobs", {{"Authorization", std::string("Bearer ") + kSubmitToken}, {"Content-Encoding", "gzip"}},
+                            std::string(32, 'x'), "application/json");
+  ASSERT_TRUE(gzip);
+  EXPECT_EQ(gzip->status, 415);
+}
+
 }  // namespace
 }  // namespace strokelab::server
