@@ -24,7 +24,8 @@ void Service::Impl::Authorize(const httplib::Request& req, Role required) {
   if (!role) throw HttpError{401, "unauthorized", "unknown token", ""};
   if (!TokenTable::Allows(*role, required))
     throw HttpError{403, "forbidden",
-                    required == Role::kWorker ? "this token may not lease tasks (needs a worker or submit token)"
+                    required == Role::kWorker ? "only a worker token may lease and complete tasks"
+                    : required == Role::kRead ? "a worker token may not read jobs or results"
                                               : "this token may not do that (needs a submit token)",
                     ""};
 }

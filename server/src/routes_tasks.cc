@@ -4,7 +4,9 @@
 #include "http_reply.h"
 #include "now.h"
 #include "request_params.h"
+#include "strokelab/base/errors.h"
 #include "strokelab/jobs/jobs.h"
+#include "strokelab/jobs/task_rows.h"
 
 namespace strokelab::server {
 
@@ -68,10 +70,15 @@ void Service::Impl::AddTaskRoutes() {
                 CheckBodyField(given[i], "values", json::value_t::object, at + "/values");
               }
               // The lease before the rows: a completion without one writes nothing, whatever it carries.
-              if (!store->LeasedTaskSpec(lease, NowMs()))
-                throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
+              const std::optional<json> task = store->LeasedTaskSpec(lease, NowMs());
+              if (!task) throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
               std::vector<ResultRow> rows;
               for (json& row : given) rows.push_back({row["table"].get<std::string>(), std::move(row["values"])});
+              try {  // what is stored here is also served from the cache to identical jobs
+                jobs::ValidateTaskRows(*task, rows);
+              } catch (const InputError& e) {
+                throw HttpError{400, "invalid_rows", e.bare_message(), e.field()};
+              }
               if (!store->CompleteTask(lease, rows, NowMs()))
                 throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
               metrics.TaskDone(rows.size());

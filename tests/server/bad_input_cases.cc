@@ -298,10 +298,12 @@ void AuthCases(std::vector<BadRequest>& out, const Tokens& tokens, const KnownJo
     out.push_back({"auth", e.method + " " + e.path + " with a " + role + " token",
                    MakeRequest(e.method, e.path, Auth(token), e.body), 403, "forbidden", ""});
   };
+  // Worker tokens lease and complete tasks and nothing else; no other token does (issue 15, item 5).
   for (const Endpoint& e : endpoints) {
-    if (e.method == "GET") continue;
-    forbidden(e, tokens.read, "read");
-    if (e.path.rfind("/v1/tasks", 0) != 0) forbidden(e, tokens.worker, "worker");
+    const bool task = e.path.rfind("/v1/tasks", 0) == 0;
+    if (e.method != "GET") forbidden(e, tokens.read, "read");
+    if (!task) forbidden(e, tokens.worker, "worker");
+    if (task) forbidden(e, tokens.submit, "submit");
   }
 }
 

@@ -136,7 +136,7 @@ TEST_F(HostileHttpTest, AnUploadWithoutATokenIsRefusedBeforeItsBody) {
 TEST_F(HostileHttpTest, ChunkedBodiesAreHeldToTheirRoutesLimit) {
   Start();
   const std::string chunk = "100000\r\n" + std::string(kMiB, ' ') + "\r\n";  // 1 MiB chunks
-  for (const std::string& target : {"POST /v1/jobs", "POST /v1/health", "DELETE /v1/jobs/1"}) {
+  for (const std::string target : {"POST /v1/jobs", "POST /v1/health", "DELETE /v1/jobs/1"}) {
     RawConnection post(port_);
     post.Send(target + " HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " + kSubmitToken +
               "\r\nContent-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n");

@@ -2,10 +2,13 @@
 // forged rows, security headers and methods. The slow-client, header and body-size attacks, which
 // need raw sockets, are in hostile_http_test.cc.
 #include "hostile_service.h"
+#include "strokelab/jobs/jobs.h"
 
 #include <gtest/gtest.h>
 
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace strokelab::server {
 namespace {
@@ -23,6 +26,53 @@ TEST_F(HostileInputTest, DeepValuesInACompletionAreRefusedAsTheyAreParsed) {
   EXPECT_EQ(ErrorCode(Complete(task, R"([{"table":"records","values":{"x":)" + deep + "}}]")), "400 bad_json");
   EXPECT_EQ(JobStatus(id).value("status", ""), "running") << "nothing was written";
   EXPECT_EQ(Client().Get("/v1/health")->status, 200);
+}
+
+// Item 5: a submit token leased tasks, and a worker token read every job and result.
+TEST_F(HostileInputTest, OnlyWorkerTokensLeaseAndWorkerTokensReadNothing) {
+  Start();
+  const int64_t id = Submit(kOneTaskSimulate);
+  EXPECT_EQ(ErrorCode(Client().Post("/v1/tasks/lease", Auth(kSubmitToken), "{}", "application/json")), "403 forbidden");
+  const std::string job = "/v1/jobs/" + std::to_string(id);
+  for (const std::string& path : {std::string("/v1/jobs"), job, job + "/points", std::string("/metrics")})
+    EXPECT_EQ(ErrorCode(Client().Get(path, Auth(kWorkerToken))), "403 forbidden") << path;
+  EXPECT_EQ(Lease().at("job_id"), id);
+}
+
+// Item 5: made-up rows (another table, extra fields, off the grid, not finite, too many) were
+// stored and then served from the cache to anyone who submitted the same job.
+TEST_F(HostileInputTest, CompletedRowsMustBeRowsTheTaskCouldHaveWritten) {
+  Start();
+  const int64_t id = Submit(kOneTaskSimulate);
+  const json task = Lease();
+  const std::vector<jobs::ResultRow> honest = jobs::RunTask(task.at("spec"));
+  ASSERT_EQ(honest.size(), 1u);
+  const json record = honest[0].values;
+  const auto rows = [](const std::string& table, const json& values) {
+    return json::array({{{"table", table}, {"values", values}}}).dump();
+  };
+  json extra = record, off_grid = record, wrong_type = record;
+  extra["h_re"] = 1e9;
+  off_grid["frequency_hz"] = 9;
+  wrong_type["contacts"] = "many";
+  const std::vector<std::pair<std::string, std::string>> forged = {
+      {rows("points", record), "/rows/0/table"},
+      {rows("records", extra), "/rows/0/values/h_re"},
+      {rows("records", off_grid), "/rows/0/values/frequency_hz"},
+      {rows("records", wrong_type), "/rows/0/values/contacts"},
+      {"[" + rows("records", record).substr(1, rows("records", record).size() - 2) + "," +
+           rows("records", record).substr(1), "/rows"},
+      {"[]", "/rows"}};
+  for (const auto& [body, field] : forged) {
+    const httplib::Result r = Complete(task, body);
+    EXPECT_EQ(ErrorCode(r), "400 invalid_rows") << body.substr(0, 200);
+    if (r) {
+      EXPECT_EQ(json::parse(r->body)["error"].value("field", ""), field) << r->body;
+    }
+  }
+  EXPECT_EQ(JobStatus(id).value("status", ""), "running") << "nothing was written";
+  EXPECT_EQ(ErrorCode(Complete(task, rows(honest[0].table, record))), "200 ");
+  EXPECT_EQ(JobStatus(id).value("status", ""), "succeeded");
 }
 
 }  // namespace
