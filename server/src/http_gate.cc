@@ -63,13 +63,14 @@ void AnswerAndClose(socket_t sock, const std::string& response) {
 }
 
 // After a response that closes the connection, often a refusal sent before the body was read: what
-// the client still sends is read and dropped, up to 4 MiB and 1 s, so that a client that writes its
-// whole body before it reads (most do) gets the refusal rather than a reset connection.
+// the client still sends is read and dropped (never kept), up to 64 MiB and 2 s, so that a client
+// that writes its whole body before it reads (cpp-httplib's, curl without Expect) gets the refusal
+// rather than a reset connection; past that the connection is reset.
 void LingerAndClose(socket_t sock) {
   ::shutdown(sock, SHUT_WR);
-  const auto until = Clock::now() + std::chrono::seconds(1);
+  const auto until = Clock::now() + std::chrono::seconds(2);
   char drain[65536];
-  for (size_t dropped = 0; dropped < (size_t{4} << 20) && PollSocket(sock, POLLIN, until - Clock::now());) {
+  for (size_t dropped = 0; dropped < (size_t{64} << 20) && PollSocket(sock, POLLIN, until - Clock::now());) {
     const ssize_t n = ::recv(sock, drain, sizeof drain, 0);
     if (n <= 0) break;
     dropped += static_cast<size_t>(n);
