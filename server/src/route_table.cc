@@ -5,6 +5,7 @@
 // within its own limit.
 #include <algorithm>
 #include <charconv>
+#include <filesystem>
 
 #include "http_reply.h"
 #include "service_impl.h"
@@ -80,9 +81,30 @@ std::string Service::Impl::AllowedMethods(const std::string& path) const {
   return allowed;
 }
 
+std::string Service::Impl::WithoutServerPaths(std::string text) const {
+  const auto replace = [&text](const std::filesystem::path& dir, const std::string& name) {
+    if (dir.empty()) return;
+    std::error_code error;
+    for (const std::filesystem::path& form : {std::filesystem::absolute(dir, error), std::filesystem::weakly_canonical(dir, error)}) {
+      const std::string prefix = form.string();
+      if (prefix.size() < 2) continue;
+      for (size_t at; (at = text.find(prefix)) != std::string::npos;) text.replace(at, prefix.size(), name);
+    }
+  };
+  replace(campaigns.uploads, "<uploads>");
+  replace(campaigns.data_root, "<data-root>");
+  replace(std::filesystem::path(options.db_path).parent_path(), "<db-dir>");
+  return text;
+}
+
 Service::Impl::RoutedHandler Service::Impl::Route(Role required,
                                                   std::function<void(const httplib::Request&, httplib::Response&)> h) {
-  return {required, [this, required, h](const httplib::Request& req, httplib::Response& res) {
+  const auto Scrubbed = [this](HttpError e) {
+    e.message = WithoutServerPaths(e.message);
+    e.field = WithoutServerPaths(e.field);
+    return e;
+  };
+  return {required, [this, required, h, Scrubbed](const httplib::Request& req, httplib::Response& res) {
             const auto start = std::chrono::steady_clock::now();
             try {
               h(req, res);
@@ -90,9 +112,9 @@ Service::Impl::RoutedHandler Service::Impl::Route(Role required,
               if (required != Role::kRead && res.status < 300 && res.status != 204) storage.WriteSucceeded();
             } catch (const StoreError& e) {
               storage.WriteFailed(e.what(), NowMs());
-              SendError(res, ErrorReply(std::current_exception(), req));
+              SendError(res, Scrubbed(ErrorReply(std::current_exception(), req)));
             } catch (...) {
-              SendError(res, ErrorReply(std::current_exception(), req));
+              SendError(res, Scrubbed(ErrorReply(std::current_exception(), req)));
             }
             metrics.ObserveRequest(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
           }};

@@ -103,6 +103,10 @@ struct Service::Impl {
   // follow closes the connection, so the body is never read.
   httplib::Server::HandlerResponse RefuseBeforeBody(const httplib::Request& req, httplib::Response& res);
 
+  // `text` with the server's own directories (uploads, data root, database) replaced by names, so
+  // that error messages and job errors do not show the server's file system.
+  std::string WithoutServerPaths(std::string text) const;
+
   // The job of a path's id (404 when there is none).
   JobRecord RequireJob(const std::string& id_text);
 

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -73,6 +75,58 @@ TEST_F(HostileInputTest, CompletedRowsMustBeRowsTheTaskCouldHaveWritten) {
   EXPECT_EQ(JobStatus(id).value("status", ""), "running") << "nothing was written";
   EXPECT_EQ(ErrorCode(Complete(task, rows(honest[0].table, record))), "200 ");
   EXPECT_EQ(JobStatus(id).value("status", ""), "succeeded");
+}
+
+// Item 7: the page had no Content-Security-Policy, X-Frame-Options or nosniff. Its policy allows
+// its own inline script by this response's nonce (tests/web/web_page_test.sh checks in Chromium
+// that nothing on the page is blocked).
+TEST_F(HostileInputTest, ThePageCarriesSecurityHeadersAndItsScriptTheNonce) {
+  Start();
+  auto page = Client().Get("/");
+  ASSERT_TRUE(page && page->status == 200);
+  EXPECT_EQ(page->get_header_value("X-Frame-Options"), "DENY");
+  EXPECT_EQ(page->get_header_value("X-Content-Type-Options"), "nosniff");
+  const std::string policy = page->get_header_value("Content-Security-Policy");
+  const size_t at = policy.find("'nonce-");
+  ASSERT_NE(at, std::string::npos) << policy;
+  const std::string nonce = policy.substr(at + 7, policy.find('\'', at + 7) - at - 7);
+  EXPECT_NE(page->body.find("<script nonce=\"" + nonce + "\">"), std::string::npos);
+  EXPECT_NE(policy.find("frame-ancestors 'none'"), std::string::npos) << policy;
+  EXPECT_EQ(Client().Get("/v1/health")->get_header_value("X-Content-Type-Options"), "nosniff");
+}
+
+// Item 7: cpp-httplib trims blanks from header values, so "Bearer TOKEN " passed for the token.
+TEST_F(HostileInputTest, ABearerTokenWithATrailingBlankIsRefused) {
+  Start();
+  for (const char* blank : {" ", "\t", "  "})
+    EXPECT_EQ(ErrorCode(Client().Get("/v1/jobs", {{"Authorization", std::string("Bearer ") + kReadToken + blank}})),
+              "401 unauthorized");
+  EXPECT_EQ(Client().Get("/v1/jobs", Auth(kReadToken))->status, 200);
+}
+
+// Item 7: a SIGKILL during an upload left DB.campaigns/.incoming-ID behind for good.
+TEST_F(HostileInputTest, UnpackingLeftoversAreRemovedAtStart) {
+  const std::filesystem::path uploads = dir_ / "jobs.db.campaigns";
+  std::filesystem::create_directories(uploads / ".incoming-0123456789abcdef" / "campaign");
+  std::ofstream(uploads / ".incoming-0123456789abcdef" / "campaign" / "rec_001.csv") << "t,v\n";
+  std::filesystem::create_directories(uploads / "0123456789abcdef");
+  Start();
+  EXPECT_FALSE(std::filesystem::exists(uploads / ".incoming-0123456789abcdef"));
+  EXPECT_TRUE(std::filesystem::exists(uploads / "0123456789abcdef")) << "finished uploads are kept";
+}
+
+// Item 7: error messages carried the server's absolute paths (here: a campaign without a manifest
+// under the data root).
+TEST_F(HostileInputTest, ErrorMessagesDoNotShowServerPaths) {
+  options_.data_root = (dir_ / "root").string();
+  std::filesystem::create_directories(dir_ / "root" / "empty");
+  Start();
+  const json fit = {{"kind", "fit"}, {"model", "paper"}, {"campaign", {{"path", "empty"}}}};
+  auto r = Client().Post("/v1/jobs", Auth(kSubmitToken), fit.dump(), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(ErrorCode(r), "400 invalid_campaign");
+  EXPECT_EQ(r->body.find(dir_.string()), std::string::npos) << r->body;
+  EXPECT_NE(r->body.find("<data-root>"), std::string::npos) << r->body;
 }
 
 }  // namespace
