@@ -124,7 +124,7 @@ grep -q 'First-order FRF |H|, up-sweep branch' "$dom" || fail "the up-sweep FRF 
 grep -q 'First-order FRF |H|, down-sweep branch' "$dom" || fail "the down-sweep FRF family is missing"
 grep -q 'id="jobs-note"></p>' "$dom" || fail "the job list shows a note: $(grep -o 'id="jobs-note">[^<]*' "$dom")"
 # Error messages in the rendered page (the script's own text, which contains them, left out).
-sed '/<script>/,/<\/script>/d' "$dom" > "$tmp/dom-body.html"
+sed '/<script[ >]/,/<\/script>/d' "$dom" > "$tmp/dom-body.html"
 if grep -q 'cannot list jobs\|cannot load the results\|cannot show job\|failed:' "$tmp/dom-body.html"; then
   fail "the page shows an error: $(grep -o 'cannot [^<]*\|failed:[^<]*' "$tmp/dom-body.html" | head -3)"
 fi
