@@ -20,6 +20,7 @@
 #include "regression.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/jobs/jobs.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::cli {
 namespace {
@@ -109,7 +110,7 @@ std::string ParseMessage(const json::parse_error& e) {
 json ParseJsonFile(const std::string& path) {
   const std::string text = ReadFile(path);
   try {
-    return json::parse(text);
+    return ParseJson(text);
   } catch (const json::parse_error& e) {
     throw InputError(path, "not valid JSON: " + ParseMessage(e));
   } catch (const json::exception& e) {  // a number beyond a double (out_of_range 406)

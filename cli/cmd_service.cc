@@ -21,6 +21,7 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/server/service.h"
 #include "strokelab/worker/remote_worker.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::cli {
 namespace {
@@ -90,7 +91,7 @@ Connection Connect(const Args& args) {
 // The server's error object of a reply ({} when the body is not one).
 json ReplyError(const httplib::Result& result) {
   try {
-    return json::parse(result->body).at("error");
+    return ParseJson(result->body).at("error");
   } catch (...) {
     return json::object();
   }
@@ -116,7 +117,7 @@ json Expect(const httplib::Result& result, int status, const std::string& what, 
     if (!field.empty()) message = field + ": " + message;
     throw std::runtime_error(what + ": " + message);
   }
-  return result->body.empty() ? json() : json::parse(result->body);
+  return result->body.empty() ? json() : ParseJson(result->body);
 }
 
 void PrintProgress(const json& job) {

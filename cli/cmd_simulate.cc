@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -14,6 +15,7 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/model/model_json.h"
 #include "strokelab/engines/record_summary.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::cli {
 namespace {
@@ -60,9 +62,10 @@ ActuatorModel LoadModel(const Args& args) {
   ActuatorModel model;
   if (std::filesystem::is_regular_file(name)) {
     std::ifstream in(name);
+    const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
     nlohmann::json json;
     try {
-      json = nlohmann::json::parse(in);
+      json = ParseJson(text);
     } catch (const nlohmann::json::exception& e) {  // syntax, or a number beyond a double
       throw InputError("--model " + name, std::string("not valid JSON: ") + e.what());
     }

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/base/json_parse.h"
 #include "strokelab/jobs/jobs.h"
 
 namespace strokelab::cli::regression {
@@ -303,7 +304,7 @@ Comparison CompareTables(const json& baseline, const json& now, const Tolerances
   return out;
 }
 
-json Normalized(const json& value) { return json::parse(value.dump()); }
+json Normalized(const json& value) { return ParseJson(value.dump()); }
 
 std::string FormatBaseline(const json& job, const std::string& code_version, const json& tables) {
   std::ostringstream out;

@@ -12,6 +12,7 @@
 #include "recordings_internal.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parallel_for.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab {
 namespace {
@@ -39,7 +40,7 @@ Campaign ReadCampaign(const fs::path& dir) {
   if (!ReadWholeFile(manifest_path, &manifest_text)) ManifestError("", "cannot be read");
   json manifest;
   try {
-    manifest = json::parse(manifest_text);
+    manifest = ParseJson(manifest_text);
   } catch (const json::parse_error& e) {
     // e.byte counts characters read, the offending one (or the end of input) included.
     const size_t before = std::min(e.byte > 0 ? e.byte - 1 : 0, manifest_text.size());

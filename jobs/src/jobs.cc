@@ -65,8 +65,7 @@ std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
   const std::string type = task.at("type");
   const fs::path dir = task.at("campaign_dir").get<std::string>();
   if (CampaignDigest(dir) != task.at("campaign_digest"))
-    throw std::runtime_error("the campaign at " + dir.string() +
-                             " changed after the job was submitted; submit the job again");
+    throw std::runtime_error("the campaign changed after the job was submitted; submit the job again");
   const Campaign campaign = ReadCampaign(dir);
   const nlohmann::json& job = task.at("job");
   if (type == "fit") return {{"fit", FitResultToJson(FitCampaign(campaign, FitOptionsFromJob(job)))}};

@@ -23,6 +23,7 @@
 #include <string_view>
 
 #include "builtin_schemas.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::jobs {
 namespace {
@@ -297,7 +298,7 @@ const nlohmann::json& BuiltInSchema(const std::string& name) {
   static const std::map<std::string, nlohmann::json, std::less<>> schemas = [] {
     std::map<std::string, nlohmann::json, std::less<>> parsed;
     for (const internal::EmbeddedSchema& schema : internal::EmbeddedSchemas())
-      parsed.emplace(std::string(schema.name), nlohmann::json::parse(schema.text));
+      parsed.emplace(std::string(schema.name), ParseJson(schema.text));
     return parsed;
   }();
   const auto it = schemas.find(name);

@@ -47,8 +47,8 @@ std::optional<Role> TokenTable::Lookup(const std::string& token) const {
 
 bool TokenTable::Allows(Role role, Role required) {
   switch (required) {
-    case Role::kRead: return true;
-    case Role::kWorker: return role == Role::kWorker || role == Role::kSubmit;
+    case Role::kRead: return role == Role::kRead || role == Role::kSubmit;  // workers see tasks only
+    case Role::kWorker: return role == Role::kWorker;  // results come from worker tokens alone
     case Role::kSubmit: return role == Role::kSubmit;
   }
   return false;

@@ -119,7 +119,7 @@ void Service::Impl::WorkLoop(int index) {
       // The job was cancelled: its lease is void and nothing is written.
     } catch (const std::exception& e) {
       try {
-        store->FailTask(*lease, e.what(), NowMs());
+        store->FailTask(*lease, WithoutServerPaths(e.what()), NowMs());  // shown to clients
       } catch (const std::exception& inner) {
         std::fprintf(stderr, "%s\n", json({{"worker", name}, {"error", inner.what()}}).dump().c_str());
       }

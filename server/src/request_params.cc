@@ -6,6 +6,7 @@
 
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parse.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::server::internal {
 
@@ -81,7 +82,7 @@ json JsonBody(const httplib::Request& req) {
   if (type.substr(0, type.find(';')) != "application/json")
     throw HttpError{415, "unsupported_media_type", UnsupportedJsonBodyMessage(type), ""};
   try {
-    return json::parse(req.body);
+    return ParseJson(req.body);
   } catch (const json::exception& e) {
     throw HttpError{400, "bad_json", std::string("request body is not valid JSON: ") + e.what(), ""};
   }
@@ -95,6 +96,14 @@ TaskLease LeaseOf(const httplib::Request& req, const json& body) {
   lease.job_id = BodyField<int64_t>(body, "job_id", "/job_id");
   lease.lease_token = BodyField<std::string>(body, "lease_token", "/lease_token");
   return lease;
+}
+
+void CheckBodyField(const json& object, const std::string& key, json::value_t type, const std::string& pointer) {
+  if (!object.is_object()) throw HttpError{400, "bad_request", "expected a JSON object", pointer.substr(0, pointer.rfind('/'))};
+  const auto it = object.find(key);
+  if (it == object.end()) throw HttpError{400, "bad_request", "is required", pointer};
+  if (it->type() != type)
+    throw HttpError{400, "bad_request", type == json::value_t::string ? "expected a string" : "expected an object", pointer};
 }
 
 int QueryLimit(const httplib::Request& req, int fallback, int maximum) {

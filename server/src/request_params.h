@@ -37,6 +37,11 @@ int QueryLimit(const httplib::Request& req, int fallback, int maximum);
 // The lease a worker's complete or fail request names.
 TaskLease LeaseOf(const httplib::Request& req, const nlohmann::json& body);
 
+// Checks that `object` is an object with a member `key` of JSON type `type` (400 naming `pointer`
+// otherwise), without copying it.
+void CheckBodyField(const nlohmann::json& object, const std::string& key, nlohmann::json::value_t type,
+                    const std::string& pointer);
+
 // A member of a worker's request body with the JSON type of T; 400 naming it (a JSON pointer)
 // when it is missing or of another type.
 template <typename T>

@@ -4,7 +4,9 @@
 #include "http_reply.h"
 #include "now.h"
 #include "request_params.h"
+#include "strokelab/base/errors.h"
 #include "strokelab/jobs/jobs.h"
+#include "strokelab/jobs/task_rows.h"
 
 namespace strokelab::server {
 
@@ -56,17 +58,26 @@ void Service::Impl::AddTaskRoutes() {
      }));
   On("POST", R"(/v1/tasks/(\d+)/complete)",
             Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {
-              const json body = JsonBody(req);
+              json body = JsonBody(req);
               const TaskLease lease = LeaseOf(req, body);
               const auto rows_at = body.find("rows");
               if (rows_at == body.end() || !rows_at->is_array())
                 throw HttpError{400, "bad_request", "expected an array of rows", "/rows"};
-              const json& given = *rows_at;
-              std::vector<ResultRow> rows;
-              for (size_t i = 0; i < given.size(); ++i) {
+              json& given = *rows_at;
+              for (size_t i = 0; i < given.size(); ++i) {  // the shape, before anything is copied
                 const std::string at = "/rows/" + std::to_string(i);
-                rows.push_back({BodyField<std::string>(given[i], "table", at + "/table"),
-                                BodyField<json>(given[i], "values", at + "/values")});
+                CheckBodyField(given[i], "table", json::value_t::string, at + "/table");
+                CheckBodyField(given[i], "values", json::value_t::object, at + "/values");
+              }
+              // The lease before the rows: a completion without one writes nothing, whatever it carries.
+              const std::optional<json> task = store->LeasedTaskSpec(lease, NowMs());
+              if (!task) throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
+              std::vector<ResultRow> rows;
+              for (json& row : given) rows.push_back({row["table"].get<std::string>(), std::move(row["values"])});
+              try {  // what is stored here is also served from the cache to identical jobs
+                jobs::ValidateTaskRows(*task, rows);
+              } catch (const InputError& e) {
+                throw HttpError{400, "invalid_rows", e.bare_message(), e.field()};
               }
               if (!store->CompleteTask(lease, rows, NowMs()))
                 throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};

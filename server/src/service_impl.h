@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "http_gate.h"
 #include "metrics.h"
 #include "storage_health.h"
 #include "strokelab/jobs/campaigns.h"
@@ -40,7 +41,7 @@ struct Service::Impl {
   ServiceOptions options;
   std::unique_ptr<Store> store;
   TokenTable tokens;
-  httplib::Server http;
+  internal::GatedServer http;  // cpp-httplib behind a gate for slow clients (http_gate.h)
   internal::Metrics metrics;
   std::vector<std::thread> workers;
   std::thread http_thread;
@@ -73,18 +74,42 @@ struct Service::Impl {
 
   void Authorize(const httplib::Request& req, Role required);
 
-  // Every route's path pattern with its methods: a request for a known path with another method is
-  // answered 405 with an Allow header, not 404 (set_error_handler).
-  std::vector<std::pair<std::regex, std::string>> route_methods;
+  // A route's handler with the role it needs (Route); routes without one are open (page, health).
+  struct RoutedHandler {
+    Role role;
+    httplib::Server::Handler handler;
+  };
+  // Every route: its path pattern, method, role and body limit, checked on the headers before any
+  // body is read (RefuseBeforeBody); a known path with another method is answered 405 with Allow.
+  struct RouteEntry {
+    std::regex pattern;
+    std::string method;
+    std::optional<Role> role;
+    size_t max_body_bytes;  // 0: no body
+  };
+  std::vector<RouteEntry> routes;
 
-  // Registers a route (httplib matches the whole path against the pattern, as std::regex_match).
-  void On(const std::string& method, const std::string& pattern, httplib::Server::Handler handler);
+  // Registers a route (httplib matches the whole path against the pattern, as std::regex_match). A
+  // POST route reads its body itself, within its limit (a chunked body too), before the handler.
+  void On(const std::string& method, const std::string& pattern, RoutedHandler routed);
+  void On(const std::string& method, const std::string& pattern, httplib::Server::Handler open);
+  void Register(const std::string& method, const std::string& pattern, std::optional<Role> role,
+                httplib::Server::Handler handler);
 
   // The methods routed for `path` ("GET, DELETE"); empty when no route matches it.
   std::string AllowedMethods(const std::string& path) const;
 
-  // Wraps a handler with authorisation, error mapping, metrics and the access log.
-  httplib::Server::Handler Route(Role required, std::function<void(const httplib::Request&, httplib::Response&)> h);
+  // Wraps a handler with error mapping, metrics and the storage health; the role is checked before.
+  RoutedHandler Route(Role required, std::function<void(const httplib::Request&, httplib::Response&)> h);
+
+  // The pre-routing check, on the headers alone: the route (404, 405), the token (401, 403), the
+  // body's encoding and length against the route's limit (415, 413). A refusal whose body may
+  // follow closes the connection, so the body is never read.
+  httplib::Server::HandlerResponse RefuseBeforeBody(const httplib::Request& req, httplib::Response& res);
+
+  // `text` with the server's own directories (uploads, data root, database) replaced by names, so
+  // that error messages and job errors do not show the server's file system.
+  std::string WithoutServerPaths(std::string text) const;
 
   // The job of a path's id (404 when there is none).
   JobRecord RequireJob(const std::string& id_text);
@@ -97,10 +122,6 @@ struct Service::Impl {
 
   // A finished fit or diagnose job's stored rows of `table` (409 while it is not finished).
   std::vector<nlohmann::json> CampaignJobRows(const JobRecord& job, const std::string& table);
-
-  // Campaign uploads may be larger than other bodies: the limit of the others is checked from
-  // Content-Length before their body is read (a chunked body is checked once read, at submission).
-  httplib::Server::HandlerResponse RefuseOversizeBody(const httplib::Request& req, httplib::Response& res);
 
   // The routes: the server's own (service.cc), then each group's (routes_*.cc).
   void SetUpRoutes();

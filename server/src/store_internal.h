@@ -40,6 +40,7 @@ class SqliteStore final : public Store {
   std::optional<TaskLease> LeaseTask(const std::string& worker, int64_t now_ms, int64_t lease_ms) override;
   int ReleaseLeases(const std::string& owner_prefix) override;
   bool RenewLease(const TaskLease& lease, int64_t now_ms, int64_t lease_ms) override;
+  std::optional<nlohmann::json> LeasedTaskSpec(const TaskLease& lease, int64_t now_ms) override;
   bool CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) override;
   void FailTask(const TaskLease& lease, const std::string& error, int64_t now_ms) override;
 

@@ -16,6 +16,7 @@
 #include "store_internal.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/server/store.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::server {
 
@@ -107,7 +108,7 @@ int64_t SqliteStore::SubmitJob(const std::string& kind, const json& spec, const 
     }
     if (rows_json) {
       std::vector<ResultRow> rows;
-      for (const json& r : json::parse(*rows_json)) rows.push_back({r.at("table").get<std::string>(), r.at("values")});
+      for (const json& r : ParseJson(*rows_json)) rows.push_back({r.at("table").get<std::string>(), r.at("values")});
       InsertResultRows(job_id, idx, rows);
       ++cached;
     }
@@ -219,7 +220,7 @@ JobRecord SqliteStore::ReadJob(Stmt& s) {
   j.id = s.ColInt(0);
   j.kind = s.ColText(1);
   j.status = ParseJobStatus(s.ColText(2));
-  j.spec = json::parse(s.ColText(3));
+  j.spec = ParseJson(s.ColText(3));
   j.tasks_total = static_cast<int>(s.ColInt(4));
   j.tasks_done = static_cast<int>(s.ColInt(5));
   j.created_ms = s.ColInt(6);

@@ -11,6 +11,7 @@
 
 #include "store_internal.h"
 #include "strokelab/server/store.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::server::internal {
 namespace {
@@ -83,7 +84,7 @@ Store::Page SqliteStore::Results(int64_t job_id, const std::string& table, const
       break;
     }
     last = EncodeCursor(s.ColInt(0), s.ColInt(1));
-    page.rows.push_back(json::parse(s.ColText(2)));
+    page.rows.push_back(ParseJson(s.ColText(2)));
   }
   return page;
 }

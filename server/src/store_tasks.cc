@@ -13,6 +13,7 @@
 #include "store_internal.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/server/store.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::server::internal {
 
@@ -57,7 +58,7 @@ std::optional<TaskLease> SqliteStore::LeaseTask(const std::string& worker, int64
     lease.job_id = s.ColInt(0);
     lease.index = static_cast<int>(s.ColInt(1));
     lease.kind = s.ColText(2);
-    lease.spec = json::parse(s.ColText(3));
+    lease.spec = ParseJson(s.ColText(3));
   }
   {
     Stmt s = Prepare("UPDATE jobs SET status = 'running', started_ms = ?2 WHERE id = ?1 AND status = 'queued'");
@@ -85,6 +86,14 @@ bool SqliteStore::RenewLease(const TaskLease& lease, int64_t now_ms, int64_t lea
       "WHERE id = ?1 AND status = 'leased' AND lease_token = ?2 AND lease_expires_ms > ?3");
   s.Int(1, lease.task_id).Text(2, lease.lease_token).Int(3, now_ms).Int(4, now_ms + lease_ms).Run();
   return sqlite3_changes(db_) == 1;
+}
+
+std::optional<json> SqliteStore::LeasedTaskSpec(const TaskLease& lease, int64_t now_ms) {
+  std::lock_guard lock(mu_);
+  if (!CheckLease(lease, now_ms)) return std::nullopt;
+  Stmt s = Prepare("SELECT spec_json FROM tasks WHERE id = ?1");
+  if (!s.Int(1, lease.task_id).Step()) return std::nullopt;
+  return ParseJson(s.ColText(0));
 }
 
 bool SqliteStore::CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) {

@@ -210,7 +210,7 @@ class CampaignJobsTest : public ::testing::Test {
   }
   // The error object of a reply, checking its status.
   static json Error(const httplib::Result& r, int status) {
-    EXPECT_TRUE(r);
+    EXPECT_TRUE(r) << httplib::to_string(r.error());
     if (!r) return {};
     EXPECT_EQ(r->status, status) << r->body;
     return json::parse(r->body, nullptr, false).value("error", json::object());

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "serve_child.h"
+#include "strokelab/jobs/jobs.h"
 
 namespace strokelab::testing {
 namespace {
@@ -56,8 +57,13 @@ TEST(StructuredLog, RequestsAndJobStateChangesAreJsonLinesWithoutTokens) {
   };
 
   const int64_t done = submit(10);
-  report(lease(), "complete",
-         {{"rows", {{{"table", "points"}, {"values", {{"frequency_hz", 10}, {"amplitude_v", 0.2}, {"branch", "up"}}}}}}});
+  {  // the task's own rows: made-up ones are refused (jobs/task_rows.h)
+    const json task = lease();
+    json rows = json::array();
+    for (const jobs::ResultRow& row : jobs::RunTask(task.at("spec")))
+      rows.push_back({{"table", row.table}, {"values", row.values}});
+    report(task, "complete", {{"rows", rows}});
+  }
   const int64_t failed = submit(11);
   report(lease(), "fail", {{"error", "solver diverged at t = 0.3 s"}});
   const int64_t cancelled = submit(12);
@@ -123,7 +129,7 @@ TEST(StructuredLog, RequestsAndJobStateChangesAreJsonLinesWithoutTokens) {
       EXPECT_TRUE(e.at("reason").is_string() && !e["reason"].get<std::string>().empty()) << e;
     }
   }
-  EXPECT_EQ(jobs[done].back().at("points"), 1);
+  EXPECT_EQ(jobs[done].back().at("points"), 0);  // sweep points; a simulate job writes one record
   EXPECT_EQ(jobs[done].back().at("tasks_done"), 1);
   EXPECT_EQ(jobs[done][1].at("reason"), "first task leased by remote:w1");
   EXPECT_EQ(jobs[failed].back().at("reason"), "solver diverged at t = 0.3 s");

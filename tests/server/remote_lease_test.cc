@@ -14,6 +14,7 @@
 
 #include "strokelab/jobs/jobs.h"
 #include "strokelab/server/service.h"
+#include "strokelab/server/store.h"
 #include "strokelab/worker/remote_worker.h"
 
 namespace strokelab::server {
@@ -151,10 +152,14 @@ TEST_F(RemoteLeaseTest, RemoteWorkerKeepsItsLeaseThroughALongTask) {
               seconds, task_ms / 1000, static_cast<long long>(lease_ms), asked);
 }
 
-// A worker may send rows the service cannot read back (a bug in it, or another version): storing them
-// is the worker's business, but reading them is then the service's failure, a 500 with an incident id
-// that the log names, never a 400 that blames the client (nor a crash: the FRF route indexed the
-// stored row for members it lacked).
+// Rows the service cannot read back are refused at completion (jobs/task_rows.h); rows stored anyway
+// (by another version, or before completions were checked) are then the service's failure when read,
+// a 500 with an incident id that the log names, never a 400 that blames the client (nor a crash: the
+// FRF route indexed the stored row for members it lacked).
+int64_t NowMsForTest() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
 TEST_F(RemoteLeaseTest, RowsThatDoNotReadBackAre500WithAnIncidentInTheLog) {
   StartService(60000);
   const int64_t id = Submit(kOneTaskSweep);
@@ -167,7 +172,16 @@ TEST_F(RemoteLeaseTest, RowsThatDoNotReadBackAre500WithAnIncidentInTheLog) {
                            {"rows", {{{"table", "points"}, {"values", broken_point}}}}};
   auto done = Client().Post("/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>()) + "/complete",
                             completion.dump(), "application/json");
-  ASSERT_TRUE(done && done->status == 200) << (done ? done->body : "no reply");
+  ASSERT_TRUE(done && done->status == 400) << (done ? done->body : "no reply");
+  EXPECT_EQ(json::parse(done->body).at("error").at("code"), "invalid_rows");
+  {  // stored past the check, through a second connection to the same file
+    TaskLease lease;
+    lease.task_id = task.at("task_id");
+    lease.job_id = task.at("job_id");
+    lease.lease_token = task.at("lease_token");
+    const std::vector<jobs::ResultRow> rows = {{"points", broken_point}};
+    ASSERT_TRUE(Store::Open((dir_ / "jobs.db").string())->CompleteTask(lease, rows, NowMsForTest()));
+  }
   ASSERT_EQ(Status(id), "succeeded");
 
   const std::string job = "/v1/jobs/" + std::to_string(id);

@@ -127,7 +127,7 @@ grep -q '<details id="spec">' "$dom" && grep -q 'mass_kg = 0.032' "$dom" && grep
   fail "the job's grid and model (its resolved spec) are not shown"
 grep -q 'id="jobs-note"></p>' "$dom" || fail "the job list shows a note: $(grep -o 'id="jobs-note">[^<]*' "$dom")"
 # Error messages in the rendered page (the script's own text, which contains them, left out).
-sed '/<script>/,/<\/script>/d' "$dom" > "$tmp/dom-body.html"
+sed '/<script[ >]/,/<\/script>/d' "$dom" > "$tmp/dom-body.html"
 if grep -q 'cannot list jobs\|cannot load the results\|cannot show job\|failed:' "$tmp/dom-body.html"; then
   fail "the page shows an error: $(grep -o 'cannot [^<]*\|failed:[^<]*' "$tmp/dom-body.html" | head -3)"
 fi

@@ -15,6 +15,7 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/jobs/jobs.h"
 #include "strokelab/sweep/sweep.h"
+#include "strokelab/base/json_parse.h"
 
 namespace strokelab::worker {
 namespace {
@@ -144,7 +145,7 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
       idle_polls = 0;
       ++busy_threads;
       last_activity_ms = since_start_ms();
-      const json task = json::parse(lease->body);
+      const json task = ParseJson(lease->body);
       json reply = {{"job_id", task.at("job_id")}, {"lease_token", task.at("lease_token")}};
       std::string endpoint = "/v1/tasks/" + std::to_string(task.at("task_id").get<int64_t>());
       try {

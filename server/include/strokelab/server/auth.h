@@ -1,6 +1,7 @@
 // Bearer tokens from a token file: one "ROLE TOKEN" per line (roles: submit, read, worker; blank
-// lines and lines starting with # are ignored). A submit token may also read and lease tasks; a
-// worker token may lease and read; a read token may only read. Tokens are compared in constant
+// lines and lines starting with # are ignored). A submit token may submit, cancel and read; a read
+// token may only read; a worker token may only lease, renew, complete and fail tasks (it reads no
+// jobs or results, and no other token writes results: a stolen submit token cannot forge rows). Tokens are compared in constant
 // time against every entry, so the response time does not tell how much of a token was right.
 #pragma once
 

@@ -36,9 +36,14 @@ struct ServiceOptions {
   std::string data_root;
   int64_t lease_ms = 120000;        // a task lease lasts this long [ms]
   bool quiet = false;               // no access log on stderr
+  // Slow clients (server/src/http_gate.h): the request line and headers must arrive within this
+  // [ms] (408 after it); at most this many connections from one address may be sending them (429).
+  int64_t header_timeout_ms = 10000;
+  int max_pending_per_address = 32;
+  int http_threads = 8;            // serve requests whose headers are in (plus 2 for health and leases)
 
   // Nothing, or the wrong field (port, workers, lease_ms, max_body_bytes, max_campaign_bytes,
-  // data_root, db_path).
+  // data_root, db_path, header_timeout_ms, max_pending_per_address, http_threads).
   std::optional<FieldError> IsValid() const;
 };
 

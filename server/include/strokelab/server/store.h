@@ -108,6 +108,9 @@ class Store {
   virtual int ReleaseLeases(const std::string& owner_prefix) = 0;
   // Extends a lease still held; false if it was lost.
   virtual bool RenewLease(const TaskLease& lease, int64_t now_ms, int64_t lease_ms) = 0;
+  // The spec of the task behind `lease` while the lease is held (as RunTask takes it); nullopt if
+  // the lease was lost. A completion is checked against it before its rows are read.
+  virtual std::optional<nlohmann::json> LeasedTaskSpec(const TaskLease& lease, int64_t now_ms) = 0;
   // Writes the rows and marks the task done in one transaction, if the lease is still held (same
   // token, not expired, job not cancelled); caches the rows under the task key; finishes the job
   // when its last task is done. False if the lease was lost (nothing is written). An expired lease
