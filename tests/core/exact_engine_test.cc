@@ -127,6 +127,41 @@ TEST(ExactEngineTest, RefusesModelsThatAreNotPiecewiseLinear) {
   }
 }
 
+// Issue 15: models outside ModelBounds (which Engine::Simulate refuses) ran Advance for ever. It
+// now ends with a NumericalError naming what was spent and the drive: at once where the substeps
+// fall below the resolution of t, after its budget where they merely crawl.
+std::string AdvanceError(const ActuatorModel& model, double span_s, State y = {0.0, 0.0}, double phase_rad = 0.0,
+                         double budget_steps = PiecewiseLinearSystem::kBudgetBaseSteps) {
+  PiecewiseLinearSystem system(model, SineDrive{0.5, 8.0, phase_rad});
+  if (budget_steps != PiecewiseLinearSystem::kBudgetBaseSteps) system.SetStepBudget(budget_steps, 0.0, 0.0);
+  double t = 0.0;
+  PwlMode mode = system.InitialMode(t, y);
+  try {
+    system.Advance(&t, &y, &mode, span_s, [](const SwitchEvent&) {});
+  } catch (const NumericalError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ExactEngineTest, AdvanceEndsWithAnErrorWhenItsBudgetIsSpent) {
+  ActuatorModel stiff = PaperModel();
+  stiff.contact_stiffness = 1e40;
+  std::string error = AdvanceError(stiff, 1.0);
+  EXPECT_NE(error.find("substeps below the resolution of t"), std::string::npos) << error;
+  EXPECT_NE(error.find("under the drive 8 Hz, 0.5 V"), std::string::npos) << error;
+  ActuatorModel light = PaperModel();
+  light.mass_kg = 1e-300;
+  error = AdvanceError(light, 1.0);
+  EXPECT_NE(error.find("the state is not finite"), std::string::npos) << error;
+  // Where the substeps move t on but crawl, the budget ends the call; the paper's model at 8 Hz
+  // (four switches a period, from rest) with a budget of 20 steps shows it.
+  error = AdvanceError(PaperModel(), 1.0, State{0.0, 0.0}, 0.0, 20.0);
+  EXPECT_NE(error.find("work budget spent: 20 substeps and switches"), std::string::npos) << error;
+  EXPECT_NE(error.find("under the drive 8 Hz"), std::string::npos) << error;
+  EXPECT_EQ(AdvanceError(PaperModel(), 1.0), "");  // the paper's model: well within its budget
+}
+
 // "auto" gives the exact engine every piecewise-linear model (stops on both sides, contact damping,
 // clipping) and cvode every model with a smooth term, naming the term; a named engine is taken as
 // named, except exact on a model it cannot take.

@@ -50,6 +50,54 @@ TEST(ModelTest, RejectsBadValuesNamingTheField) {
   EXPECT_THAT(ValidationMessage(m), HasSubstr("c_s: must be >= 0"));
 }
 
+TEST(ModelTest, RefusesAbsurdModelsNamingTheField) {
+  // Issue 15: these passed the sign checks and then hung every engine.
+  ActuatorModel m = PaperModel();
+  m.contact_stiffness = 1e40;
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("k_s: makes the stop's stiffness 8.06452e+37 times the suspension"));
+  m = PaperModel();
+  m.mass_kg = 1e-300;
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("m_p: must lie within [1e-06, 1000] kg, got 1e-300"));
+  m = PaperModel();
+  m.mass_kg = 1e-6;
+  m.contact_stiffness = 1e8;  // 1.6 MHz on 1 mg
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("k_s: makes the stop's natural frequency"));
+  m = PaperModel();
+  m.damping_n_s_per_m = 1e5;
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("c_p: makes the suspension's damping ratio"));
+  m = PaperModel();
+  m.contact_damping_n_s_per_m = 1e9;
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("c_s: makes the stop's damping ratio"));
+  m = PaperModel();
+  m.cubic_stiffness_n_per_m3 = -1e18;
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("k3: makes k3 L^2"));
+  m = PaperModel();
+  m.stiffness_n_per_m = 1e14;
+  EXPECT_THAT(ValidationMessage(m), HasSubstr("k_p: makes the suspension's natural frequency"));
+}
+
+TEST(ModelTest, KeepsEveryRealActuator) {
+  // The extended models of the diagnosis and the tests' extremes stay valid.
+  ActuatorModel m = PaperModel();
+  m.contact_law = ContactLaw::kHertzian;
+  m.contact_stiffness = 1e12;  // N/m^1.5
+  m.cubic_stiffness_n_per_m3 = -1e12;
+  m.quadratic_stiffness_n_per_m2 = 1e6;
+  m.friction_force_n = 0.5;
+  m.amplifier_limit_v = 1.0;
+  m.upper_stop_m = 2e-3;
+  m.contact_damping_n_s_per_m = 50;
+  EXPECT_EQ(ValidationMessage(m), "");
+  m = PaperModel();
+  m.contact_stiffness = 4e10;  // the wrong-physics candidates' former top (N/m)
+  EXPECT_EQ(ValidationMessage(m), "");
+  m.mass_kg = 1e-6;  // a MEMS proof mass with the paper's stop
+  m.contact_stiffness = 1.3e6;
+  EXPECT_EQ(ValidationMessage(m), "");
+  m.mass_kg = 1e3;
+  EXPECT_EQ(ValidationMessage(m), "");
+}
+
 TEST(ModelTest, OverridesByKeyAndByJsonName) {
   ActuatorModel m = PaperModel();
   ApplyOverride(&m, "k3=4e7");

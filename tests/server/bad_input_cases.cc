@@ -376,6 +376,15 @@ std::vector<BadRequest> GenerateBadRequests(const Tokens& tokens, const KnownJob
                 "/grid/frequency_hz/to", "/grid/amplitude_v", "/grid/amplitude_v/from", "/grid/amplitude_v/to",
                 "/grid/amplitude_v/points"});
   specs.Mutate(ValidSimulate(), "simulate", {"/model", "/frequency_hz", "/amplitude_v"});
+  // Issue 15: models beyond the physical bounds (ModelBounds) hung the workers for good.
+  for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
+           {"k_s", 1e40}, {"m_p", 1e-300}, {"m_p", 1e4}, {"c_s", 1e12}, {"k3", 1e20}}) {
+    for (json spec : {ValidSimulate(), ValidSweep()}) {
+      spec["model"] = json{{key, value}};
+      specs.Add(spec["kind"].get<std::string>() + " /model/" + key + " = " + json(value).dump(), spec, "invalid_job",
+                "/model/" + key);
+    }
+  }
   BodyCases(out, tokens);
   ContentTypeAndSizeCases(out, tokens);
   RouteCases(out, tokens, jobs);

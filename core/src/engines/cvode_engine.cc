@@ -315,8 +315,10 @@ class CvodeRun {
     bool done = false;
     while (!done) {
       if (++steps > max_steps)
-        throw NumericalError("cvode engine: CVode took more than " + FormatNumber(max_steps) +
-                             " steps, stuck near t = " + FormatNumber(t_s) + " s (chattering between contact modes?)");
+        throw NumericalError("cvode engine: work budget spent: CVode took more than " + FormatNumber(max_steps) +
+                             " steps, stuck near t = " + FormatNumber(t_s) + " s under the drive " +
+                             FormatNumber(drive_.frequency_hz) + " Hz, " + FormatNumber(drive_.amplitude_v) +
+                             " V (chattering between contact modes?)");
       const int flag = CVode(sundials_.cvode, end_s_, sundials_.y, &t_s, CV_ONE_STEP);
       Check(flag, "CVode", problem_);
       CheckStepResolved(t_s, &unresolved_steps);

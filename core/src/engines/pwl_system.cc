@@ -1,5 +1,6 @@
 #include "strokelab/engines/pwl_system.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -233,6 +234,23 @@ void PiecewiseLinearSystem::ThrowStuck(double time_s, State y) {
   std::snprintf(message, sizeof message,
                 "exact engine: switching surfaces chatter without time advancing at t = %.17g s "
                 "(x = %.17g m, v = %.17g m/s)", time_s, y.x_m, y.v_m_per_s);
+  throw NumericalError(message);
+}
+
+double PiecewiseLinearSystem::StepBudget(double t_s, double t_end_s) const {
+  const double span_s = std::max(0.0, t_end_s - t_s);
+  return budget_base_steps_ + (budget_steps_per_second_ + budget_steps_per_drive_period_ * drive_.frequency_hz) * span_s;
+}
+
+void PiecewiseLinearSystem::ThrowBudgetSpent(const char* what, double steps, double t_start_s, double t_end_s,
+                                             double time_s, State y) const {
+  char message[500];
+  std::snprintf(message, sizeof message,
+                "exact engine: %s: %.3g substeps and switches advanced t only from %.17g s to %.17g s of "
+                "%.17g s (x = %.6g m, v = %.6g m/s) under the drive %.6g Hz, %.6g V; the model's time scales "
+                "are too short to resolve (check k_s, m_p and the damping against the model bounds)",
+                what, steps, t_start_s, time_s, t_end_s, y.x_m, y.v_m_per_s, drive_.frequency_hz,
+                drive_.amplitude_v);
   throw NumericalError(message);
 }
 

@@ -32,7 +32,57 @@ std::optional<FieldError> NonNegative(double value, const char* field) {
   return std::nullopt;
 }
 
+// Beyond the signs: the bounds of ModelBounds (why each: model.h), each naming its field.
+std::optional<FieldError> PhysicalBoundsError(const ActuatorModel& model) {
+  const double mass_kg = model.mass_kg;
+  if (mass_kg < ModelBounds::kMinMassKg || mass_kg > ModelBounds::kMaxMassKg)
+    return FieldError{"m_p", "must lie within [" + FormatDouble(ModelBounds::kMinMassKg) + ", " +
+                                 FormatDouble(ModelBounds::kMaxMassKg) + "] kg, got " + FormatDouble(mass_kg)};
+  const double two_pi = 2.0 * 3.14159265358979323846;
+  const double k_p = model.stiffness_n_per_m;
+  auto frequency_error = [&](double stiffness, const char* field, const char* what) -> std::optional<FieldError> {
+    const double frequency_hz = std::sqrt(stiffness / mass_kg) / two_pi;
+    if (frequency_hz <= ModelBounds::kMaxNaturalFrequencyHz) return std::nullopt;
+    return FieldError{field, std::string("makes the ") + what + " natural frequency sqrt(k / m_p) / 2pi " +
+                                 FormatDouble(frequency_hz) + " Hz, above the limit of " +
+                                 FormatDouble(ModelBounds::kMaxNaturalFrequencyHz) + " Hz"};
+  };
+  auto damping_error = [&](double damping, double stiffness, const char* field,
+                           const char* what) -> std::optional<FieldError> {
+    const double ratio = damping / (2.0 * std::sqrt(stiffness * mass_kg));
+    if (damping == 0 || ratio <= ModelBounds::kMaxDampingRatio) return std::nullopt;
+    return FieldError{field, std::string("makes the ") + what + " damping ratio c / (2 sqrt(k m_p)) " +
+                                 FormatDouble(ratio) + ", above the limit of " +
+                                 FormatDouble(ModelBounds::kMaxDampingRatio)};
+  };
+  auto ratio_error = [&](double stiffness, const char* field, const char* what) -> std::optional<FieldError> {
+    const double ratio = std::abs(stiffness) / k_p;
+    if (ratio <= ModelBounds::kMaxStiffnessRatio) return std::nullopt;
+    return FieldError{field, std::string("makes ") + what + " " + FormatDouble(ratio) +
+                                 " times the suspension stiffness k_p, above the limit of " +
+                                 FormatDouble(ModelBounds::kMaxStiffnessRatio)};
+  };
+  if (auto error = frequency_error(k_p, "k_p", "suspension's")) return error;
+  if (auto error = damping_error(model.damping_n_s_per_m, k_p, "c_p", "suspension's")) return error;
+  const double length_m = LengthScaleM(model);
+  if (auto error = ratio_error(model.quadratic_stiffness_n_per_m2 * length_m, "k2", "k2 L (L: the length scale)"))
+    return error;
+  if (auto error = ratio_error(model.cubic_stiffness_n_per_m3 * length_m * length_m, "k3",
+                               "k3 L^2 (L: the length scale)"))
+    return error;
+  if (!model.HasLowerStop() && !model.HasUpperStop()) return std::nullopt;
+  const double k_s = EffectiveContactStiffnessNPerM(model);
+  if (auto error = ratio_error(k_s, "k_s", "the stop's stiffness")) return error;
+  if (auto error = frequency_error(k_s, "k_s", "stop's")) return error;
+  return damping_error(model.contact_damping_n_s_per_m, k_s, "c_s", "stop's");
+}
+
 }  // namespace
+
+double EffectiveContactStiffnessNPerM(const ActuatorModel& model) {
+  if (model.contact_law == ContactLaw::kLinear) return model.contact_stiffness;
+  return model.contact_stiffness * std::sqrt(LengthScaleM(model));
+}
 
 bool ActuatorModel::IsPiecewiseLinear() const { return NonlinearTerms().empty(); }
 
@@ -92,7 +142,7 @@ std::optional<FieldError> ActuatorModel::IsValid() const {
   if (auto error = Positive(friction_velocity_m_per_s, "friction_velocity")) return error;
   if (std::isnan(amplifier_limit_v) || amplifier_limit_v <= 0)
     return FieldError{"amplifier_limit_v", "must be > 0 or +inf (no limit), got " + FormatDouble(amplifier_limit_v)};
-  return std::nullopt;
+  return PhysicalBoundsError(*this);
 }
 
 const std::vector<ParameterInfo>& Parameters() {

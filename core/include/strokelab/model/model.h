@@ -66,6 +66,35 @@ struct ActuatorModel {
   std::optional<FieldError> IsValid() const;
 };
 
+// Physical bounds beyond the signs, checked by ActuatorModel::IsValid (issue 15: a model of k_s = 1e40
+// N/m or m_p = 1e-300 kg is accepted by the signs alone and then runs any engine for ever, its contacts
+// lasting less than the resolution of a double in time). Each bound sits orders of magnitude beyond the
+// real actuators this tool serves (the paper's 32 g and k_s/k_p ~ 1e4, the diagnosis's extended models:
+// cubic/quadratic stiffness, Hertzian contact up to k_s ~ 1e12 N/m^1.5, contact stiffnesses of 4e10 N/m,
+// friction, clipping) and far inside where the engines stop meaning anything:
+//   mass           a 1 mg MEMS proof mass to a 1 t building shaker.
+//   stiffness      a stop (or k2 |d|, k3 d^2) 1e9 times the suspension's: the stop's time scale is then
+//   ratios         3e4 times shorter than the suspension's, already far past any rigid stop; beyond it
+//                  the contact regions' exponentials and the shooting Jacobians lose all their digits.
+//   natural        sqrt(k / m_p) / 2pi of the suspension and of a stop at most 1 MHz: a contact lasts
+//   frequencies    at least 0.5 us, so a second of motion holds at most a few million contacts and the
+//                  engines' work budgets (strokelab/engines/work_budget.h) suffice for every real model.
+//   damping        c / (2 sqrt(k m_p)) at most 1e3: a thousand times critical already makes the
+//   ratios         region's eigenvalues 4e6 apart; beyond it the suspension or stop is a pure damper.
+// A Hertzian stop (k_s p^1.5) counts as its secant stiffness at the model's length scale, k_s |d|^(1/2),
+// which overstates the stiffness at the micrometre penetrations of real contacts (a conservative test).
+struct ModelBounds {
+  static constexpr double kMinMassKg = 1e-6;
+  static constexpr double kMaxMassKg = 1e3;
+  static constexpr double kMaxStiffnessRatio = 1e9;
+  static constexpr double kMaxNaturalFrequencyHz = 1e6;
+  static constexpr double kMaxDampingRatio = 1e3;
+};
+
+// A stop's stiffness as a linear one [N/m]: k_s, or a Hertzian k_s's secant k_s L^(1/2) at the length
+// scale L = LengthScaleM(model).
+double EffectiveContactStiffnessNPerM(const ActuatorModel& model);
+
 // The model's length scale [m], used to scale residuals and tolerances: |d| or the upper stop, else 1 mm.
 double LengthScaleM(const ActuatorModel& model);
 
