@@ -133,6 +133,11 @@ void FaultyProxy::Relay(int client) {
   }
   const bool is_complete = head.starts_with("POST /v1/tasks/") && head.find("/complete ") < head.find("\r\n");
   const ProxyFault fault = head.empty() ? ProxyFault::kRefuse : Choose(is_complete);
+  // One request per connection: the fault is chosen per connection, and workers keep theirs alive
+  // between requests, so the server is asked to close it after this reply (the first Connection
+  // header is the one it reads).
+  if (const size_t line_end = head.find("\r\n"); line_end != std::string::npos)
+    head.insert(line_end + 2, "Connection: close\r\n");
   int delay_ms = 0;
   if (fault == ProxyFault::kDelay) {
     std::lock_guard lock(mu_);
