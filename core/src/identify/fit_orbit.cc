@@ -237,7 +237,7 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
 // The impacts have harmonics far above N and up to the sample rate; on the record's grid (a period is
 // not a whole number of samples) they alias and leak into C_1..C_N by a few 1e-5 of the spike's
 // harmonics, which is comparable with the noise's standard error and would bias the fit by several
-// standard errors. The model's orbit is sampled on the record's own grid (the exact engine from the
+// standard errors. The model's orbit is sampled on the record's own grid (OrbitOnRecordGrid, from the
 // orbit's state at drive phase phi) and analysed as the record was.
 std::vector<Complex> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                         ResponseKind kind, int orders) {

@@ -82,8 +82,8 @@ std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const Re
 
 // The model's response on the record's own sample grid over its analysis window (samples
 // window.begin .. window.end of a record of window.end samples; earlier samples are the orbit too),
-// in response units, from a period-1 orbit (the exact engine; CVODE for models that are not
-// piecewise linear). Empty for orbits of another period.
+// in response units, from a period-1 orbit (the exact engine; the variational flow's dense output for
+// models that are not piecewise linear). Empty for orbits of another period.
 std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                       ResponseKind kind);
 
