@@ -4,8 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <complex>
+#include <filesystem>
 #include <numbers>
 #include <optional>
 #include <string>
@@ -14,6 +17,17 @@
 #include "strokelab/base/errors.h"
 
 namespace strokelab::testing {
+
+// An empty directory of its own for the running test: TempDir/PREFIX_PID_TESTNAME, emptied if a
+// run before left it.
+inline std::filesystem::path FreshTestDir(const std::string& prefix) {
+  const std::filesystem::path dir =
+      std::filesystem::path(::testing::TempDir()) /
+      (prefix + "_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
 
 inline constexpr double kPi = std::numbers::pi;
 inline constexpr double kFs = 51200.0;  // the paper's sampling rate [Hz]

@@ -16,6 +16,7 @@
 
 #include "strokelab/server/service.h"
 #include "test_tokens.h"
+#include "test_util.h"
 
 namespace strokelab::server {
 
@@ -31,11 +32,7 @@ inline const nlohmann::json kOneTaskSimulate = {
 class HostileServiceTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::path(::testing::TempDir()) /
-           ("hostile_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
+    dir_ = ::strokelab::testing::FreshTestDir("hostile_test");
     std::ofstream(dir_ / "tokens") << "submit " << kSubmitToken << "\nread " << kReadToken << "\nworker "
                                    << kWorkerToken << "\n";
     options_.port = 0;

@@ -16,6 +16,7 @@
 #include "strokelab/server/service.h"
 #include "strokelab/server/store.h"
 #include "strokelab/worker/remote_worker.h"
+#include "test_util.h"
 
 namespace strokelab::server {
 namespace {
@@ -38,11 +39,7 @@ const char* kOneTaskSweep =
 class RemoteLeaseTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::path(::testing::TempDir()) /
-           ("remote_lease_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
+    dir_ = ::strokelab::testing::FreshTestDir("remote_lease_test");
   }
   void StartService(int64_t lease_ms) {
     ServiceOptions options;

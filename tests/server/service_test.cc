@@ -2,6 +2,7 @@
 // and (for bad jobs) the JSON pointer of the field; tokens and roles are enforced.
 #include "strokelab/server/service.h"
 #include "test_tokens.h"
+#include "test_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -31,11 +32,7 @@ const json kSmallSweep = {{"kind", "sweep"},
 class ServiceTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::path(::testing::TempDir()) /
-           ("service_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
+    dir_ = ::strokelab::testing::FreshTestDir("service_test");
     std::ofstream(dir_ / "tokens") << "# role token\nsubmit " << kSubmitToken << "\nread " << kReadToken << "\n";
     ServiceOptions options;
     options.port = 0;
