@@ -258,6 +258,27 @@ TEST_F(CampaignJobsTest, UploadedCampaignFitsAsTheDirectFit) {
             "no_report");
 }
 
+// Issue 16 point 9: the model file of a fit (its fitted model) as a download of its own, for the web
+// page; a sweep has none, and an unfinished job none yet.
+TEST_F(CampaignJobsTest, AFitsModelFileIsADownload) {
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  ASSERT_EQ(WaitFinished(job)["status"], "succeeded");
+  const std::string base = "/v1/jobs/" + std::to_string(job);
+  auto model = Client().Get(base + "/model", Auth(kReadToken));
+  ASSERT_TRUE(model && model->status == 200) << (model ? model->body.substr(0, 300) : "");
+  EXPECT_THAT(model->get_header_value("Content-Type"), HasSubstr("application/json"));
+  EXPECT_EQ(model->get_header_value("Content-Disposition"),
+            "attachment; filename=\"job-" + std::to_string(job) + "-model.json\"");
+  EXPECT_EQ(json::parse(model->body), Get(base + "/result")["fitted_model"]);
+  EXPECT_EQ(json::parse(model->body)["contact_law"], "linear") << "a model file, as ModelToJson writes it";
+  const int64_t sweep = Submit({{"kind", "sweep"}, {"model", "paper"},
+                                {"grid", {{"frequency_hz", {{"from", 5}, {"to", 6}, {"points", 2}}},
+                                          {"amplitude_v", {{"from", 0.2}, {"to", 0.5}, {"points", 2}}}}}});
+  EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(sweep) + "/model", Auth(kReadToken)), 400)["code"],
+            "no_model_file");
+  EXPECT_EQ(Error(Client().Get("/v1/jobs/999999/model", Auth(kReadToken)), 404)["code"], "unknown_job");
+}
+
 TEST_F(CampaignJobsTest, ZipUploadFitsAsTheTarUpload) {
   const std::vector<TarEntry> entries = EntriesOf(campaign_dir(), "campaign-a/");
   const std::string tar_id = UploadOk(Tar(entries));
@@ -478,6 +499,9 @@ TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
   ASSERT_TRUE(model && model->status == 200);
   EXPECT_THAT(model->get_header_value("Content-Type"), HasSubstr("application/json"));
   EXPECT_EQ(json::parse(model->body), result["model"]);
+  auto download = Client().Get(base + "/model", Auth(kReadToken));  // the web page's download, the same file
+  ASSERT_TRUE(download && download->status == 200);
+  EXPECT_EQ(json::parse(download->body), result["model"]);
   EXPECT_THAT(page->body, HasSubstr("<h2 id=\"maps\">"));
   // The report is in the database: it is served after a restart.
   Restart();
