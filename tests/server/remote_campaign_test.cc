@@ -72,8 +72,8 @@ TEST(RemoteCampaignProcess, AWorkerProcessFitsAndDiagnosesFetchingTheCampaignOnc
   const int64_t diagnose = tp::Submit(*client,
                                   {{"kind", "diagnose"},
                                    {"campaign", {{"path", "c"}}},
-                                   {"options", {{"heldout_every", 4}, {"pairs", false}, {"max_seconds", 6},
-                                                {"map_frequency_points", 5}, {"map_amplitude_points", 3}}}},
+                                   {"options", {{"heldout_every", 4}, {"pairs", false}, {"max_seconds", 3},
+                                                {"map_frequency_points", 4}, {"map_amplitude_points", 2}}}},
                                   kSubmitToken);
   for (int64_t id : {fit, diagnose}) {
     const json job = tp::WaitForFinish(*client, id, 120, kReadToken);
