@@ -211,8 +211,19 @@ int RunServe(const std::vector<std::string>& argv) {
   return 0;
 }
 
+namespace {
+
+// $XDG_CACHE_HOME/strokelab/campaigns, else $HOME/.cache/strokelab/campaigns, else under the temp directory.
+std::string DefaultCampaignCache() {
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) return std::string(xdg) + "/strokelab/campaigns";
+  if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/strokelab/campaigns";
+  return (std::filesystem::temp_directory_path() / "strokelab-campaigns").string();
+}
+
+}  // namespace
+
 int RunWorker(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks", "--exit-when-idle"},
+  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks", "--exit-when-idle", "--cache-dir"},
                   {"--help"});
   if (args.Has("--help")) {
     std::cout << kWorkerHelp;
@@ -232,6 +243,14 @@ int RunWorker(const std::vector<std::string>& argv) {
     const int seconds = args.Integer("--exit-when-idle", 0);
     if (seconds < 0 || seconds > 7 * 24 * 3600) throw InputError("--exit-when-idle", "must be between 0 and 604800 seconds");
     options.exit_when_idle_ms = seconds * 1000;
+  }
+  options.campaign_cache_dir = args.GetOr("--cache-dir", DefaultCampaignCache());
+  std::error_code cache_error;
+  std::filesystem::create_directories(options.campaign_cache_dir, cache_error);
+  if (cache_error) {
+    std::fprintf(stderr, "worker: cannot create the campaign cache %s (%s): fit and diagnose tasks are left to other workers\n",
+                 options.campaign_cache_dir.c_str(), cache_error.message().c_str());
+    options.campaign_cache_dir.clear();
   }
   InstallStopSignals();
   const int done = worker::RunRemoteWorker(options, g_stop);

@@ -6,7 +6,10 @@
 #include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/report/diagnosis_data.h"
 #include "strokelab/report/diagnosis_maps.h"
+#include "campaign_rows_internal.h"
+#include "strokelab/jobs/campaign_bundle.h"
 #include "strokelab/report/sweep_tables.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
@@ -39,6 +42,8 @@ std::string ContentTypeOf(const std::string& name) {
   return "text/plain; charset=utf-8";
 }
 
+}  // namespace
+
 // The HTML report of a diagnosis with its maps (WriteDiagnosisReport into a scratch directory) as
 // result rows. The report's files are UTF-8 text (an HTML page, CSV tables, the model file), stored
 // as JSON strings.
@@ -59,9 +64,11 @@ std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis, const rep
   return rows;
 }
 
+namespace {
+
 // A fit or diagnose task: the campaign is read again (and must still have the digest it was planned
-// with), then fitted or diagnosed.
-std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
+// with), then fitted or diagnosed. `as_data`: a diagnosis goes out as data (RunTaskForRemote).
+std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data) {
   const std::string type = task.at("type");
   const fs::path dir = task.at("campaign_dir").get<std::string>();
   if (CampaignDigest(dir) != task.at("campaign_digest"))
@@ -74,6 +81,7 @@ std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
   std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
   // The report's maps of the base and the diagnosed model, within what is left of max_seconds.
   const report::DiagnosisMaps maps = report::SweepDiagnosisMaps(diagnosis, options);
+  if (as_data) return {{"diagnosis_data", report::DiagnosisDataToJson(diagnosis, maps)}};
   for (ResultRow& row : DiagnosisReportRows(diagnosis, maps)) rows.push_back(std::move(row));
   return rows;
 }
@@ -132,17 +140,22 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
     }
     nlohmann::json spec_job = job;
     spec_job.erase("name");
-    tasks.push_back(
-        MakeTask({{"type", kind}, {"job", spec_job}, {"campaign_dir", dir.string()}, {"campaign_digest", digest}}));
+    tasks.push_back(MakeTask({{"type", kind}, {"job", spec_job}, {"campaign_dir", dir.string()},
+                              {"campaign_digest", digest}, {"campaign_sha256", CampaignSha256(dir)}}));
   } else {
     throw InputError("/kind", "job kind '" + kind + "' is not served yet");
   }
   return tasks;
 }
 
+std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel) {
+  if (IsCampaignKind(task.at("type"))) return RunCampaignTask(task, true);
+  return RunTask(task, cancel);
+}
+
 std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel) {
   const std::string type = task.at("type");
-  if (IsCampaignKind(type)) return RunCampaignTask(task);  // not cancellable: see service.cc
+  if (IsCampaignKind(type)) return RunCampaignTask(task, false);  // not cancellable: see service.cc
   const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
   std::vector<ResultRow> rows;
   if (type == "sweep_row") {

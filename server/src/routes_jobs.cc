@@ -51,11 +51,6 @@ void Service::Impl::AddJobRoutes() {
               const json job = JsonBody(req);
               // Validates; InputError -> 400 (a campaign's file and line: jobs::CampaignError).
               const std::vector<TaskSpec> tasks = jobs::PlanTasks(job, campaigns);
-              if (jobs::IsCampaignKind(job.at("kind")) && local_workers == 0)
-                throw HttpError{400, "unsupported_kind",
-                                job.at("kind").get<std::string>() +
-                                    " jobs need the server's in-process workers (this server runs with --workers 0)",
-                                "/kind"};
               const int64_t id = store->SubmitJob(job.at("kind"), job, tasks, NowMs());
               wake.notify_all();
               // Accepted as queued, unless every task was served from the store at once (a worker

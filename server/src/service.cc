@@ -204,6 +204,7 @@ void Service::Impl::SetUpRoutes() {
   AddJobRoutes();
   AddResultRoutes();
   AddTaskRoutes();
+  AddCampaignRoutes();
 }
 
 std::optional<FieldError> ServiceOptions::IsValid() const {

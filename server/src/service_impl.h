@@ -56,8 +56,8 @@ struct Service::Impl {
   internal::StorageHealth storage;  // whether writes work, for /v1/health
   int local_workers = 0;  // in-process workers, set by Start before the HTTP thread
   jobs::CampaignDirs campaigns;
-  // Fit and diagnose tasks that a remote lease request drew: they need the server's disk, so they
-  // are handed to the in-process workers under that lease (LeaseForRemote).
+  // Fit and diagnose tasks that a remote lease request drew for a worker that cannot fetch campaigns:
+  // kept under that lease for an in-process worker or a remote one that can (LeaseForRemote).
   std::mutex handoff_mutex;
   std::deque<TaskLease> handoff;
   // Fit and diagnose computations on threads of their own (RunHeldTask); joined when the service is
@@ -128,10 +128,11 @@ struct Service::Impl {
   void AddJobRoutes();
   void AddResultRoutes();
   void AddTaskRoutes();
+  void AddCampaignRoutes();  // routes_campaigns.cc: a leased task's campaign for its remote worker
 
   // Remote and in-process workers (routes_tasks.cc, local_workers.cc).
-  std::optional<TaskLease> LeaseForRemote(const std::string& worker);
-  std::optional<TaskLease> TakeHandoff();
+  std::optional<TaskLease> LeaseForRemote(const std::string& worker, bool fetches_campaigns);
+  std::optional<TaskLease> TakeHandoff(bool with_campaign_hash);
   std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease, const std::atomic<bool>& cancel);
   void WorkLoop(int index);
 

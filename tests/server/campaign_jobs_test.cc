@@ -21,10 +21,12 @@
 #include "strokelab/identify/fit.h"
 #include "strokelab/data/recordings.h"
 #include "strokelab/server/service.h"
+#include "strokelab/worker/remote_worker.h"
 #include "strokelab/data/synth.h"
 #include "campaign_upload.h"
 #include "ustar.h"
 #include "zip_writer.h"
+#include "small_campaign.h"
 #include "test_tokens.h"
 
 namespace strokelab::server {
@@ -36,6 +38,7 @@ using nlohmann::json;
 
 using ::strokelab::testing::kReadToken;
 using ::strokelab::testing::kSubmitToken;
+using ::strokelab::testing::kWorkerToken;
 
 // Parameters of the service's fit and of the direct fit agree to this relative difference: the same
 // files, options and code (dimensionless; the fit runs Ceres on one thread per record set).
@@ -122,16 +125,7 @@ class CampaignJobsTest : public ::testing::Test {
     root_ = fs::path(::testing::TempDir()) / ("campaign_jobs_test_" + std::to_string(::getpid()));
     fs::remove_all(root_);
     fs::create_directories(root_ / "data");
-    // Two amplitudes below the stop and two above it at 51.2 kHz, short records: a fit of ~1 s.
-    SynthOptions options;
-    options.frequencies_hz = {6, 8, 11, 13};
-    options.amplitudes_v = {0.1, 0.3, 0.45};
-    options.duration_s = 0.5;
-    options.settle_s = 3.0;
-    options.noise_rms_v = 2e-3 * DefaultSensitivity(ResponseKind::kForce);
-    options.voltage_noise_rms_v = 1e-4;
-    options.seed = 7;
-    WriteSynthesis(Synthesize(PaperModel(), options), campaign_dir(), root_ / "truth.json");
+    ::strokelab::testing::WriteSmallCampaign(campaign_dir(), root_ / "truth.json", /*seed=*/7);  // a fit of ~1 s
     direct_fit_ = new json(FitResultToJson(FitCampaign(ReadCampaign(campaign_dir()))));
   }
   static void TearDownTestSuite() {
@@ -144,7 +138,8 @@ class CampaignJobsTest : public ::testing::Test {
     dir_ = root_ / ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    std::ofstream(dir_ / "tokens") << "submit " << kSubmitToken << "\nread " << kReadToken << "\n";
+    std::ofstream(dir_ / "tokens") << "submit " << kSubmitToken << "\nread " << kReadToken << "\nworker " << kWorkerToken
+                                   << "\n";
     options_.port = 0;
     options_.db_path = (dir_ / "jobs.db").string();
     options_.workers = 1;
@@ -465,12 +460,25 @@ TEST_F(CampaignJobsTest, AFitSurvivesARestartAndCanBeCancelled) {
             "not_finished");
 }
 
-TEST_F(CampaignJobsTest, WithoutInProcessWorkersCampaignJobsAreRefused) {
+// A server without workers of its own takes fit jobs: a remote worker fetches the campaign and fits it
+// as the direct fit; one that cannot fetch campaigns (no cache directory) leaves the task waiting for it.
+TEST_F(CampaignJobsTest, WithoutInProcessWorkersARemoteWorkerRunsTheFit) {
   options_.workers = 0;
   Restart();
-  const json error = Error(Post({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}}), 400);
-  EXPECT_EQ(error["code"], "unsupported_kind");
-  EXPECT_EQ(error["field"], "/kind");
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  worker::RemoteWorkerOptions remote;
+  remote.server_url = "http://127.0.0.1:" + std::to_string(port_);
+  remote.token = kWorkerToken;
+  remote.idle_poll_ms = 20;
+  remote.exit_when_idle_ms = 300;
+  std::atomic<bool> stop{false};
+  EXPECT_EQ(worker::RunRemoteWorker(remote, stop), 0);  // no cache directory: the fit is not its
+  EXPECT_NE(Get("/v1/jobs/" + std::to_string(job))["status"], "failed");
+  remote.campaign_cache_dir = (dir_ / "cache").string();
+  remote.max_tasks = 1;
+  EXPECT_EQ(worker::RunRemoteWorker(remote, stop), 1);
+  ASSERT_EQ(WaitFinished(job)["status"], "succeeded");
+  ExpectSameFit(Get("/v1/jobs/" + std::to_string(job) + "/result"), *direct_fit_);
 }
 
 TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {

@@ -8,8 +8,12 @@
 // its result is one row, table "fit" (FitResultToJson) or "diagnosis" (DiagnosisToJson), plus, for
 // diagnose, the HTML report's files (with the saturation maps of the base and the diagnosed model,
 // swept in the same task within what is left of the job's max_seconds, and the diagnosed model's
-// model.json) as rows of table "report_files" ({"name", "content_type", "text"}). Only the server's in-process workers run these tasks (IsCampaignKind). Task specs carry the full model, so that a task's key (a hash of its spec and the code
-// version) identifies its result whatever job it came from.
+// model.json) as rows of table "report_files" ({"name", "content_type", "text"}). Its spec also
+// carries the SHA-256 of the campaign's bundle (campaign_sha256, campaign_bundle.h), by which a remote
+// worker fetches the campaign and checks what it got; a remote worker sends a diagnosis as data
+// (RunTaskForRemote) and the server renders the report (CampaignRowsFromWorker, task_rows.h). Task
+// specs carry the full model, so that a task's key (a hash of its spec and the code version)
+// identifies its result whatever job it came from.
 #pragma once
 
 #include <atomic>
@@ -30,12 +34,16 @@ namespace strokelab::jobs {
 // its file and line).
 std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& campaigns = {});
 
-// Whether a job kind works on a campaign on the server's disk (fit, diagnose): its task is leased
-// only by in-process workers.
+// Whether a job kind works on a campaign (fit, diagnose): a remote worker fetches the campaign first.
 bool IsCampaignKind(const std::string& kind);
 
 // Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
 std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
+
+// What a remote worker runs: RunTask, except that a diagnose task's result is one row of table
+// "diagnosis_data" (report/diagnosis_data.h: the diagnosis and its maps as data) instead of the
+// rendered report, which the server renders itself. The task's campaign_dir must name the campaign.
+std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
 
 // 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
 std::string ContentKey(const std::string& text);
