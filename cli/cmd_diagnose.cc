@@ -77,6 +77,17 @@ line or the flag), 3 numerical failure.
 void PrintReport(const Diagnosis& d, std::ostream& out) {
   out << d.conclusion << "\n";
   out << "diagnosed model: " << d.model_note << "\n\n";
+  if (d.unexplained) {
+    out << "unexplained misfit (held-out chi-square " << General(d.unexplained->heldout_chi2, 4) << " against "
+        << General(d.unexplained->expected_chi2, 4) << " from noise, flagged above "
+        << General(d.unexplained->threshold_chi2, 4) << "), worst records:\n";
+    for (const Unexplained::Place& p : d.unexplained->places)
+      out << "  " << p.record << (p.heldout ? " (held out)" : "") << ": " << General(p.frequency_hz, 4) << " Hz, "
+          << General(p.amplitude_v, 4) << " V, " << General(p.chi2_per_residual, 3) << " x noise, worst harmonic "
+          << p.worst_harmonic << " (" << General(p.worst_harmonic_hz, 4) << " Hz), residual peaks at drive phase "
+          << General(p.residual_peak_phase_deg, 3) << " deg\n";
+    out << "\n";
+  }
   out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse, 4) << ", after "
       << General(d.fit_after.nrmse, 4) << "; held-out records (" << d.heldout.size() << "): before "
       << General(d.fit_before.heldout_nrmse, 4) << ", after " << General(d.fit_after.heldout_nrmse, 4) << "\n";
@@ -100,6 +111,7 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
                   General(c.figures.heldout_nrmse, 4).c_str(), General(c.seconds, 3).c_str());
     out << line;
     if (!c.note.empty() && !c.fitted) out << "    " << c.note << "\n";
+    if (!c.decision.empty()) out << "    " << c.decision << "\n";
   }
   out << "\nevidence:\n";
   for (const Evidence& e : d.signatures.evidence) {

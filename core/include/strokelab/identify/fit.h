@@ -201,7 +201,10 @@ struct ContactEstimate {
   // nothing); NaN when there are none. With no spike in the campaign: clear against not clear.
   double largest_clear_amplitude_m = 0.0;
   double smallest_contacting_amplitude_m = 0.0;
-  double stop_distance_m = 0.0;  // |d| to start the refinement from [m] (NaN: no contacting record)
+  // |d| to start the refinement from [m] (NaN: no contacting record): the bracket's geometric middle
+  // (or an end when it is one-sided); FitAnalysed replaces it by the best of a grid over the bracket
+  // (fit_internal::StopDistanceStart).
+  double stop_distance_m = 0.0;
 };
 // `linear` is step 2's result (k_p, c_p, g at m_p = mass_kg).
 ContactEstimate EstimateContact(std::span<const RecordAnalysis> analyses, ResponseKind kind,
