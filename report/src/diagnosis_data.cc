@@ -34,6 +34,12 @@ json FiguresOut(const FitFigures& f) {
           {"heldout_chi2", JsonNumber(f.heldout_chi2)}, {"residual_variance", JsonNumber(f.residual_variance)}};
 }
 
+json NumbersOut(const std::vector<double>& values) {
+  json out = json::array();
+  for (double v : values) out.push_back(JsonNumber(v));
+  return out;
+}
+
 json ComplexesOut(const std::vector<std::complex<double>>& values) {
   json out = json::array();
   for (const auto& c : values) out.push_back({JsonNumber(c.real()), JsonNumber(c.imag())});
@@ -54,8 +60,26 @@ json MatchesOut(const std::vector<RecordMatch>& matches) {
                    {"power", JsonNumber(m.power)}, {"nrmse", JsonNumber(m.nrmse)}, {"chi2", JsonNumber(m.chi2)},
                    {"measured", ComplexesOut(m.measured)}, {"model", ComplexesOut(m.model)},
                    {"model_period", m.model_period},
-                   {"model_contacts_per_period", JsonNumber(m.model_contacts_per_period)}});
+                   {"model_contacts_per_period", JsonNumber(m.model_contacts_per_period)},
+                   {"harmonic_chi2", NumbersOut(m.harmonic_chi2)}, {"residuals", m.residuals}});
   return out;
+}
+
+json UnexplainedOut(const std::optional<Unexplained>& u) {
+  if (!u) return nullptr;
+  json places = json::array();
+  for (const Unexplained::Place& p : u->places)
+    places.push_back({{"record", p.record}, {"frequency_hz", JsonNumber(p.frequency_hz)},
+                      {"amplitude_v", JsonNumber(p.amplitude_v)}, {"heldout", p.heldout},
+                      {"chi2_per_residual", JsonNumber(p.chi2_per_residual)}, {"worst_harmonic", p.worst_harmonic},
+                      {"worst_harmonic_hz", JsonNumber(p.worst_harmonic_hz)},
+                      {"residual_peak_phase_deg", JsonNumber(p.residual_peak_phase_deg)},
+                      {"impact_phase_deg", JsonNumber(p.impact_phase_deg)}});
+  return {{"heldout_chi2", JsonNumber(u->heldout_chi2)}, {"heldout_residuals", u->heldout_residuals},
+          {"expected_chi2", JsonNumber(u->expected_chi2)}, {"threshold_chi2", JsonNumber(u->threshold_chi2)},
+          {"p_value", JsonNumber(u->p_value)}, {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
+          {"places", places}, {"harmonic_chi2_per_residual", NumbersOut(u->harmonic_chi2_per_residual)},
+          {"description", u->description}};
 }
 
 json SweepOut(const std::optional<SweepResult>& sweep) {
@@ -211,6 +235,9 @@ std::vector<RecordMatch> MatchesIn(const json& object, const char* key, const st
     m.model = ComplexesIn(v, "model", q);
     m.model_period = static_cast<int>(Integer(v, "model_period", q, -1, 1 << 20));
     m.model_contacts_per_period = Number(v, "model_contacts_per_period", q);
+    m.harmonic_chi2 = Numbers(v, "harmonic_chi2", q);
+    if (m.harmonic_chi2.size() > kMaxHarmonics) throw InputError(q + "/harmonic_chi2", "has too many harmonics");
+    m.residuals = static_cast<int>(Integer(v, "residuals", q, 0, 2 * kMaxHarmonics));
     out.push_back(std::move(m));
   }
   return out;
@@ -264,6 +291,40 @@ GridAxis AxisIn(const json& object, const char* key, const std::string& at) {
   return axis;
 }
 
+std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  if (v.is_null()) return std::nullopt;
+  const std::string q = at + "/" + key;
+  Unexplained u;
+  u.heldout_chi2 = Number(v, "heldout_chi2", q);
+  u.heldout_residuals = static_cast<int>(Integer(v, "heldout_residuals", q, 0, 2 * kMaxHarmonics * kMaxItems));
+  u.expected_chi2 = Number(v, "expected_chi2", q);
+  u.threshold_chi2 = Number(v, "threshold_chi2", q);
+  u.p_value = Number(v, "p_value", q);
+  u.misfit_to_noise = Number(v, "misfit_to_noise", q);
+  std::string p;
+  const json& places = Array(v, "places", q, &p);
+  for (size_t i = 0; i < places.size(); ++i) {
+    const std::string r = p + "/" + std::to_string(i);
+    const json& w = places[i];
+    u.places.push_back({Text(w, "record", r), Number(w, "frequency_hz", r), Number(w, "amplitude_v", r),
+                        Flag(w, "heldout", r), Number(w, "chi2_per_residual", r),
+                        static_cast<int>(Integer(w, "worst_harmonic", r, 1, kMaxHarmonics)),
+                        Number(w, "worst_harmonic_hz", r), Number(w, "residual_peak_phase_deg", r),
+                        Number(w, "impact_phase_deg", r)});
+  }
+  const json& per_order = Array(v, "harmonic_chi2_per_residual", q, &p);  // null: no residual of that order
+  if (per_order.size() > kMaxHarmonics) throw InputError(p, "has too many harmonics");
+  for (size_t h = 0; h < per_order.size(); ++h) {
+    const json& x = per_order[h];
+    if (!x.is_null() && !(x.is_number() && std::isfinite(x.get<double>())))
+      throw InputError(p + "/" + std::to_string(h), "must be a finite number or null");
+    u.harmonic_chi2_per_residual.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
+  }
+  u.description = Text(v, "description", q);
+  return u;
+}
+
 void RequireIndex(int64_t index, size_t size, const std::string& at) {
   if (index < 0 || static_cast<size_t>(index) >= size) throw InputError(at, "is not an index into its list");
 }
@@ -299,7 +360,7 @@ json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
                           {"effect_parameters", ParametersOut(c.effect_parameters)}, {"model", ModelToJson(c.model)},
                           {"figures", FiguresOut(c.figures)}, {"heldout_gain", JsonNumber(c.heldout_gain)},
                           {"fit_gain", JsonNumber(c.fit_gain)}, {"passes", c.passes},
-                          {"seconds", JsonNumber(c.seconds)}, {"note", c.note}});
+                          {"seconds", JsonNumber(c.seconds)}, {"note", c.note}, {"decision", c.decision}});
   json diagnosis = {{"base", base},
                     {"heldout", d.heldout},
                     {"before", MatchesOut(d.before)},
@@ -316,6 +377,7 @@ json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
                     {"chosen", d.chosen},
                     {"model", ModelToJson(d.model)},
                     {"model_note", d.model_note},
+                    {"unexplained", UnexplainedOut(d.unexplained)},
                     {"conclusion", d.conclusion},
                     {"seconds", JsonNumber(d.seconds)}};
   json map_json = {{"frequency_hz", AxisOut(maps.frequency_hz)}, {"amplitude_v", AxisOut(maps.amplitude_v)},
@@ -414,6 +476,7 @@ DiagnosisData DiagnosisDataFromJson(const json& in) {
     c.passes = static_cast<int>(Integer(v, "passes", q, 0, 1 << 20));
     c.seconds = Number(v, "seconds", q);
     c.note = Text(v, "note", q);
+    c.decision = Text(v, "decision", q);
     d.candidates.push_back(std::move(c));
   }
   d.missing_physics = EffectsIn(dj, "missing_physics", at);
@@ -422,6 +485,7 @@ DiagnosisData DiagnosisDataFromJson(const json& in) {
     throw InputError(at + "/chosen", "names a candidate exactly when missing_physics is not empty");
   d.model = ModelIn(dj, "model", at);
   d.model_note = Text(dj, "model_note", at);
+  d.unexplained = UnexplainedIn(dj, "unexplained", at);
   d.conclusion = Text(dj, "conclusion", at);
   d.seconds = Number(dj, "seconds", at);
 
