@@ -8,16 +8,19 @@
 // its result is one row, table "fit" (FitResultToJson) or "diagnosis" (DiagnosisToJson), plus, for
 // diagnose, the HTML report's files (with the saturation maps of the base and the diagnosed model,
 // swept in the same task within what is left of the job's max_seconds, and the diagnosed model's
-// model.json) as rows of table "report_files" ({"name", "content_type", "text"}). Only the server's in-process workers run these tasks (IsCampaignKind). Task specs carry the full model, so that a task's key (a hash of its spec and the code
+// model.json) as rows of table "report_files" ({"name", "content_type", "text"}), and what its
+// status warns of as rows of table "warnings" ({"warning"}; campaign_warnings.h). Only the server's in-process workers run these tasks (IsCampaignKind). Task specs carry the full model, so that a task's key (a hash of its spec and the code
 // version) identifies its result whatever job it came from.
 #pragma once
 
 #include <atomic>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "strokelab/base/progress.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/task.h"
 #include "strokelab/jobs/version.h"
@@ -34,8 +37,15 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
 // only by in-process workers.
 bool IsCampaignKind(const std::string& kind);
 
+// A fit or diagnose task's progress: stage k of N with the time elapsed and an estimate of the time
+// left (base/progress.h), from the task's thread (a diagnosis's maps: from their sweep's threads, one
+// at a time).
+using TaskProgressHook = std::function<void(const ProgressReport&)>;
+
 // Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
-std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
+// `progress` (may be empty) hears a fit or diagnose task's stages.
+std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
+                               const TaskProgressHook& progress = {});
 
 // 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
 std::string ContentKey(const std::string& text);
