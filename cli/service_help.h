@@ -33,7 +33,8 @@ inline constexpr const char* kResultsHelp =
     "                        [--server URL] [--token T]\n"
     "\n"
     "Prints a finished job's results on stdout. A sweep job: its steady states, one row per grid\n"
-    "point and branch, as {\"points\": [...]} or as CSV (every page, one header). A fit or diagnose\n"
+    "point and branch, as {\"points\": [...]} or as CSV (the server's CSV stream of every row,\n"
+    "GET /v1/jobs/ID/points?format=csv, written out as it arrives). A fit or diagnose\n"
     "job: its result document as JSON (as strokelab fit --json / strokelab diagnose print it).\n"
     "\n" STROKELAB_CLIENT_CONNECTION_HELP
     "  --csv          a sweep's points as CSV\n"

@@ -4,6 +4,7 @@
 
 #include "campaign_rows_internal.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/jobs/campaign_warnings.h"
 #include "strokelab/jobs/task_rows.h"
 #include "strokelab/model/model_json.h"
 #include "strokelab/report/diagnosis_data.h"
@@ -52,6 +53,7 @@ std::vector<ResultRow> CampaignRowsFromWorker(const json& task, std::vector<Resu
     throw InputError("/rows/0/values" + e.field(), e.bare_message());
   }
   std::vector<ResultRow> stored = {{"diagnosis", DiagnosisToJson(data.diagnosis)}};
+  for (ResultRow& row : WarningRows(DiagnosisWarnings(data.diagnosis))) stored.push_back(std::move(row));
   for (ResultRow& row : DiagnosisReportRows(data.diagnosis, data.maps)) stored.push_back(std::move(row));
   return stored;
 }

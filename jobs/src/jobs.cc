@@ -17,6 +17,7 @@
 #include "strokelab/model/model_json.h"
 #include "strokelab/engines/record_summary.h"
 #include "strokelab/data/recordings.h"
+#include "strokelab/jobs/campaign_warnings.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/job_spec.h"
 #include "strokelab/sweep/sweep.h"
@@ -67,21 +68,33 @@ std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis, const rep
 namespace {
 
 // A fit or diagnose task: the campaign is read again (and must still have the digest it was planned
-// with), then fitted or diagnosed. `as_data`: a diagnosis goes out as data (RunTaskForRemote).
-std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data) {
+// with), then fitted or diagnosed, its progress reported with the time. `as_data`: a diagnosis goes
+// out as data (RunTaskForRemote), and the server adds its warnings (CampaignRowsFromWorker).
+std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data, const TaskProgressHook& progress) {
+  ProgressClock clock;
   const std::string type = task.at("type");
   const fs::path dir = task.at("campaign_dir").get<std::string>();
   if (CampaignDigest(dir) != task.at("campaign_digest"))
     throw std::runtime_error("the campaign changed after the job was submitted; submit the job again");
   const Campaign campaign = ReadCampaign(dir);
   const nlohmann::json& job = task.at("job");
-  if (type == "fit") return {{"fit", FitResultToJson(FitCampaign(campaign, FitOptionsFromJob(job)))}};
-  const DiagnoseOptions options = DiagnoseOptionsFromJob(job);
+  if (type == "fit") {
+    // The fit reports no stages of its own: one stage, with the time.
+    if (progress) progress(clock.Report({1, 1, "fit on " + std::to_string(campaign.records.size()) + " records", {}}));
+    const FitResult fit = FitCampaign(campaign, FitOptionsFromJob(job));
+    std::vector<ResultRow> rows = {{"fit", FitResultToJson(fit)}};
+    if (as_data) return rows;  // a remote fit's row alone (CampaignRowsFromWorker takes one row)
+    for (ResultRow& row : WarningRows(FitWarnings(fit))) rows.push_back(std::move(row));
+    return rows;
+  }
+  DiagnoseOptions options = DiagnoseOptionsFromJob(job);
+  if (progress) options.progress = [&](const ProgressStage& stage) { progress(clock.Report(stage)); };
   const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
-  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
   // The report's maps of the base and the diagnosed model, within what is left of max_seconds.
   const report::DiagnosisMaps maps = report::SweepDiagnosisMaps(diagnosis, options);
   if (as_data) return {{"diagnosis_data", report::DiagnosisDataToJson(diagnosis, maps)}};
+  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
+  for (ResultRow& row : WarningRows(DiagnosisWarnings(diagnosis))) rows.push_back(std::move(row));
   for (ResultRow& row : DiagnosisReportRows(diagnosis, maps)) rows.push_back(std::move(row));
   return rows;
 }
@@ -148,14 +161,16 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
   return tasks;
 }
 
-std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel) {
-  if (IsCampaignKind(task.at("type"))) return RunCampaignTask(task, true);
-  return RunTask(task, cancel);
+std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel,
+                                        const TaskProgressHook& progress) {
+  if (IsCampaignKind(task.at("type"))) return RunCampaignTask(task, true, progress);
+  return RunTask(task, cancel, progress);
 }
 
-std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel) {
+std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel,
+                               const TaskProgressHook& progress) {
   const std::string type = task.at("type");
-  if (IsCampaignKind(type)) return RunCampaignTask(task, false);  // not cancellable: see service.cc
+  if (IsCampaignKind(type)) return RunCampaignTask(task, false, progress);  // not cancellable: see service.cc
   const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
   std::vector<ResultRow> rows;
   if (type == "sweep_row") {

@@ -154,7 +154,7 @@ void WriteCandidateParameters(const Diagnosis& d, const std::filesystem::path& p
   std::vector<std::vector<std::string>> rows = {{"candidate", "parameter", "value", "standard_error", "unit"}};
   for (const CandidateFit& c : d.candidates) {
     for (const FitParameter& p : c.effect_parameters)
-      rows.push_back({c.label, p.name, Cell(p.value), Cell(p.standard_error), p.unit});
+      rows.push_back({c.label, p.name, Cell(p.value), p.fixed ? std::string() : Cell(p.standard_error), p.unit});
   }
   WriteRows(path, rows);
 }

@@ -38,6 +38,7 @@ std::optional<TaskLease> Service::Impl::TakeHandoff(bool with_campaign_hash) {
 std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease& lease,
                                                                  const std::atomic<bool>& cancel) {
   auto computation = std::make_shared<Computation>();
+  computation->job_id = lease.job_id;
   {
     std::lock_guard<std::mutex> lock(computations_mutex);
     std::erase_if(computations, [](auto& c) {
@@ -50,7 +51,11 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
                                 std::vector<ResultRow> rows;
                                 std::exception_ptr error;
                                 try {
-                                  rows = jobs::RunTask(spec);
+                                  rows = jobs::RunTask(spec, nullptr, [&computation](const ProgressReport& r) {
+                                    json progress = StageProgressJson(r);
+                                    std::lock_guard<std::mutex> progress_lock(computation->mutex);
+                                    computation->progress = std::move(progress);
+                                  });
                                 } catch (...) {
                                   error = std::current_exception();
                                 }

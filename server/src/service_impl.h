@@ -22,6 +22,7 @@
 #include "http_gate.h"
 #include "metrics.h"
 #include "storage_health.h"
+#include "strokelab/base/progress.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/server/auth.h"
 #include "strokelab/server/service.h"
@@ -36,6 +37,9 @@ nlohmann::json JobJson(const JobRecord& job);
 // and "resolved" (jobs::ResolvedJob: the model with every parameter, the grid's axes with their
 // values, the options with their defaults).
 nlohmann::json JobDetailJson(const JobRecord& job);
+// A fit or diagnose task's progress as a job's "progress" adds it: stage, stages, stage_name, step,
+// elapsed_s, eta_s (an estimate; null until one stage has finished).
+nlohmann::json StageProgressJson(const ProgressReport& report);
 
 struct Service::Impl {
   ServiceOptions options;
@@ -63,8 +67,10 @@ struct Service::Impl {
   // Fit and diagnose computations on threads of their own (RunHeldTask); joined when the service is
   // destroyed, since core's fit and diagnosis cannot be interrupted.
   struct Computation {
+    int64_t job_id = 0;
     std::mutex mutex;
     std::condition_variable done_cv;
+    nlohmann::json progress;  // the latest StageProgressJson (null before the first stage)
     bool done = false;
     std::vector<ResultRow> rows;
     std::exception_ptr error;
@@ -110,6 +116,11 @@ struct Service::Impl {
   // `text` with the server's own directories (uploads, data root, database) replaced by names, so
   // that error messages and job errors do not show the server's file system.
   std::string WithoutServerPaths(std::string text) const;
+
+  // Adds to a job's JSON (JobJson) what the store's job row does not hold: a running fit or diagnose
+  // job's stage progress (from its computation in this process) and a finished one's warnings (its
+  // result rows of table "warnings"; jobs.h).
+  void AddCampaignStatus(const JobRecord& job, nlohmann::json* job_json);
 
   // The job of a path's id (404 when there is none).
   JobRecord RequireJob(const std::string& id_text);

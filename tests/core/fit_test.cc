@@ -318,7 +318,10 @@ TEST_F(ForceCampaign, ResultAsJson) {
   for (const char* name : {"k_p", "c_p", "g", "d", "k_s", "c_s", "m_p"}) {
     ASSERT_TRUE(j["parameters"].contains(name)) << name;
     EXPECT_TRUE(j["parameters"][name]["value"].is_number()) << name;
-    EXPECT_TRUE(j["parameters"][name]["standard_error"].is_number()) << name;
+    // A fixed parameter (c_s held at 0, m_p) has no standard error (issue 16, point 5).
+    const bool fixed = j["parameters"][name]["fixed"].get<bool>();
+    EXPECT_EQ(fixed, std::string(name) == "c_s" || std::string(name) == "m_p") << name;
+    EXPECT_EQ(j["parameters"][name]["standard_error"].is_number(), !fixed) << name;
   }
   EXPECT_EQ(j["records"].size(), 24u);
   EXPECT_EQ(j["records"][0]["used_for"], nlohmann::json({"linear", "refinement"}));

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/identify/fit.h"
@@ -202,6 +203,20 @@ class CampaignJobsTest : public ::testing::Test {
   }
   json WaitFinished(int64_t id) {
     return WaitFor(id, [](const json& j) { return j["status"] != "queued" && j["status"] != "running"; });
+  }
+  // Waits as WaitFinished, polling every 10 ms, and keeps the progress of each poll that saw the job
+  // running in a stage.
+  json WaitFinishedWatchingStages(int64_t id, std::vector<json>* stages) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    json job;
+    while (std::chrono::steady_clock::now() < end) {
+      job = Get("/v1/jobs/" + std::to_string(id));
+      if (job["status"] != "queued" && job["status"] != "running") return job;
+      if (job["progress"].contains("stage")) stages->push_back(job["progress"]);
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ADD_FAILURE() << "job " << id << " did not finish: " << job.dump();
+    return job;
   }
   // The error object of a reply, checking its status.
   static json Error(const httplib::Result& r, int status) {
@@ -460,6 +475,37 @@ TEST_F(CampaignJobsTest, AFitSurvivesARestartAndCanBeCancelled) {
             "not_finished");
 }
 
+// Issue 16, point 5: a fit that did not converge showed as a plain "succeeded". The job succeeds as a
+// computation, and its status warns (the web page shows the warnings in amber); while it runs, its
+// progress names the stage (point 11).
+TEST_F(CampaignJobsTest, AFitThatDidNotConvergeSucceedsWithAWarning) {
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"max_iterations", 1}}}});
+  std::vector<json> stages;
+  const json status = WaitFinishedWatchingStages(job, &stages);
+  ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  EXPECT_THAT(status["warnings"].get<std::vector<std::string>>(), ::testing::Contains("fit did not converge"))
+      << status.dump();
+  json listed;
+  const json list = Get("/v1/jobs");
+  for (const json& j : list["jobs"])
+    if (j["id"] == job) listed = j;
+  EXPECT_EQ(listed["warnings"], status["warnings"]) << "the job list shows them too";
+  const json result = Get("/v1/jobs/" + std::to_string(job) + "/result");
+  EXPECT_FALSE(result["stages"]["refinement"]["converged"].get<bool>());
+  EXPECT_TRUE(result["parameters"]["m_p"]["standard_error"].is_null()) << result["parameters"].dump();
+  ASSERT_FALSE(stages.empty()) << "no poll saw the fit running in its stage";
+  EXPECT_EQ(stages.front()["stage"], 1);
+  EXPECT_EQ(stages.front()["stages"], 1);
+  EXPECT_THAT(stages.front()["stage_name"].get<std::string>(), HasSubstr("fit on "));
+  EXPECT_GE(stages.front()["elapsed_s"].get<double>(), 0.0);
+  // A fit that converges has no warnings.
+  const int64_t converged = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  const json fine = WaitFinished(converged);
+  ASSERT_EQ(fine["status"], "succeeded");
+  ASSERT_TRUE(Get("/v1/jobs/" + std::to_string(converged) + "/result")["stages"]["refinement"]["converged"].get<bool>());
+  EXPECT_EQ(fine["warnings"], json::array()) << fine.dump();
+}
+
 // A server without workers of its own takes fit jobs: a remote worker fetches the campaign and fits it
 // as the direct fit; one that cannot fetch campaigns (no cache directory) leaves the task waiting for it.
 TEST_F(CampaignJobsTest, WithoutInProcessWorkersARemoteWorkerRunsTheFit) {
@@ -486,8 +532,23 @@ TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
   const int64_t job = Submit({{"kind", "diagnose"},
                               {"campaign", {{"id", id}}},
                               {"options", {{"heldout_every", 4}, {"pairs", false}, {"max_seconds", 15}}}});
-  const json status = WaitFinished(job);
+  std::vector<json> stages;
+  const json status = WaitFinishedWatchingStages(job, &stages);
   ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  EXPECT_TRUE(status["warnings"].is_array()) << status.dump();
+  // While it ran: stage k of N (the analysis, the base fit, the signatures, the candidates, the two
+  // maps), with the time and, once a stage has finished, an estimate of the time left.
+  ASSERT_FALSE(stages.empty()) << "no poll saw the diagnosis running in a stage";
+  bool candidate = false, estimate = false;
+  for (const json& p : stages) {
+    EXPECT_GE(p["stage"].get<int>(), 1) << p.dump();
+    EXPECT_LE(p["stage"].get<int>(), p["stages"].get<int>()) << p.dump();
+    EXPECT_GE(p["elapsed_s"].get<double>(), 0.0) << p.dump();
+    candidate = candidate || p["stage_name"].get<std::string>().rfind("candidate ", 0) == 0;
+    estimate = estimate || p["eta_s"].is_number();
+  }
+  EXPECT_TRUE(candidate) << stages.back().dump();
+  EXPECT_TRUE(estimate) << stages.back().dump();
   const std::string base = "/v1/jobs/" + std::to_string(job);
   const json result = Get(base + "/result");
   EXPECT_TRUE(result.contains("missing_physics")) << result.dump().substr(0, 300);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -172,10 +173,22 @@ BaseStage FitBase(std::span<const RecordAnalysis> analyses, const Split& split, 
   return b;
 }
 
+// The report's maps, when the options ask for them: the diagnosis's last two progress stages.
+int MapStages(const DiagnoseOptions& options) {
+  return options.map_frequency_points > 0 && options.map_amplitude_points > 0 ? 2 : 0;
+}
+
+// The diagnosis's progress stages with `effects` candidate effects (DiagnoseOptions::progress).
+int PlannedStages(size_t effects, const DiagnoseOptions& options) {
+  return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + MapStages(options);
+}
+
 // Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
+// `step` (may be empty) hears where the fit is: the start values, each solve and Ceres iteration.
 CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
                           const EffectContext& context, const Split& split, std::span<const RecordAnalysis> analyses,
-                          ResponseKind kind, const FitFigures& base_figures, double seconds_left) {
+                          ResponseKind kind, const FitFigures& base_figures, double seconds_left,
+                          const std::function<void(const std::string&)>& step = {}) {
   const auto clock_start = std::chrono::steady_clock::now();
   CandidateFit c;
   c.effects = effects;
@@ -186,6 +199,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   if (variants > 1) {
     double best = kInf;
     for (int v = 0; v < variants; ++v) {
+      if (step) step("start value " + std::to_string(v + 1) + " of " + std::to_string(variants));
       const ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, v);
       const double chi2 = internal::Chi2At(split.fit_pointers, kind, problem,
                                            std::vector<double>(problem.parameters.size(), 1.0), orders);
@@ -197,6 +211,11 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   fit_options.orders = orders;
   fit_options.max_passes = options.max_passes;
   fit_options.max_seconds = std::max(1.0, seconds_left);
+  if (step)
+    fit_options.progress = [&](int solve, int iteration) {
+      step("solve " + std::to_string(solve) + " (at most " + std::to_string(options.max_passes) + "), iteration " +
+           std::to_string(iteration));
+    };
   ExtendedFitResult r;
   try {
     r = internal::FitExtended(split.fit_pointers, kind, problem, fit_options);
@@ -211,6 +230,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.model = r.model;
   c.parameters = r.parameters;
   c.effect_parameters = internal::EffectParameters(effects, r.parameters);
+  if (step) step("every record at the fitted model");
   const std::vector<RecordMatch> matches =
       MatchAll(r.model, analyses, split.heldout, kind, orders);
   c.figures = Figures(matches, problem.parameters.size());
@@ -346,12 +366,14 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   };
   const ResponseKind kind = campaign.response;
   const int orders = options.fit.harmonic_orders;
-  auto progress = [&](const std::string& stage) {
-    if (options.progress) options.progress(Format(options.max_seconds - seconds_left(), 3) + " s: " + stage);
+  // Progress: stage k of `stages` (diagnose.h); every effect is planned until the base fit says which apply.
+  int stages = PlannedStages(EffectLibrary().size(), options);
+  auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
+    if (options.progress) options.progress({stage, stages, name, step});
   };
   Diagnosis d;
   std::vector<std::string> warnings;
-  progress("analysing " + std::to_string(campaign.records.size()) + " records");
+  progress(1, "analysing " + std::to_string(campaign.records.size()) + " records");
   const std::vector<RecordAnalysis> analyses = AnalyseCampaign(campaign, options.fit, &warnings);
 
   // 1. The split.
@@ -361,8 +383,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
                                                          std::to_string(options.heldout_every) + ")");
 
   // 2. The base fit on the fit records, evaluated on all.
-  progress("base fit on " + std::to_string(split.fit.size()) + " records, " + std::to_string(d.heldout.size()) +
-           " held out");
+  progress(2, "base fit on " + std::to_string(split.fit.size()) + " records, " + std::to_string(d.heldout.size()) +
+                  " held out");
   BaseStage base = FitBase(analyses, split, kind, campaign.absolute_scale, options);
   d.base = std::move(base.fit);
   d.base.warnings.insert(d.base.warnings.begin(), warnings.begin(), warnings.end());
@@ -371,11 +393,16 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   d.fit_before = base.figures;
 
   // 3. Signatures.
+  std::vector<const EffectInfo*> applicable;
+  for (const EffectInfo& info : EffectLibrary())
+    if (internal::Applicable(info.effect, options.fit.model, context)) applicable.push_back(&info);
+  stages = PlannedStages(applicable.size(), options);
+  progress(3, "signatures of the base model's mismatch");
   d.signatures = internal::MeasureSignatures(campaign, analyses, d.before, d.base.model, kind, options.fit);
 
   // 4. Single effects, then the best pair.
-  for (const EffectInfo& info : EffectLibrary()) {
-    if (!internal::Applicable(info.effect, options.fit.model, context)) continue;
+  for (size_t i = 0; i < applicable.size(); ++i) {
+    const EffectInfo& info = *applicable[i];
     if (seconds_left() <= 0) {
       CandidateFit skipped;
       skipped.effects = {info.effect};
@@ -384,9 +411,12 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
       d.candidates.push_back(skipped);
       continue;
     }
-    progress("candidate " + std::string(info.id));
+    const int stage = 4 + static_cast<int>(i);
+    const std::string name = "candidate " + std::string(info.id);
+    progress(stage, name);
     d.candidates.push_back(RunCandidate({info.effect}, d.base.model, options, context, split, analyses, kind,
-                                        d.fit_before, seconds_left()));
+                                        d.fit_before, seconds_left(),
+                                        [&](const std::string& step) { progress(stage, name, step); }));
   }
   auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
     const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
@@ -411,9 +441,12 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
       if (tried++ == kMaxTriesPerRound || seconds_left() <= 0) break;
       std::vector<Effect> effects = current;
       effects.push_back(e);
-      progress("candidate " + Label(effects));
+      const int stage = 4 + static_cast<int>(applicable.size());
+      const std::string name = "forward selection: candidate " + Label(effects);
+      progress(stage, name);
       CandidateFit next = RunCandidate(effects, d.candidates[d.chosen].model, options, context, split, analyses, kind,
-                                       d.fit_before, seconds_left());
+                                       d.fit_before, seconds_left(),
+                                       [&](const std::string& step) { progress(stage, name, step); });
       const FitFigures& now = d.candidates[d.chosen].figures;
       next.note += (next.note.empty() ? "" : "; ") + std::string("held-out gain over ") +
                    d.candidates[d.chosen].label + ": " + Format(GainOver(now, next.figures, true));
@@ -489,6 +522,12 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   }
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;
+}
+
+int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options) {
+  const size_t singles = std::count_if(diagnosis.candidates.begin(), diagnosis.candidates.end(),
+                                       [](const CandidateFit& c) { return c.effects.size() == 1; });
+  return PlannedStages(singles, options);
 }
 
 CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effects, const DiagnoseOptions& options) {

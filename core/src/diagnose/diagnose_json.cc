@@ -13,12 +13,8 @@ namespace {
 nlohmann::json Parameters(const std::vector<FitParameter>& parameters) {
   nlohmann::json out = nlohmann::json::object();
   for (const FitParameter& p : parameters) {
-    out[p.name] = {{"value", JsonNumber(p.value)},
-                   {"standard_error", JsonNumber(p.standard_error)},
-                   {"unit", p.unit},
-                   {"fixed", p.fixed},
-                   {"identifiable", p.identifiable}};
-    if (!p.note.empty()) out[p.name]["note"] = p.note;
+    out[p.name] = FitParameterJson(p);
+    if (p.note.empty()) out[p.name].erase("note");
   }
   return out;
 }

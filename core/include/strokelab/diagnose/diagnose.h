@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "strokelab/base/errors.h"  // FieldError
+#include "strokelab/base/progress.h"
 #include "strokelab/identify/campaign.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/model/model.h"
@@ -74,9 +75,15 @@ struct DiagnoseOptions {
   // the campaign's frequency x amplitude range: grid points per axis, 0 in either: no maps. Read by
   // the report layer (strokelab diagnose --out, a diagnose job's report), not by DiagnoseCampaign,
   // which stays free of sweeps; kept here so that the CLI flags and job options come from one table.
+  // A caller that draws no maps sets them to 0, so that the progress plan leaves the maps out.
   int map_frequency_points = 40;
   int map_amplitude_points = 12;
-  std::function<void(const std::string&)> progress;  // one line per stage (may be empty)
+  // Called at each stage's start and within the candidates' fits (each solve and Ceres iteration),
+  // from the calling thread (may be empty). The stages, N of them: the records' analysis, the base
+  // fit, the signatures, one fit per candidate effect that applies (all seven planned until the base
+  // fit says which), the pair (when `pairs`; passed over unless two effects beat noise), and the
+  // report's two maps (when both map point counts are not 0; reported by report/diagnosis_maps.h).
+  ProgressHook progress;
   // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,
   // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds",
   // "map_frequency_points", "map_amplitude_points".
@@ -227,6 +234,10 @@ struct Diagnosis {
 
 // Throws InputError for bad options or campaigns (as FitCampaign).
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
+
+// N of the progress's "stage k of N" for a diagnosis that has run (DiagnoseOptions::progress): the
+// report's maps are its last two stages when options ask for them.
+int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options);
 
 // One candidate of the diagnosis fitted to every record, none held out: the base fit (step 2), then
 // the base model extended by `effects` with every parameter free (step 4, the problem and start

@@ -8,7 +8,8 @@
 // its result is one row, table "fit" (FitResultToJson) or "diagnosis" (DiagnosisToJson), plus, for
 // diagnose, the HTML report's files (with the saturation maps of the base and the diagnosed model,
 // swept in the same task within what is left of the job's max_seconds, and the diagnosed model's
-// model.json) as rows of table "report_files" ({"name", "content_type", "text"}). Its spec also
+// model.json) as rows of table "report_files" ({"name", "content_type", "text"}), and what its
+// status warns of as rows of table "warnings" ({"warning"}; campaign_warnings.h). Its spec also
 // carries the SHA-256 of the campaign's bundle (campaign_sha256, campaign_bundle.h), by which a remote
 // worker fetches the campaign and checks what it got; a remote worker sends a diagnosis as data
 // (RunTaskForRemote) and the server renders the report (CampaignRowsFromWorker, task_rows.h). Task
@@ -18,10 +19,12 @@
 
 #include <atomic>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "strokelab/base/progress.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/task.h"
 #include "strokelab/jobs/version.h"
@@ -37,13 +40,21 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
 // Whether a job kind works on a campaign (fit, diagnose): a remote worker fetches the campaign first.
 bool IsCampaignKind(const std::string& kind);
 
+// A fit or diagnose task's progress: stage k of N with the time elapsed and an estimate of the time
+// left (base/progress.h), from the task's thread (a diagnosis's maps: from their sweep's threads, one
+// at a time).
+using TaskProgressHook = std::function<void(const ProgressReport&)>;
+
 // Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
-std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
+// `progress` (may be empty) hears a fit or diagnose task's stages.
+std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
+                               const TaskProgressHook& progress = {});
 
 // What a remote worker runs: RunTask, except that a diagnose task's result is one row of table
 // "diagnosis_data" (report/diagnosis_data.h: the diagnosis and its maps as data) instead of the
 // rendered report, which the server renders itself. The task's campaign_dir must name the campaign.
-std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
+std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
+                                        const TaskProgressHook& progress = {});
 
 // 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
 std::string ContentKey(const std::string& text);
