@@ -1,8 +1,9 @@
 // Schema migrations (schema/migrations/, server/src/store.cc Migrate): an empty file reaches the
 // latest version; a file at every earlier version, built by applying only the migrations up to it
 // and filled with jobs, tasks, results and cache rows, reaches the latest with that data intact
-// (and, from version 1, with the job history that 002_job_events.sql backfills); a file of a newer
-// version is refused untouched; a migration that fails half-way leaves the file at its old version.
+// (and, from version 1, with the job history that 002_job_events.sql backfills; from any, with the
+// points counts that 004_job_points.sql backfills); a file of a newer version is refused untouched;
+// a migration that fails half-way leaves the file at its old version.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -23,12 +24,17 @@ using strokelab::testing::ScratchDirectory;
 
 int Latest() { return internal::Migrations().back().version; }
 
-// The tables every version has (version 1 created them), as text, for before/after comparisons.
+// The tables every version has, with the columns version 1 created (later versions add columns to
+// jobs), as text, for before/after comparisons.
 std::vector<std::string> DumpVersion1Tables(const std::string& path) {
   RawDb db(path);
   std::vector<std::string> all;
   for (const char* table : {"jobs", "tasks", "results", "cache"}) {
-    for (std::string& row : db.Rows(std::string("SELECT * FROM ") + table + " ORDER BY rowid"))
+    const std::string columns = std::string(table) == "jobs"
+                                    ? "id, kind, status, spec_json, tasks_total, tasks_done, created_ms, started_ms, "
+                                      "finished_ms, error"
+                                    : "*";
+    for (std::string& row : db.Rows("SELECT " + columns + " FROM " + table + " ORDER BY rowid"))
       all.push_back(std::string(table) + ": " + row);
   }
   return all;
@@ -182,6 +188,19 @@ TEST(Migration, StoredPointsTakeTheFrfColumnsUnitNames) {
   EXPECT_EQ(rows[0], json::parse(R"({"frequency_hz":8,"amplitude_v":0.3,"branch":"up","h_re_n_per_v":-0.25,
                                      "h_im_n_per_v":null})"));
   EXPECT_EQ(store->Results(1, "points", {}, 0, 10).rows[0], json::parse(R"({"frequency_hz":5,"amplitude_v":0.1,"branch":"up"})"));
+}
+
+// 004_job_points.sql: every job counts its stored points rows (the results of table "points", not
+// thresholds), and the store goes on counting from there: job 2's event when its last task
+// completes with one more point says 2 (EveryEarlierVersionReachesTheLatestWithItsDataIntact).
+TEST(Migration, JobsCountTheirStoredPoints) {
+  ASSERT_GE(Latest(), 4);
+  ScratchDirectory dir("strokelab-migrate");
+  const std::string path = (dir.path() / "jobs.db").string();
+  BuildAtVersion(path, 3);
+  Store::Open(path);
+  EXPECT_EQ(RawDb(path).Rows("SELECT id, points FROM jobs ORDER BY id"),
+            (std::vector<std::string>{"1|6", "2|1", "3|0", "4|0", "5|0"}));
 }
 
 TEST(Migration, NewerVersionIsRefusedAndLeftUntouched) {
