@@ -134,10 +134,8 @@ std::string Verdict(const Diagnosis& d) {
                     Num(a.nrmse).c_str(), Improvement(b.nrmse, a.nrmse).c_str(), Num(b.heldout_nrmse).c_str(),
                     Num(a.heldout_nrmse).c_str(), Improvement(b.heldout_nrmse, a.heldout_nrmse).c_str())) +
          "</p>\n";
-  if (d.unexplained) {
-    out += "<p class=\"unexplained\"><strong>Unexplained" + std::string(nothing ? "" : " beyond it") +
-           "</strong>: " + Esc(d.unexplained->description) + ".</p>\n";
-  }
+  // The conclusion, once: it carries the open-world test's description when something is unexplained.
+  if (!d.conclusion.empty()) out += "<p>" + Esc(d.conclusion) + "</p>\n";
   return out + "</div>\n";
 }
 

@@ -268,7 +268,7 @@ TEST(DiagnoseReportTest, NamedEffectTables) {
             "label,chosen,fitted,converged,heldout_gain,fit_gain,nrmse,heldout_nrmse,chi2,heldout_chi2,"
             "residual_variance,passes,wall_time_s,decision,note");
   EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,3,12.5,"));
-  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,0,0,skipped: <1 s of the budget left");
+  EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,0,0,,skipped: <1 s of the budget left");
   const auto parameters = Lines(ReadFile(dir / "candidate_parameters.csv"));
   ASSERT_EQ(parameters.size(), 3u);
   EXPECT_EQ(parameters[0], "candidate,parameter,value,standard_error,unit");

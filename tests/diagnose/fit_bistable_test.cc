@@ -2,7 +2,10 @@
 // (14 Hz / 0.5 V: the paper model's jump region): the start model has no contacting orbit matching it,
 // so its anchor starts on the free branch; between refinement passes the record must move to the
 // contacting orbit of the current iterate (fit_refine.cc, reselect_branches). Before that move existed this
-// campaign ended with residual variance 7959 and the record at nrmse 0.85.
+// campaign ended with residual variance 7959 and the record at nrmse 0.85. Since the refinement starts
+// |d| at the best point of its bracket (fit_stop_start.cc) the start already matches the record on its
+// contacting branch and no switch is needed here (branch_switches 0): the test checks the outcome, and
+// the switch itself is left without a campaign that needs it.
 #include <gtest/gtest.h>
 
 #include "strokelab/identify/fit.h"
@@ -29,7 +32,6 @@ TEST(FitBistable, ARecordOnTheContactingBranchOfTheJumpRegionIsMatched) {
   ASSERT_GT(edge->spikes, 0u) << "the synthesised record is not on the contacting branch: the test lost its point";
   EXPECT_EQ(edge->model_contacts_per_period, 1.0);
   EXPECT_LT(edge->nrmse, 0.02);
-  EXPECT_GE(fit.refinement.branch_switches, 1u);
   // The noise model holds when every record sits on its branch: s^2 ~ 1 (480-odd residuals: +-0.1).
   EXPECT_LT(fit.refinement.residual_variance, 1.3);
   EXPECT_GT(fit.refinement.residual_variance, 0.7);
