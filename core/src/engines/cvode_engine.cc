@@ -48,6 +48,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
 #include "contact_log.h"
@@ -315,10 +316,11 @@ class CvodeRun {
     bool done = false;
     while (!done) {
       if (++steps > max_steps)
-        throw NumericalError("cvode engine: work budget spent: CVode took more than " + FormatNumber(max_steps) +
+        throw WorkBudgetSpent("cvode engine: work budget spent: CVode took more than " + FormatNumber(max_steps) +
                              " steps, stuck near t = " + FormatNumber(t_s) + " s under the drive " +
                              FormatNumber(drive_.frequency_hz) + " Hz, " + FormatNumber(drive_.amplitude_v) +
                              " V (chattering between contact modes?)");
+      if ((static_cast<uint64_t>(steps) & 1023) == 0) ThrowIfCancelled();  // cancel.h
       const int flag = CVode(sundials_.cvode, end_s_, sundials_.y, &t_s, CV_ONE_STEP);
       Check(flag, "CVode", problem_);
       CheckStepResolved(t_s, &unresolved_steps);
