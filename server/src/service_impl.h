@@ -60,8 +60,8 @@ struct Service::Impl {
   // are handed to the in-process workers under that lease (LeaseForRemote).
   std::mutex handoff_mutex;
   std::deque<TaskLease> handoff;
-  // Fit and diagnose computations on threads of their own (RunHeldTask); joined when the service is
-  // destroyed, since core's fit and diagnosis cannot be interrupted.
+  // Every task's computation on a thread of its own (RunHeldTask), ended by its cancel flag; joined
+  // when the service stops.
   struct Computation {
     std::mutex mutex;
     std::condition_variable done_cv;
@@ -132,7 +132,8 @@ struct Service::Impl {
   // Remote and in-process workers (routes_tasks.cc, local_workers.cc).
   std::optional<TaskLease> LeaseForRemote(const std::string& worker);
   std::optional<TaskLease> TakeHandoff();
-  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease, const std::atomic<bool>& cancel);
+  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease,
+                                                    const std::shared_ptr<std::atomic<bool>>& cancel);
   void WorkLoop(int index);
 
   // Stores a task's rows. A storage error (disk full, I/O) is not the task's fault: the rows are

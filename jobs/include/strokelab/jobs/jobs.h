@@ -34,7 +34,9 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
 // only by in-process workers.
 bool IsCampaignKind(const std::string& kind);
 
-// Runs one task; `cancel` is polled between points and ends the task with strokelab::Cancelled.
+// Runs one task under `cancel` (a CancelScope, base/cancel.h): every loop of every kind (sweep points,
+// the engines' steps, the fit's and diagnosis's items and Ceres iterations) polls it, and the task
+// ends with strokelab::Cancelled within a few ms of it being raised (a Ceres iteration at worst).
 std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr);
 
 // 64-bit FNV-1a of the text, as 16 hex digits (a content key, not a security hash).
