@@ -299,9 +299,12 @@ TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
   fs::create_directories(root_ / "outside");
   fs::copy(campaign_dir(), root_ / "outside" / "campaign-b");
   fs::create_directory_symlink(root_ / "outside" / "campaign-b", root_ / "data" / "link-out");
+  // A file the manifest lists, leading out (an unlisted one is never opened: OnlyTheFilesTheManifestListsAreRead).
   const fs::path leaky = CopyCampaign("leaky");
-  fs::remove(leaky / "truth.json");
-  fs::create_symlink(root_ / "truth.json", leaky / "truth.json");
+  const std::string listed = ReadCampaign(leaky).records.front().name;
+  fs::copy_file(leaky / listed, root_ / "outside-record.csv", fs::copy_options::overwrite_existing);
+  fs::remove(leaky / listed);
+  fs::create_symlink(root_ / "outside-record.csv", leaky / listed);
   struct Case {
     json campaign;
     std::string field, message;
@@ -310,7 +313,7 @@ TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
       {{{"path", "../outside/campaign-b"}}, "/campaign/path", "'..'"},
       {{{"path", "campaign-a/../../outside/campaign-b"}}, "/campaign/path", "'..'"},
       {{{"path", "link-out"}}, "/campaign/path", "outside the data root"},
-      {{{"path", "leaky"}}, "/campaign/path", "'truth.json' is a symbolic link leading outside"},
+      {{{"path", "leaky"}}, "/campaign/path", "is a symbolic link leading outside"},
       {{{"path", "no-such-campaign"}}, "/campaign/path", "no campaign directory"},
       {{{"id", "../../outside/campaign-b"}}, "/campaign/id", "is not a campaign id"},
       {{{"id", "0123456789abcdef"}}, "/campaign/id", "no uploaded campaign"},
@@ -332,6 +335,7 @@ TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
   fs::remove_all(root_ / "outside");
   fs::remove(root_ / "data" / "link-out");
   fs::remove_all(leaky);
+  fs::remove(root_ / "outside-record.csv");
 }
 
 TEST_F(CampaignJobsTest, BadOptionsNameTheirField) {

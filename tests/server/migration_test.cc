@@ -23,12 +23,18 @@ using strokelab::testing::ScratchDirectory;
 
 int Latest() { return internal::Migrations().back().version; }
 
-// The tables every version has (version 1 created them), as text, for before/after comparisons.
+// The tables every version has (version 1 created them) with version 1's columns, as text, for
+// before/after comparisons (later versions add columns: tasks.budget_failures in 4).
 std::vector<std::string> DumpVersion1Tables(const std::string& path) {
   RawDb db(path);
   std::vector<std::string> all;
-  for (const char* table : {"jobs", "tasks", "results", "cache"}) {
-    for (std::string& row : db.Rows(std::string("SELECT * FROM ") + table + " ORDER BY rowid"))
+  const std::pair<const char*, const char*> tables[] = {
+      {"jobs", "*"},
+      {"tasks", "id, job_id, idx, key, spec_json, status, lease_token, lease_owner, lease_expires_ms, attempts, finished_ms"},
+      {"results", "*"},
+      {"cache", "*"}};
+  for (const auto& [table, columns] : tables) {
+    for (std::string& row : db.Rows(std::string("SELECT ") + columns + " FROM " + table + " ORDER BY rowid"))
       all.push_back(std::string(table) + ": " + row);
   }
   return all;
