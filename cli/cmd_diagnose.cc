@@ -1,10 +1,13 @@
 // strokelab diagnose: where a fitted model misses a campaign and which physics it left out
 // (core/include/strokelab/diagnose.h).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -44,7 +47,10 @@ amplifier_saturation) and names the one that improves the held-out records beyon
   --map-frequency-points N the report's saturation maps: frequencies over the
                            campaign's range (geometric); 0: no maps                   [40]
   --map-amplitude-points N amplitudes over the campaign's range (linear); 0: no maps  [12]
-  --progress               one line per stage on stderr
+  --progress               progress on stderr: a line at each stage's start (stage k of N,
+                           the time elapsed, an estimate of the time left from the stages
+                           done so far) and, inside a candidate's fit, one every 2 s at most
+                           (its solve and Ceres iteration)
   (and the fit's options: --harmonics, --mass-kg, --mains-hz, --max-distortion, --max-iterations,
    --fit-contact-damping, --no-refine; see strokelab fit --help)
 
@@ -77,6 +83,17 @@ line or the flag), 3 numerical failure.
 void PrintReport(const Diagnosis& d, std::ostream& out) {
   out << d.conclusion << "\n";
   out << "diagnosed model: " << d.model_note << "\n\n";
+  if (d.unexplained) {
+    out << "unexplained misfit (held-out chi-square " << General(d.unexplained->heldout_chi2, 4) << " against "
+        << General(d.unexplained->expected_chi2, 4) << " from noise, flagged above "
+        << General(d.unexplained->threshold_chi2, 4) << "), worst records:\n";
+    for (const Unexplained::Place& p : d.unexplained->places)
+      out << "  " << p.record << (p.heldout ? " (held out)" : "") << ": " << General(p.frequency_hz, 4) << " Hz, "
+          << General(p.amplitude_v, 4) << " V, " << General(p.chi2_per_residual, 3) << " x noise, worst harmonic "
+          << p.worst_harmonic << " (" << General(p.worst_harmonic_hz, 4) << " Hz), residual peaks at drive phase "
+          << General(p.residual_peak_phase_deg, 3) << " deg\n";
+    out << "\n";
+  }
   out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse, 4) << ", after "
       << General(d.fit_after.nrmse, 4) << "; held-out records (" << d.heldout.size() << "): before "
       << General(d.fit_before.heldout_nrmse, 4) << ", after " << General(d.fit_after.heldout_nrmse, 4) << "\n";
@@ -100,6 +117,7 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
                   General(c.figures.heldout_nrmse, 4).c_str(), General(c.seconds, 3).c_str());
     out << line;
     if (!c.note.empty() && !c.fitted) out << "    " << c.note << "\n";
+    if (!c.decision.empty()) out << "    " << c.decision << "\n";
   }
   out << "\nevidence:\n";
   for (const Evidence& e : d.signatures.evidence) {
@@ -114,6 +132,29 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
         << General(100 * h.magnitude_error, 3) << " %, phase " << General(h.phase_error_rad, 3) << " rad)\n";
   out << "\n" << General(d.seconds, 3) << " s\n";
 }
+
+// --progress: a line at each stage's start, and within a stage (a candidate's solves and
+// iterations, a map's grid points) at most one per kStepLineInterval.
+class ProgressPrinter {
+ public:
+  void operator()(const ProgressStage& stage) {
+    const std::lock_guard<std::mutex> lock(mutex_);  // the maps report from the sweep's threads
+    const auto now = std::chrono::steady_clock::now();
+    const bool new_stage = stage.stage != last_stage_;
+    if (!new_stage && now - last_line_ < kStepLineInterval) return;
+    const ProgressReport report = clock_.Report(stage);
+    std::cerr << ProgressLine(report) << std::endl;
+    last_stage_ = stage.stage;
+    last_line_ = now;
+  }
+
+ private:
+  static constexpr std::chrono::seconds kStepLineInterval{2};
+  std::mutex mutex_;
+  ProgressClock clock_;
+  int last_stage_ = 0;
+  std::chrono::steady_clock::time_point last_line_{};
+};
 
 // What the maps of the report show, in a few lines: the threshold's shift, or why a map is missing.
 void PrintMaps(const report::DiagnosisMaps& maps, std::ostream& out) {
@@ -156,12 +197,14 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   ReadOptionFlags(args, DiagnoseOptionFields(), &options);
   if (const std::optional<FieldError> error = options.IsValid())
     throw InputError(FlagOf(DiagnoseOptionFields(), error->field), error->message);
-  if (args.Has("--progress")) options.progress = [](const std::string& stage) { std::cerr << stage << std::endl; };
+  const auto out = args.Get("--out");
+  if (!out) options.map_frequency_points = options.map_amplitude_points = 0;  // no maps: none in the progress plan
+  const auto printer = std::make_shared<ProgressPrinter>();
+  if (args.Has("--progress")) options.progress = [printer](const ProgressStage& stage) { (*printer)(stage); };
 
   const Campaign campaign = ReadCampaign(*data);
   const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
   const nlohmann::json json = DiagnosisToJson(diagnosis);
-  const auto out = args.Get("--out");
   std::optional<report::DiagnosisMaps> maps;
   if (out) {
     maps = report::SweepDiagnosisMaps(diagnosis, options);

@@ -71,7 +71,9 @@ void PrintReport(const FitResult& r, std::ostream& out) {
       << General(l.gain_n_per_v, 6) << " N/V" << (l.converged ? "" : " (NOT CONVERGED)") << "\n";
   const ContactEstimate& c = r.contact;
   if (!c.records.empty()) {
-    out << "stage 3, contact: " << c.records.size() << " contacting records, " << c.spikes << " spikes, contact time "
+    const ContactCounts n = CountContacts(r);  // as FitResultToJson's stages.contact
+    out << "stage 3, contact: " << n.records_not_clear << " records not clear of the stop, " << n.records_with_spikes
+        << " of them with impact spikes (" << n.spikes << " spikes, " << c.spikes << " with a contact time), contact time "
         << General(c.contact_time_s * 1e3, 4) << " ms (RSD " << General(c.contact_time_rsd, 2) << "), k_s "
         << General(c.stiffness_n_per_m, 6) << " +- " << General(c.stiffness_spread_n_per_m, 3)
         << " N/m (spread), |d| between " << General(c.largest_clear_amplitude_m, 4) << " and "

@@ -121,11 +121,20 @@ json Expect(const httplib::Result& result, int status, const std::string& what, 
 }
 
 void PrintProgress(const json& job) {
-  const int done = job["progress"]["done"], total = job["progress"]["total"];
+  const json& progress = job["progress"];
+  const int done = progress["done"], total = progress["total"];
   const int width = 30, filled = total > 0 ? width * done / total : 0;
-  std::fprintf(stderr, "\r  job %lld [%s%s] %d/%d tasks, %s ", static_cast<long long>(job["id"].get<int64_t>()),
+  std::fprintf(stderr, "\r  job %lld [%s%s] %d/%d tasks, %s", static_cast<long long>(job["id"].get<int64_t>()),
                std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), done, total,
                job["status"].get<std::string>().c_str());
+  if (progress.contains("stage")) {  // a running fit or diagnose job: its stage, with the time
+    std::fprintf(stderr, ", stage %d of %d: %s, %.0f s", progress["stage"].get<int>(), progress["stages"].get<int>(),
+                 progress["stage_name"].get<std::string>().c_str(), progress["elapsed_s"].get<double>());
+    if (progress["eta_s"].is_number()) std::fprintf(stderr, ", about %.0f s left (estimate)", progress["eta_s"].get<double>());
+  }
+  for (const json& warning : job.value("warnings", json::array()))
+    std::fprintf(stderr, ", %s", warning.get<std::string>().c_str());
+  std::fputs("\033[K", stderr);  // the rest of a longer line drawn before
   std::fflush(stderr);
 }
 
@@ -223,8 +232,19 @@ int RunServe(const std::vector<std::string>& argv) {
   return 0;
 }
 
+namespace {
+
+// $XDG_CACHE_HOME/strokelab/campaigns, else $HOME/.cache/strokelab/campaigns, else under the temp directory.
+std::string DefaultCampaignCache() {
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) return std::string(xdg) + "/strokelab/campaigns";
+  if (const char* home = std::getenv("HOME"); home && *home) return std::string(home) + "/.cache/strokelab/campaigns";
+  return (std::filesystem::temp_directory_path() / "strokelab-campaigns").string();
+}
+
+}  // namespace
+
 int RunWorker(const std::vector<std::string>& argv) {
-  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks", "--exit-when-idle"},
+  const Args args(argv, {"--server", "--token", "--threads", "--name", "--max-tasks", "--exit-when-idle", "--cache-dir"},
                   {"--help"});
   if (args.Has("--help")) {
     std::cout << kWorkerHelp;
@@ -244,6 +264,14 @@ int RunWorker(const std::vector<std::string>& argv) {
     const int seconds = args.Integer("--exit-when-idle", 0);
     if (seconds < 0 || seconds > 7 * 24 * 3600) throw InputError("--exit-when-idle", "must be between 0 and 604800 seconds");
     options.exit_when_idle_ms = seconds * 1000;
+  }
+  options.campaign_cache_dir = args.GetOr("--cache-dir", DefaultCampaignCache());
+  std::error_code cache_error;
+  std::filesystem::create_directories(options.campaign_cache_dir, cache_error);
+  if (cache_error) {
+    std::fprintf(stderr, "worker: cannot create the campaign cache %s (%s): fit and diagnose tasks are left to other workers\n",
+                 options.campaign_cache_dir.c_str(), cache_error.message().c_str());
+    options.campaign_cache_dir.clear();
   }
   InstallStopSignals();
   const int done = worker::RunRemoteWorker(options, g_stop);
@@ -306,34 +334,34 @@ int RunStatus(const std::vector<std::string>& argv) {
 
 namespace {
 
-// A sweep's points over every page: {"points": [...]} or CSV with one header.
+// A sweep's points: CSV as the server streams every row in one body (?format=csv without limit and
+// cursor), written out as it arrives; or {"points": [...]} over every JSON page.
 void PrintSweepPoints(const Args& args, const Connection& c, int64_t id) {
   httplib::Client client = c.client();
-  httplib::Headers headers = Headers(c.token);
-  const bool csv = args.Has("--csv");
-  if (csv) headers.emplace("Accept", "text/csv");
-  std::string query = "limit=10000";
-  if (auto b = args.Get("--branch")) query += "&branch=" + *b;
-  if (auto a = args.Get("--amplitude-v")) query += "&amplitude_v=" + *a;
+  const httplib::Headers headers = Headers(c.token);
+  std::string filters;
+  if (auto b = args.Get("--branch")) filters += "&branch=" + *b;
+  if (auto a = args.Get("--amplitude-v")) filters += "&amplitude_v=" + *a;
+  const std::string points = "/v1/jobs/" + std::to_string(id) + "/points?";
+  if (args.Has("--csv")) {
+    const std::string path = points + "format=csv" + filters;
+    int status = 0;
+    auto result = client.Get(
+        path, headers, [&status](const httplib::Response& r) { return (status = r.status) == 200; },
+        [](const char* data, size_t length) { return static_cast<bool>(std::cout.write(data, static_cast<std::streamsize>(length))); });
+    if (status != 200) Expect(client.Get(path, headers), 200, "results", &c);  // the server's error, read whole
+    if (!result) Expect(result, 200, "results", &c);                           // cut off while streaming
+    std::cout.flush();
+    return;
+  }
   json all = json::array();
   for (std::string cursor = "0";;) {
-    const std::string path = "/v1/jobs/" + std::to_string(id) + "/points?" + query + "&cursor=" + cursor;
-    auto result = client.Get(path, headers);
-    if (csv) {
-      if (!result || result->status != 200) Expect(result, 200, "results", &c);
-      std::string body = result->body;
-      if (cursor != "0") body = body.substr(body.find('\n') + 1);  // header once
-      std::cout << body;
-      cursor = result->get_header_value("X-Next-Cursor");
-      if (cursor.empty() || cursor == "0") break;
-    } else {
-      const json page = Expect(result, 200, "results", &c);
-      for (const json& p : page["points"]) all.push_back(p);
-      if (page["next_cursor"].is_null()) break;
-      cursor = std::to_string(page["next_cursor"].get<int64_t>());
-    }
+    const json page = Expect(client.Get(points + "limit=10000" + filters + "&cursor=" + cursor, headers), 200, "results", &c);
+    for (const json& p : page["points"]) all.push_back(p);
+    if (page["next_cursor"].is_null()) break;
+    cursor = std::to_string(page["next_cursor"].get<int64_t>());
   }
-  if (!csv) std::cout << json({{"points", all}}).dump(2) << "\n";
+  std::cout << json({{"points", all}}).dump(2) << "\n";
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "commands.h"
 #include "strokelab/base/errors.h"
@@ -77,8 +78,10 @@ grid: {frequency_hz, amplitude_v}, model, wall_time_s, points_per_second}; non-f
   frf_phase.svg             arg H [rad], up branch solid, down branch dashed
   model.json, summary.txt   the model swept and the text summary
 
-While running, a progress line is shown on stderr if it is a terminal. Ctrl-C cancels: the sweep
-stops at its next unit of work, prints "cancelled" and exits with code 130.
+While running, a progress line is shown on stderr if it is a terminal: grid points done (a row's
+as its continuation passes them) and threshold columns, the time elapsed and an estimate of the
+time left. Ctrl-C cancels: the sweep stops at its next unit of work, prints "cancelled" and exits
+with code 130.
 )";
 
 // Set by SIGINT; RunSweep polls it. A second Ctrl-C ends the process at once.
@@ -110,10 +113,13 @@ class InterruptGuard {
   struct sigaction previous_ = {};
 };
 
-// A one-line progress bar on stderr, redrawn in place at most every 0.1 s; only on a terminal.
+// A one-line progress bar on stderr, redrawn in place at most every 0.1 s; only on a terminal. Its
+// units are the sweep's grid points (a row's as its continuation passes them) and threshold columns
+// (SweepProgress); the time left is an estimate from the rate so far.
 class ProgressLine {
  public:
-  ProgressLine() : enabled_(isatty(STDERR_FILENO) == 1), start_(std::chrono::steady_clock::now()) {}
+  explicit ProgressLine(std::string units)
+      : enabled_(isatty(STDERR_FILENO) == 1), start_(std::chrono::steady_clock::now()), units_(std::move(units)) {}
   ~ProgressLine() { Clear(); }
 
   // Called from RunSweep's worker threads.
@@ -128,8 +134,12 @@ class ProgressLine {
     const int filled = static_cast<int>(fraction * kWidth);
     std::string bar(static_cast<size_t>(filled), '#');
     bar.resize(kWidth, '.');
-    std::fprintf(stderr, "\rsweep [%s] %zu/%zu %3.0f%% %.1f s\033[K", bar.c_str(), progress.done, progress.total,
-                 100.0 * fraction, std::chrono::duration<double>(now - start_).count());
+    const double elapsed_s = std::chrono::duration<double>(now - start_).count();
+    std::fprintf(stderr, "\rsweep [%s] %zu/%zu %s %3.0f%% %.1f s", bar.c_str(), progress.done, progress.total,
+                 units_.c_str(), 100.0 * fraction, elapsed_s);
+    if (progress.done > 0 && progress.done < progress.total && elapsed_s >= 1.0)  // a rate over a second at least
+      std::fprintf(stderr, ", about %.0f s left (estimate)", elapsed_s * (1.0 / fraction - 1.0));
+    std::fputs("\033[K", stderr);
     std::fflush(stderr);
     drawn_ = true;
   }
@@ -145,6 +155,7 @@ class ProgressLine {
  private:
   const bool enabled_;
   const std::chrono::steady_clock::time_point start_;
+  const std::string units_;
   std::chrono::steady_clock::time_point last_draw_{};
   std::mutex mutex_;
   bool drawn_ = false;
@@ -275,7 +286,7 @@ int RunSweep(const std::vector<std::string>& argv) {
   SweepResult result;
   {
     const InterruptGuard guard;
-    ProgressLine progress;
+    ProgressLine progress(spec.thresholds ? "grid points and threshold columns" : "grid points");
     try {
       result = strokelab::RunSweep(spec, [&](const SweepProgress& p) { progress.Update(p); }, &interrupted);
     } catch (const Cancelled&) {

@@ -33,7 +33,8 @@ inline constexpr const char* kResultsHelp =
     "                        [--server URL] [--token T]\n"
     "\n"
     "Prints a finished job's results on stdout. A sweep job: its steady states, one row per grid\n"
-    "point and branch, as {\"points\": [...]} or as CSV (every page, one header). A fit or diagnose\n"
+    "point and branch, as {\"points\": [...]} or as CSV (the server's CSV stream of every row,\n"
+    "GET /v1/jobs/ID/points?format=csv, written out as it arrives). A fit or diagnose\n"
     "job: its result document as JSON (as strokelab fit --json / strokelab diagnose print it).\n"
     "\n" STROKELAB_CLIENT_CONNECTION_HELP
     "  --csv          a sweep's points as CSV\n"
@@ -45,10 +46,11 @@ inline constexpr const char* kResultsHelp =
 
 inline constexpr const char* kWorkerHelp =
     "usage: strokelab worker [--server URL] [--token T] [--threads N] [--name NAME] [--max-tasks N]\n"
-    "                        [--exit-when-idle SECONDS]\n"
+    "                        [--exit-when-idle SECONDS] [--cache-dir DIR]\n"
     "\n"
     "A remote worker: leases tasks from a server over HTTP, runs them and sends the results back,\n"
-    "retrying while the server is unreachable. Ctrl-C stops it after the tasks it runs. Polls of an\n"
+    "retrying while the server is unreachable (fit and diagnose tasks too: the campaign is fetched\n"
+    "from the server). Ctrl-C stops it after the tasks it runs. Polls of an\n"
     "empty queue back off from 0.5 s to 10 s on one kept-alive connection.\n"
     "\n"
     "  --server URL   the server, http://HOST:PORT          [$STROKELAB_SERVER, else http://127.0.0.1:8080]\n"
@@ -57,7 +59,11 @@ inline constexpr const char* kWorkerHelp =
     "  --name NAME    the name the server records for its leases                       [HOST-PID]\n"
     "  --max-tasks N  exit after N tasks                                               [no limit]\n"
     "  --exit-when-idle SECONDS  exit once no task has been leased or run for SECONDS (a batch\n"
-    "                 job's worker then frees its allocation, e.g. under Slurm)          [never]\n";
+    "                 job's worker then frees its allocation, e.g. under Slurm)          [never]\n"
+    "  --cache-dir DIR  where the campaigns of fit and diagnose tasks are kept, fetched from the\n"
+    "                 server by their SHA-256 and checked against it; a directory that cannot be\n"
+    "                 created leaves those tasks to other workers (said at the start)\n"
+    "                 [$XDG_CACHE_HOME/strokelab/campaigns, else ~/.cache/strokelab/campaigns]\n";
 
 #undef STROKELAB_CLIENT_CONNECTION_HELP
 

@@ -34,6 +34,28 @@ install_missing() {
     $sudo apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}"
   fi
+  install_web_library
+}
+
+# The web page's plotting library (uPlot, pinned with its hash by clients/web/package-lock.json),
+# which the build compiles into the server: npm ci into clients/web/node_modules when it is missing
+# or holds another version. npm is Debian's package `npm`, installed only when no npm is on PATH (a
+# Node.js from elsewhere brings its own, and Debian's would conflict with it). The configure step
+# runs the same npm ci if this was skipped (server/cmake/embed_web_library.cmake).
+install_web_library() {
+  local lock=clients/web/package-lock.json installed=clients/web/node_modules/uplot/package.json
+  local pinned have=""
+  pinned=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["packages"]["node_modules/uplot"]["version"])' "$lock")
+  [ -f "$installed" ] && have=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["version"])' "$installed")
+  [ "$have" = "$pinned" ] && return 0
+  if ! command -v npm >/dev/null; then
+    local sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq npm
+  fi
+  echo "installing the web page's library: uPlot $pinned (npm ci in clients/web)"
+  (cd clients/web && npm ci --ignore-scripts --no-audit --no-fund)
 }
 
 BUILD_DIR=${STROKELAB_BUILD_DIR:-build/release}
@@ -83,7 +105,7 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # ASan + UBSan, with libFuzzer's coverage instrumentation so that the same build holds the fuzz
 # harnesses (one clang build instead of two; the instrumentation costs the tests little): every test
 # but these. Library/DiagnoseTest.*, ExtendedFitTest.* and fit_zscore_study_few (four campaigns of
-# the z-score study) run 10-40 s each in Release (minutes here); web_page drives Chromium, whose
+# the z-score study) run 10-40 s each in Release (minutes here); web_page and web_status_badge drive Chromium, whose
 # own code the sanitizers do not see and whose page the server_process and python_client tests
 # already serve; of the seven ForceCampaign tests one runs:
 # each process synthesises and fits the same campaign (~30 s here) before checking another figure.
@@ -94,7 +116,7 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # in the CLI and server tests.
 # Then each harness's corpus is replayed (ctest) and each harness fuzzed for FUZZ_SECONDS.
 ASAN_DIR=build/asan
-ASAN_EXCLUDE='^(web_page|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*)$'
+ASAN_EXCLUDE='^(web_page|web_page_diagnosis|web_status_badge|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*)$'
 asan_build() {
   configure_clang "$ASAN_DIR" -DSTROKELAB_SANITIZE=address,undefined -DSTROKELAB_FUZZ=ON
   cmake --build "$ASAN_DIR" -j "$(nproc)"

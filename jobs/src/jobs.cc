@@ -7,7 +7,10 @@
 #include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/report/diagnosis_data.h"
 #include "strokelab/report/diagnosis_maps.h"
+#include "campaign_rows_internal.h"
+#include "strokelab/jobs/campaign_bundle.h"
 #include "strokelab/report/sweep_tables.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
@@ -15,6 +18,7 @@
 #include "strokelab/model/model_json.h"
 #include "strokelab/engines/record_summary.h"
 #include "strokelab/data/recordings.h"
+#include "strokelab/jobs/campaign_warnings.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/job_spec.h"
 #include "strokelab/sweep/sweep.h"
@@ -40,6 +44,8 @@ std::string ContentTypeOf(const std::string& name) {
   return "text/plain; charset=utf-8";
 }
 
+}  // namespace
+
 // The HTML report of a diagnosis with its maps (WriteDiagnosisReport into a scratch directory) as
 // result rows. The report's files are UTF-8 text (an HTML page, CSV tables, the model file), stored
 // as JSON strings.
@@ -60,21 +66,36 @@ std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis, const rep
   return rows;
 }
 
+namespace {
+
 // A fit or diagnose task: the campaign is read again (and must still have the digest it was planned
-// with), then fitted or diagnosed.
-std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task) {
+// with), then fitted or diagnosed, its progress reported with the time. `as_data`: a diagnosis goes
+// out as data (RunTaskForRemote), and the server adds its warnings (CampaignRowsFromWorker).
+std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data, const TaskProgressHook& progress) {
+  ProgressClock clock;
   const std::string type = task.at("type");
   const fs::path dir = task.at("campaign_dir").get<std::string>();
   if (CampaignDigest(dir) != task.at("campaign_digest"))
     throw std::runtime_error("the campaign changed after the job was submitted; submit the job again");
   const Campaign campaign = ReadCampaign(dir);
   const nlohmann::json& job = task.at("job");
-  if (type == "fit") return {{"fit", FitResultToJson(FitCampaign(campaign, FitOptionsFromJob(job)))}};
-  const DiagnoseOptions options = DiagnoseOptionsFromJob(job);
+  if (type == "fit") {
+    // The fit reports no stages of its own: one stage, with the time.
+    if (progress) progress(clock.Report({1, 1, "fit on " + std::to_string(campaign.records.size()) + " records", {}}));
+    const FitResult fit = FitCampaign(campaign, FitOptionsFromJob(job));
+    std::vector<ResultRow> rows = {{"fit", FitResultToJson(fit)}};
+    if (as_data) return rows;  // a remote fit's row alone (CampaignRowsFromWorker takes one row)
+    for (ResultRow& row : WarningRows(FitWarnings(fit))) rows.push_back(std::move(row));
+    return rows;
+  }
+  DiagnoseOptions options = DiagnoseOptionsFromJob(job);
+  if (progress) options.progress = [&](const ProgressStage& stage) { progress(clock.Report(stage)); };
   const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
-  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
   // The report's maps of the base and the diagnosed model, within what is left of max_seconds.
   const report::DiagnosisMaps maps = report::SweepDiagnosisMaps(diagnosis, options);
+  if (as_data) return {{"diagnosis_data", report::DiagnosisDataToJson(diagnosis, maps)}};
+  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
+  for (ResultRow& row : WarningRows(DiagnosisWarnings(diagnosis))) rows.push_back(std::move(row));
   for (ResultRow& row : DiagnosisReportRows(diagnosis, maps)) rows.push_back(std::move(row));
   return rows;
 }
@@ -134,8 +155,8 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
     }
     nlohmann::json spec_job = job;
     spec_job.erase("name");
-    tasks.push_back(
-        MakeTask({{"type", kind}, {"job", spec_job}, {"campaign_dir", dir.string()}, {"campaign_digest", digest}}));
+    tasks.push_back(MakeTask({{"type", kind}, {"job", spec_job}, {"campaign_dir", dir.string()},
+                              {"campaign_digest", digest}, {"campaign_sha256", CampaignSha256(dir)}}));
   } else {
     throw InputError("/kind", "job kind '" + kind + "' is not served yet");
   }
@@ -144,10 +165,11 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
 
 namespace {
 
-// One task's rows; its loops poll the thread's cancel flag (RunTask sets it).
-std::vector<ResultRow> RunTaskRows(const nlohmann::json& task) {
+// One task's rows; its loops poll the thread's cancel flag (RunTask sets it). `as_data`: a diagnose
+// task's result as data (RunTaskForRemote) instead of the rendered report.
+std::vector<ResultRow> RunTaskRows(const nlohmann::json& task, bool as_data, const TaskProgressHook& progress) {
   const std::string type = task.at("type");
-  if (IsCampaignKind(type)) return RunCampaignTask(task);
+  if (IsCampaignKind(type)) return RunCampaignTask(task, as_data, progress);
   const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
   std::vector<ResultRow> rows;
   if (type == "sweep_row") {
@@ -185,15 +207,27 @@ std::vector<ResultRow> RunTaskRows(const nlohmann::json& task) {
   return rows;
 }
 
-}  // namespace
-
-std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel) {
-  // Every loop of the task polls `cancel` (base/cancel.h): engines, sweeps, ParallelFor, Ceres solves.
+// Runs the task's rows under `cancel`: every loop of the task polls it (base/cancel.h): engines,
+// sweeps, ParallelFor, Ceres solves.
+std::vector<ResultRow> RunRowsUnder(const nlohmann::json& task, const std::atomic<bool>* cancel, bool as_data,
+                                    const TaskProgressHook& progress) {
   const CancelScope scope(cancel);
-  std::vector<ResultRow> rows = RunTaskRows(task);
+  std::vector<ResultRow> rows = RunTaskRows(task, as_data, progress);
   // A solve the flag aborted returns what it had: rows computed while it was raised are dropped.
   ThrowIfCancelled();
   return rows;
+}
+
+}  // namespace
+
+std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel,
+                               const TaskProgressHook& progress) {
+  return RunRowsUnder(task, cancel, false, progress);
+}
+
+std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel,
+                                        const TaskProgressHook& progress) {
+  return RunRowsUnder(task, cancel, true, progress);
 }
 
 }  // namespace strokelab::jobs

@@ -104,13 +104,18 @@ std::string Header(const Diagnosis& d) {
 std::string Verdict(const Diagnosis& d) {
   const CandidateFit* chosen = Chosen(d);
   const bool nothing = chosen == nullptr && d.missing_physics.empty();
-  std::string out = nothing ? "<div class=\"verdict nothing\">\n" : "<div class=\"verdict\">\n";
-  if (nothing) {
+  std::string out = nothing && !d.unexplained ? "<div class=\"verdict nothing\">\n" : "<div class=\"verdict\">\n";
+  if (nothing && !d.unexplained) {
     out += "<p class=\"answer\"><strong>Nothing missing</strong>: no candidate effect improved the held-out fit "
-           "enough to be named; the base model stands.</p>\n";
+           "enough to be named, and what the base model leaves on the held-out records is noise.</p>\n";
+  } else if (nothing) {
+    out += "<p class=\"answer\"><strong>Unexplained</strong>: the model misses something that no library effect "
+           "explains.</p>\n";
   } else {
     const std::string name = chosen ? chosen->label : EffectIds(d.missing_physics);
-    out += "<p class=\"answer\">Missing physics: <strong>" + Esc(name) + "</strong></p>\n";
+    out += "<p class=\"answer\">Missing physics: <strong>" + Esc(name) + "</strong>" +
+           (chosen && !chosen->converged ? " (its fit did <strong>not converge</strong>: the values may be off)" : "") +
+           "</p>\n";
     if (chosen && !chosen->effect_parameters.empty()) {
       out += "<ul>\n";
       for (const FitParameter& p : chosen->effect_parameters) out += "<li>" + Esc(ParameterText(p) + RelativeSe(p)) + "</li>\n";
@@ -129,7 +134,10 @@ std::string Verdict(const Diagnosis& d) {
                     Num(a.nrmse).c_str(), Improvement(b.nrmse, a.nrmse).c_str(), Num(b.heldout_nrmse).c_str(),
                     Num(a.heldout_nrmse).c_str(), Improvement(b.heldout_nrmse, a.heldout_nrmse).c_str())) +
          "</p>\n";
-  if (!d.conclusion.empty()) out += "<p>" + Esc(d.conclusion) + "</p>\n";
+  if (d.unexplained) {
+    out += "<p class=\"unexplained\"><strong>Unexplained" + std::string(nothing ? "" : " beyond it") +
+           "</strong>: " + Esc(d.unexplained->description) + ".</p>\n";
+  }
   return out + "</div>\n";
 }
 
@@ -197,12 +205,14 @@ std::string CandidatesTable(const Diagnosis& d) {
     rows += std::string(is_chosen ? "<tr class=\"chosen\">" : "<tr>") + Td(c.label + (is_chosen ? " (chosen)" : "")) +
             YesNo(c.fitted) + YesNo(c.converged) + NumTd(c.heldout_gain) + NumTd(c.fit_gain) +
             NumTd(c.figures.heldout_nrmse) + NumTd(c.figures.nrmse) + Td(parameters.empty() ? "-" : parameters) +
-            Td(std::to_string(c.passes), "num") + NumTd(c.seconds, 3) + Td(c.note, "note") + "</tr>\n";
+            Td(std::to_string(c.passes), "num") + NumTd(c.seconds, 3) + Td(c.decision, "note") + Td(c.note, "note") +
+            "</tr>\n";
   }
   out += "<p class=\"caption\">Gains: drop of the chi-square against the base model, in residual variances of the "
-         "candidate (held out: the records no fit saw).</p>\n";
+         "candidate (held out: the records no fit saw). Decision: named, or why not, with the numbers that decided "
+         "(the rules: the README's diagnosis section).</p>\n";
   return out + Table({"candidate", "fitted", "converged", "held-out gain", "fit gain", "held-out nrmse", "nrmse",
-                      "effect parameters \u00b1 SE", "passes", "time [s]", "note"},
+                      "effect parameters \u00b1 SE", "passes", "time [s]", "decision", "note"},
                      rows);
 }
 

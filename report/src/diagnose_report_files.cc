@@ -137,13 +137,14 @@ void WriteRecords(const Diagnosis& d, const std::filesystem::path& path) {
 void WriteCandidates(const Diagnosis& d, const std::filesystem::path& path) {
   std::vector<std::vector<std::string>> rows = {
       {"label", "chosen", "fitted", "converged", "heldout_gain", "fit_gain", "nrmse", "heldout_nrmse", "chi2",
-       "heldout_chi2", "residual_variance", "passes", "wall_time_s", "note"}};
+       "heldout_chi2", "residual_variance", "passes", "wall_time_s", "decision", "note"}};
   for (size_t i = 0; i < d.candidates.size(); ++i) {
     const CandidateFit& c = d.candidates[i];
     rows.push_back({c.label, static_cast<int>(i) == d.chosen ? "1" : "0", c.fitted ? "1" : "0",
                     c.converged ? "1" : "0", Cell(c.heldout_gain), Cell(c.fit_gain), Cell(c.figures.nrmse),
                     Cell(c.figures.heldout_nrmse), Cell(c.figures.chi2), Cell(c.figures.heldout_chi2),
-                    Cell(c.figures.residual_variance), std::to_string(c.passes), Cell(c.seconds), c.note});
+                    Cell(c.figures.residual_variance), std::to_string(c.passes), Cell(c.seconds), c.decision,
+                    c.note});
   }
   WriteRows(path, rows);
 }
@@ -153,7 +154,7 @@ void WriteCandidateParameters(const Diagnosis& d, const std::filesystem::path& p
   std::vector<std::vector<std::string>> rows = {{"candidate", "parameter", "value", "standard_error", "unit"}};
   for (const CandidateFit& c : d.candidates) {
     for (const FitParameter& p : c.effect_parameters)
-      rows.push_back({c.label, p.name, Cell(p.value), Cell(p.standard_error), p.unit});
+      rows.push_back({c.label, p.name, Cell(p.value), p.fixed ? std::string() : Cell(p.standard_error), p.unit});
   }
   WriteRows(path, rows);
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <exception>
+#include <functional>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -62,8 +63,10 @@ class Deadline {
 };
 
 // One model's map, or nothing with the reason in `note`.
+// `points` (may be empty) hears the sweep's progress (sweep.h), from its threads one at a time.
 std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const DiagnosisMaps& maps,
-                                         Clock::time_point deadline, double max_seconds, std::string* note) {
+                                         Clock::time_point deadline, double max_seconds, std::string* note,
+                                         const std::function<void(const SweepProgress&)>& points) {
   SweepSpec spec;
   spec.model = model;
   spec.frequency_hz = maps.frequency_hz;
@@ -84,7 +87,7 @@ std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const Diagn
   std::atomic<bool> stop{false};
   try {
     const Deadline watch(deadline, &stop);
-    return RunSweep(spec, {}, &stop);
+    return RunSweep(spec, points, &stop);
   } catch (const Cancelled&) {
     if (CancelRequested()) throw;  // the caller's flag, not the deadline
     *note = Format("cut off after %.3g s: ", SecondsSince(start)) + budget + " was spent";
@@ -98,8 +101,17 @@ std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const Diagn
 
 DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& options) {
   const Clock::time_point start = Clock::now();
-  auto progress = [&](const std::string& line) {
-    if (options.progress) options.progress(line);
+  // The diagnosis's last two progress stages (diagnose.h), each with its sweep's grid points.
+  const int stages = DiagnosisProgressStages(d, options);
+  auto progress = [&](int stage, const std::string& name) {
+    if (options.progress) options.progress({stage, stages, name, {}});
+  };
+  auto points_of = [&](int stage, const std::string& name) -> std::function<void(const SweepProgress&)> {
+    if (!options.progress) return {};
+    return [&options, stage, stages, name](const SweepProgress& p) {
+      options.progress({stage, stages, name,
+                        std::to_string(p.done) + " of " + std::to_string(p.total) + " grid points and columns"});
+    };
   };
   DiagnosisMaps maps;
   if (options.map_frequency_points == 0 || options.map_amplitude_points == 0) {
@@ -123,17 +135,20 @@ DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& opti
       start + std::chrono::duration_cast<Clock::duration>(
                   std::chrono::duration<double>(std::max(0.0, options.max_seconds - d.seconds)));
   const std::string grid = Format("%d x %d", options.map_frequency_points, options.map_amplitude_points);
-  progress("map of the base model (" + grid + ")");
-  maps.base = SweepOneModel(d.base.model, maps, deadline, options.max_seconds, &maps.base_note);
+  const std::string base_name = "map of the base model (" + grid + ")";
+  progress(stages - 1, base_name);
+  maps.base = SweepOneModel(d.base.model, maps, deadline, options.max_seconds, &maps.base_note,
+                            points_of(stages - 1, base_name));
   if (maps.same_model) {
     maps.diagnosed = maps.base;
     maps.diagnosed_note = maps.base_note;
   } else {
-    progress(Format("%.3g s: map of the diagnosed model (", SecondsSince(start)) + grid + ")");
-    maps.diagnosed = SweepOneModel(d.model, maps, deadline, options.max_seconds, &maps.diagnosed_note);
+    const std::string diagnosed_name = "map of the diagnosed model (" + grid + ")";
+    progress(stages, diagnosed_name);
+    maps.diagnosed = SweepOneModel(d.model, maps, deadline, options.max_seconds, &maps.diagnosed_note,
+                                   points_of(stages, diagnosed_name));
   }
   maps.seconds = SecondsSince(start);
-  progress(Format("%.3g s: maps done", maps.seconds));
   return maps;
 }
 

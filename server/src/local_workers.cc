@@ -1,7 +1,8 @@
 // The service's in-process workers: each leases tasks from the store (or takes one handed over by a
-// remote lease), runs it, and stores its rows; fit and diagnose tasks run on threads of their own.
+// remote lease), runs it, and stores its rows; every task runs on a thread of its own (RunHeldTask).
 #include "service_impl.h"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "now.h"
@@ -12,15 +13,19 @@ namespace strokelab::server {
 using nlohmann::json;
 using namespace internal;
 
-// A task handed over by LeaseForRemote whose lease is still held (renewed now), if any.
-std::optional<TaskLease> Service::Impl::TakeHandoff() {
+// A task handed over by LeaseForRemote whose lease is still held (renewed now), if any; for a remote
+// worker (with_campaign_hash) only one whose campaign it can fetch.
+std::optional<TaskLease> Service::Impl::TakeHandoff(bool with_campaign_hash) {
   for (;;) {
     TaskLease lease;
     {
       std::lock_guard<std::mutex> lock(handoff_mutex);
-      if (handoff.empty()) return std::nullopt;
-      lease = handoff.front();
-      handoff.pop_front();
+      const auto it = std::find_if(handoff.begin(), handoff.end(), [&](const TaskLease& held) {
+        return !with_campaign_hash || held.spec.contains("campaign_sha256");
+      });
+      if (it == handoff.end()) return std::nullopt;
+      lease = *it;
+      handoff.erase(it);
     }
     if (store->RenewLease(lease, NowMs(), options.lease_ms)) return lease;
   }
@@ -34,6 +39,7 @@ std::optional<TaskLease> Service::Impl::TakeHandoff() {
 std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease& lease,
                                                                  const std::shared_ptr<std::atomic<bool>>& cancel) {
   auto computation = std::make_shared<Computation>();
+  computation->job_id = lease.job_id;
   {
     std::lock_guard<std::mutex> lock(computations_mutex);
     std::erase_if(computations, [](auto& c) {
@@ -46,7 +52,11 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
                                 std::vector<ResultRow> rows;
                                 std::exception_ptr error;
                                 try {
-                                  rows = jobs::RunTask(spec, cancel.get());
+                                  rows = jobs::RunTask(spec, cancel.get(), [&computation](const ProgressReport& r) {
+                                    json progress = StageProgressJson(r);
+                                    std::lock_guard<std::mutex> progress_lock(computation->mutex);
+                                    computation->progress = std::move(progress);
+                                  });
                                 } catch (...) {
                                   error = std::current_exception();
                                 }
@@ -103,7 +113,7 @@ void Service::Impl::WorkLoop(int index) {
   while (!stopping) {
     std::optional<TaskLease> lease;
     try {
-      lease = TakeHandoff();
+      lease = TakeHandoff(/*with_campaign_hash=*/false);
       if (!lease) lease = store->LeaseTask(name, NowMs(), options.lease_ms);
     } catch (const std::exception& e) {
       if (dynamic_cast<const StoreError*>(&e)) storage.WriteFailed(e.what(), NowMs());

@@ -15,6 +15,8 @@ namespace strokelab::server {
 
 using namespace internal;
 
+constexpr size_t kMaxCompletionBytes = size_t{64} << 20;
+
 void Service::Impl::Authorize(const httplib::Request& req, Role required) {
   if (!tokens.enabled()) return;
   const std::string header = req.get_header_value("Authorization");
@@ -41,8 +43,11 @@ void Service::Impl::On(const std::string& method, const std::string& pattern, ht
 
 void Service::Impl::Register(const std::string& method, const std::string& pattern, std::optional<Role> role,
                              httplib::Server::Handler handler) {
-  const size_t max_body = method != "POST" ? 0 : pattern == "/v1/campaigns" ? options.max_campaign_bytes
-                                                                            : options.max_body_bytes;
+  // A completion may carry a diagnosis with its maps (several MiB on large campaigns and maps).
+  const size_t max_body = method != "POST"                   ? 0
+                          : pattern == "/v1/campaigns"       ? options.max_campaign_bytes
+                          : pattern.ends_with("/complete")   ? std::max(options.max_body_bytes, kMaxCompletionBytes)
+                                                             : options.max_body_bytes;
   routes.push_back({std::regex(pattern), method, role, max_body});
   if (method == "GET") {
     http.Get(pattern, std::move(handler));

@@ -1,6 +1,8 @@
 // The job routes: submit, list, read and cancel jobs, and upload campaigns for fit and diagnose jobs.
 #include "service_impl.h"
 
+#include <cmath>
+
 #include "campaign_upload.h"
 #include "http_reply.h"
 #include "now.h"
@@ -19,6 +21,7 @@ json JobJson(const JobRecord& job) {
             {"kind", job.kind},
             {"status", ToString(job.status)},
             {"progress", {{"done", job.tasks_done}, {"total", job.tasks_total}}},
+            {"warnings", json::array()},
             {"created_ms", job.created_ms},
             {"started_ms", job.started_ms ? json(job.started_ms) : json(nullptr)},
             {"finished_ms", job.finished_ms ? json(job.finished_ms) : json(nullptr)}};
@@ -37,6 +40,32 @@ json JobDetailJson(const JobRecord& job) {
     j["resolved"] = nullptr;  // a spec stored by an older strokelab that this one no longer takes
   }
   return j;
+}
+
+json StageProgressJson(const ProgressReport& r) {
+  return {{"stage", r.stage.stage},
+          {"stages", r.stage.stages},
+          {"stage_name", r.stage.name},
+          {"step", r.stage.step},
+          {"elapsed_s", r.elapsed_s},
+          {"eta_s", std::isfinite(r.eta_s) ? json(r.eta_s) : json(nullptr)}};
+}
+
+void Service::Impl::AddCampaignStatus(const JobRecord& job, json* j) {
+  if (!jobs::IsCampaignKind(job.kind)) return;
+  if (job.status == JobStatus::kRunning) {
+    json live;
+    {
+      std::lock_guard<std::mutex> lock(computations_mutex);
+      for (auto it = computations.rbegin(); it != computations.rend() && live.is_null(); ++it) {
+        std::lock_guard<std::mutex> progress_lock(it->second->mutex);
+        if (it->second->job_id == job.id && !it->second->done) live = it->second->progress;
+      }
+    }
+    if (live.is_object()) (*j)["progress"].update(live);
+  } else if (job.status == JobStatus::kSucceeded) {
+    for (const json& row : store->Results(job.id, "warnings", {}, 0, 1000).rows) (*j)["warnings"].push_back(row.at("warning"));
+  }
 }
 
 JobRecord Service::Impl::RequireJob(const std::string& id_text) {
@@ -73,11 +102,6 @@ void Service::Impl::AddJobRoutes() {
               HoldToJobSeconds(&job, options.max_job_seconds);
               // Validates; InputError -> 400 (a campaign's file and line: jobs::CampaignError).
               const std::vector<TaskSpec> tasks = jobs::PlanTasks(job, campaigns);
-              if (jobs::IsCampaignKind(job.at("kind")) && local_workers == 0)
-                throw HttpError{400, "unsupported_kind",
-                                job.at("kind").get<std::string>() +
-                                    " jobs need the server's in-process workers (this server runs with --workers 0)",
-                                "/kind"};
               const int64_t id = store->SubmitJob(job.at("kind"), job, tasks, NowMs());
               wake.notify_all();
               // Accepted as queued, unless every task was served from the store at once (a worker
@@ -93,14 +117,19 @@ void Service::Impl::AddJobRoutes() {
              json jobs = json::array();
              int64_t last = 0;
              for (const JobRecord& j : store->ListJobs(limit, before)) {
-               jobs.push_back(JobJson(j));
+               json entry = JobJson(j);
+               AddCampaignStatus(j, &entry);
+               jobs.push_back(std::move(entry));
                last = j.id;
              }
              SendJson(res, {{"jobs", jobs},
                             {"next_before", static_cast<int>(jobs.size()) == limit ? json(last) : json(nullptr)}});
            }));
   On("GET", R"(/v1/jobs/(\d+))", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
-             SendJson(res, JobDetailJson(RequireJob(req.matches[1])));
+             const JobRecord job = RequireJob(req.matches[1]);
+             json detail = JobDetailJson(job);
+             AddCampaignStatus(job, &detail);
+             SendJson(res, detail);
            }));
   On("DELETE", R"(/v1/jobs/(\d+))", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
                 const JobRecord job = RequireJob(req.matches[1]);

@@ -249,6 +249,23 @@ void Service::Impl::AddResultRoutes() {
              if (rows.empty()) throw std::runtime_error("job " + std::to_string(job.id) + " has no stored result");
              SendJson(res, rows.front());
            }));
+  // The model file a campaign job produced (ModelToJson: the format of a job's "model" and of
+  // `strokelab sweep --model`): a fit's fitted model, a diagnosis's diagnosed model; the web page's
+  // download. The diagnosis's is also its report's model.json.
+  On("GET", R"(/v1/jobs/(\d+)/model)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
+             const JobRecord job = RequireJob(req.matches[1]);
+             if (!jobs::IsCampaignKind(job.kind))
+               throw HttpError{400, "no_model_file",
+                               "only fit and diagnose jobs produce a model file (a sweep's model is in its resolved spec "
+                               "at /v1/jobs/" + std::to_string(job.id) + ")", ""};
+             const bool fit = job.kind == "fit";
+             const std::vector<json> rows = CampaignJobRows(job, fit ? "fit" : "diagnosis");
+             const char* member = fit ? "fitted_model" : "model";
+             if (rows.empty() || !rows.front().contains(member))
+               throw std::runtime_error("job " + std::to_string(job.id) + " has no stored " + member);
+             res.set_header("Content-Disposition", "attachment; filename=\"job-" + std::to_string(job.id) + "-model.json\"");
+             res.set_content(rows.front()[member].dump(2) + "\n", "application/json");
+           }));
   // The report's main page is its index.html (else its first .html file); FILE is another file of it.
   On("GET", R"(/v1/jobs/(\d+)/report(/.*)?)", Route(Role::kRead, [this](const httplib::Request& req, httplib::Response& res) {
              const JobRecord job = RequireJob(req.matches[1]);

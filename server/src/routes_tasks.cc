@@ -13,19 +13,27 @@ namespace strokelab::server {
 using nlohmann::json;
 using namespace internal;
 
-// Leases a task for a remote worker. Fit and diagnose tasks read campaigns from the server's disk,
-// which a remote worker need not see: one drawn here stays leased and goes to the in-process workers
-// (or fails the job at once when there are none), and the next task is drawn for the remote worker.
-std::optional<TaskLease> Service::Impl::LeaseForRemote(const std::string& worker) {
+// Leases a task for a remote worker. A fit or diagnose task goes to a worker that fetches campaigns
+// (GET /v1/campaigns/{sha256}, routes_campaigns.cc) when its spec names the campaign's hash. One
+// drawn for a worker that cannot fetch it stays leased and waits in `handoff` for an in-process
+// worker or the next remote worker that fetches campaigns (its lease expires after lease_ms if none
+// comes, and it is queued again), and the next task is drawn. A task planned before campaign hashes
+// existed is failed at once when there are no in-process workers, since no remote worker can run it.
+std::optional<TaskLease> Service::Impl::LeaseForRemote(const std::string& worker, bool fetches_campaigns) {
+  if (fetches_campaigns)
+    if (std::optional<TaskLease> waiting = TakeHandoff(/*with_campaign_hash=*/true)) return waiting;
   for (;;) {
     std::optional<TaskLease> lease = store->LeaseTask(worker, NowMs(), options.lease_ms);
     if (!lease || !jobs::IsCampaignKind(lease->kind)) return lease;
-    if (local_workers == 0) {
-      store->FailTask(*lease, lease->kind + " jobs need the server's in-process workers (serve --workers >= 1)", NowMs());
+    const bool hashed = lease->spec.contains("campaign_sha256");
+    if (fetches_campaigns && hashed) return lease;
+    if (local_workers == 0 && !hashed) {
+      store->FailTask(*lease, lease->kind + " task planned before campaign downloads and no in-process workers (serve --workers 0): submit the job again", NowMs());
       continue;
     }
     {
       std::lock_guard<std::mutex> lock(handoff_mutex);
+      std::erase_if(handoff, [&](const TaskLease& held) { return held.task_id == lease->task_id; });  // an expired wait
       handoff.push_back(*lease);
     }
     wake.notify_all();
@@ -40,13 +48,18 @@ void Service::Impl::AddTaskRoutes() {
                 throw HttpError{400, "bad_request", "expected a string", "/worker"};
               // Remote names are prefixed so that none can pass for this server's own "local-" workers,
               // whose leases are released at start.
-              const std::optional<TaskLease> lease = LeaseForRemote("remote:" + body.value("worker", std::string("unnamed")));
+              if (body.contains("fetches_campaigns") && !body["fetches_campaigns"].is_boolean())
+                throw HttpError{400, "bad_request", "expected true or false", "/fetches_campaigns"};
+              const std::optional<TaskLease> lease = LeaseForRemote("remote:" + body.value("worker", std::string("unnamed")),
+                                                                    body.value("fetches_campaigns", false));
               if (!lease) {
                 res.status = 204;
                 return;
               }
+              json spec = lease->spec;
+              spec.erase("campaign_dir");  // the server's own path: the worker fetches the campaign by hash
               SendJson(res, {{"task_id", lease->task_id}, {"job_id", lease->job_id}, {"index", lease->index},
-                             {"kind", lease->kind}, {"spec", lease->spec}, {"lease_token", lease->lease_token},
+                             {"kind", lease->kind}, {"spec", spec}, {"lease_token", lease->lease_token},
                              {"expires_ms", lease->expires_ms}, {"lease_ms", options.lease_ms}});
             }));
   // A remote worker keeps its lease while a long task runs (remote_worker.cc renews every lease_ms / 4).
@@ -75,7 +88,10 @@ void Service::Impl::AddTaskRoutes() {
               std::vector<ResultRow> rows;
               for (json& row : given) rows.push_back({row["table"].get<std::string>(), std::move(row["values"])});
               try {  // what is stored here is also served from the cache to identical jobs
-                jobs::ValidateTaskRows(*task, rows);
+                if (jobs::IsCampaignKind(task->at("type")))  // a diagnosis as data; its report rendered here
+                  rows = jobs::CampaignRowsFromWorker(*task, std::move(rows));
+                else
+                  jobs::ValidateTaskRows(*task, rows);
               } catch (const InputError& e) {
                 throw HttpError{400, "invalid_rows", e.bare_message(), e.field()};
               }

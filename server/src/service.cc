@@ -37,12 +37,25 @@ static bool IsPriorityRequest(std::string_view request_line) {
   return std::regex_match(request_line.begin(), request_line.end(), priority);
 }
 
-// The page's policy: its own scripts (inline ones carry this response's nonce; a library it loads
-// must come from this server), its inline styles and the server's SVG, requests to this server only.
+// The page's policy. Scripts: only the two the page carries, its own inline one and the vendored
+// uPlot from /vendor/, both tagged with this response's nonce (no other script of this server or
+// any other runs, and no eval: uPlot needs none). Styles: the page's <style>, the uPlot stylesheet
+// from this server, and the style attributes of the server's SVG ('unsafe-inline'; uPlot itself sets
+// styles through the DOM, which the policy does not govern). Requests to this server only.
 static std::string PageContentSecurityPolicy(const std::string& nonce) {
-  return "default-src 'none'; script-src 'self' 'nonce-" + nonce +
+  return "default-src 'none'; script-src 'nonce-" + nonce +
          "'; style-src 'self' 'unsafe-inline'; img-src 'self' data:; connect-src 'self'; form-action 'self'; "
          "base-uri 'none'; frame-ancestors 'none'";
+}
+
+// A route pattern that matches `path` as it is ('.' is a regex character).
+static std::string LiteralPattern(std::string_view path) {
+  std::string pattern;
+  for (char c : path) {
+    if (c == '.') pattern += '\\';
+    pattern += c;
+  }
+  return pattern;
 }
 
 static std::string PageNonce() {
@@ -163,6 +176,12 @@ void Service::Impl::SetUpRoutes() {
     res.set_header("Content-Security-Policy", PageContentSecurityPolicy(nonce));
     res.set_content(WithScriptNonce(WebPage(), nonce), "text/html; charset=utf-8");
   });
+  // The page's plotting library, compiled in (no network at run time); open like the page.
+  for (const WebLibraryFile& file : WebLibraryFiles()) {
+    On("GET", LiteralPattern(file.path), [&file](const httplib::Request&, httplib::Response& res) {
+      res.set_content(file.bytes.data(), file.bytes.size(), file.content_type);
+    });
+  }
   // Health is open (load balancers and probes carry no token) and says nothing about jobs.
   On("GET", "/v1/health", [this](const httplib::Request&, httplib::Response& res) {
     // 503 while writes fail (disk full, I/O error): the service answers reads but cannot take work.
@@ -183,6 +202,7 @@ void Service::Impl::SetUpRoutes() {
   AddJobRoutes();
   AddResultRoutes();
   AddTaskRoutes();
+  AddCampaignRoutes();
 }
 
 std::optional<FieldError> ServiceOptions::IsValid() const {

@@ -22,6 +22,7 @@
 #include "http_gate.h"
 #include "metrics.h"
 #include "storage_health.h"
+#include "strokelab/base/progress.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/server/auth.h"
 #include "strokelab/server/service.h"
@@ -36,6 +37,9 @@ nlohmann::json JobJson(const JobRecord& job);
 // and "resolved" (jobs::ResolvedJob: the model with every parameter, the grid's axes with their
 // values, the options with their defaults).
 nlohmann::json JobDetailJson(const JobRecord& job);
+// A fit or diagnose task's progress as a job's "progress" adds it: stage, stages, stage_name, step,
+// elapsed_s, eta_s (an estimate; null until one stage has finished).
+nlohmann::json StageProgressJson(const ProgressReport& report);
 
 struct Service::Impl {
   ServiceOptions options;
@@ -56,15 +60,17 @@ struct Service::Impl {
   internal::StorageHealth storage;  // whether writes work, for /v1/health
   int local_workers = 0;  // in-process workers, set by Start before the HTTP thread
   jobs::CampaignDirs campaigns;
-  // Fit and diagnose tasks that a remote lease request drew: they need the server's disk, so they
-  // are handed to the in-process workers under that lease (LeaseForRemote).
+  // Fit and diagnose tasks that a remote lease request drew for a worker that cannot fetch campaigns:
+  // kept under that lease for an in-process worker or a remote one that can (LeaseForRemote).
   std::mutex handoff_mutex;
   std::deque<TaskLease> handoff;
   // Every task's computation on a thread of its own (RunHeldTask), ended by its cancel flag; joined
   // when the service stops.
   struct Computation {
+    int64_t job_id = 0;
     std::mutex mutex;
     std::condition_variable done_cv;
+    nlohmann::json progress;  // the latest StageProgressJson (null before the first stage)
     bool done = false;
     std::vector<ResultRow> rows;
     std::exception_ptr error;
@@ -111,6 +117,11 @@ struct Service::Impl {
   // that error messages and job errors do not show the server's file system.
   std::string WithoutServerPaths(std::string text) const;
 
+  // Adds to a job's JSON (JobJson) what the store's job row does not hold: a running fit or diagnose
+  // job's stage progress (from its computation in this process) and a finished one's warnings (its
+  // result rows of table "warnings"; jobs.h).
+  void AddCampaignStatus(const JobRecord& job, nlohmann::json* job_json);
+
   // The job of a path's id (404 when there is none).
   JobRecord RequireJob(const std::string& id_text);
 
@@ -128,10 +139,11 @@ struct Service::Impl {
   void AddJobRoutes();
   void AddResultRoutes();
   void AddTaskRoutes();
+  void AddCampaignRoutes();  // routes_campaigns.cc: a leased task's campaign for its remote worker
 
   // Remote and in-process workers (routes_tasks.cc, local_workers.cc).
-  std::optional<TaskLease> LeaseForRemote(const std::string& worker);
-  std::optional<TaskLease> TakeHandoff();
+  std::optional<TaskLease> LeaseForRemote(const std::string& worker, bool fetches_campaigns);
+  std::optional<TaskLease> TakeHandoff(bool with_campaign_hash);
   std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease,
                                                     const std::shared_ptr<std::atomic<bool>>& cancel);
   void WorkLoop(int index);

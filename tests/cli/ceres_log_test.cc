@@ -9,9 +9,11 @@
 
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "run_cli.h"
 
@@ -61,15 +63,43 @@ TEST_F(CeresLogTest, AFitPrintsOnlyStrokelabsOwnLines) {
   EXPECT_EQ(fit.stderr_text, "");
 }
 
+// Every line is a progress line of its own, and says stage k of N with the time elapsed and, from the
+// second stage on, an estimate of the time left (issue 16, point 11: the lines were "2.72e-06 s:
+// analysing 24 records", then one per candidate with the seconds since the start, nothing in between).
 TEST_F(CeresLogTest, ADiagnosisPrintsOnlyItsProgress) {
-  const CliResult diagnose =
-      RunCli("diagnose --data " + campaign_ + " --map-frequency-points 0 --map-amplitude-points 0 --progress");
+  const CliResult diagnose = RunCli("diagnose --json --no-pairs --progress --data " + campaign_);
   ASSERT_EQ(diagnose.exit_code, 0) << diagnose.stderr_text;
   EXPECT_THAT(GlogLines(diagnose.stderr_text), ::testing::IsEmpty()) << diagnose.stderr_text;
-  // Every line is a progress line of its own: "<elapsed> s: <stage>".
+  static const std::regex line_form(
+      R"(stage (\d+) of (\d+): ([^|,]+)(, [^|]+)? \| ([0-9.]+) s elapsed(, about ([0-9.]+) s left \(estimate\))?)");
   std::istringstream lines(diagnose.stderr_text);
-  for (std::string line; std::getline(lines, line);)
-    EXPECT_THAT(line, ::testing::MatchesRegex(R"([0-9.e+-]+ s: .*|map .*)")) << diagnose.stderr_text;
+  int last_stage = 0, stages = 0;
+  std::vector<std::string> names;
+  for (std::string line; std::getline(lines, line);) {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_match(line, m, line_form)) << line << "\n" << diagnose.stderr_text;
+    const int stage = std::stoi(m[1]);
+    stages = std::stoi(m[2]);
+    EXPECT_GE(stage, last_stage) << diagnose.stderr_text;
+    EXPECT_LE(stage, stages) << diagnose.stderr_text;
+    if (stage > last_stage) {
+      names.push_back(m[3]);
+      EXPECT_EQ(m[6].matched, stage > 1) << line;  // an estimate once a stage has finished
+    }
+    last_stage = stage;
+  }
+  ASSERT_GE(names.size(), 4u) << diagnose.stderr_text;
+  EXPECT_EQ(names[0], "analysing 6 records");
+  EXPECT_EQ(names[1].rfind("base fit on ", 0), 0u) << names[1];
+  EXPECT_EQ(names[3].rfind("candidate ", 0), 0u) << names[3];
+  // Without --out there are no maps and with --no-pairs no pair: N is the analysis, the base fit,
+  // the signatures and one stage per candidate effect, and the last candidate is stage N.
+  EXPECT_EQ(stages, static_cast<int>(names.size())) << diagnose.stderr_text;
+  EXPECT_EQ(last_stage, stages) << diagnose.stderr_text;
+  // Issue 16, point 5: the fixed m_p has no standard error and is not "identifiable" (its note says so).
+  const nlohmann::json m_p = nlohmann::json::parse(diagnose.stdout_text)["base_parameters"]["m_p"];
+  EXPECT_TRUE(m_p["standard_error"].is_null()) << m_p.dump();
+  EXPECT_FALSE(m_p["identifiable"].get<bool>()) << m_p.dump();
 }
 
 TEST_F(CeresLogTest, TheVariableSendsThemToStderrOrAFileAtItsLevel) {

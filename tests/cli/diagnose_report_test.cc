@@ -10,6 +10,7 @@
 #include <cmath>
 #include <complex>
 #include <filesystem>
+#include <functional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -20,6 +21,7 @@
 
 #include "report_test_util.h"
 #include "strokelab/model/model_json.h"
+#include "strokelab/report/diagnosis_data.h"
 #include "strokelab/report/diagnosis_maps.h"
 
 namespace strokelab::report {
@@ -264,7 +266,7 @@ TEST(DiagnoseReportTest, NamedEffectTables) {
   // One value per cell: the effect parameters are a table of their own, one row per parameter.
   EXPECT_EQ(candidates[0],
             "label,chosen,fitted,converged,heldout_gain,fit_gain,nrmse,heldout_nrmse,chi2,heldout_chi2,"
-            "residual_variance,passes,wall_time_s,note");
+            "residual_variance,passes,wall_time_s,decision,note");
   EXPECT_THAT(candidates[1], ::testing::StartsWith("cubic_stiffness,1,1,1,540.5,1350,0.01234,0.0152,160,55,1.02,3,12.5,"));
   EXPECT_EQ(candidates[3], "dry_friction,0,0,0,,,,,,,,0,0,skipped: <1 s of the budget left");
   const auto parameters = Lines(ReadFile(dir / "candidate_parameters.csv"));
@@ -512,6 +514,91 @@ TEST(DiagnoseReportMapsTest, MissingMapsAreSaidWhyAndLeaveEmptyTables) {
   html = ReadFile(dir / "index.html");
   EXPECT_THAT(html, HasSubstr("Saturation maps not computed (map_frequency_points or map_amplitude_points is 0)."));
   EXPECT_EQ(Count(html, "<svg"), 12u);
+}
+
+// ---- A diagnosis as data (what a remote worker sends) --------------------------------------------
+
+// The report and result document written from the data, after a text round trip as over HTTP.
+void ExpectSameReportFromData(const Diagnosis& d, const DiagnosisMaps& maps, const std::string& name) {
+  const nlohmann::json sent = nlohmann::json::parse(DiagnosisDataToJson(d, maps).dump());
+  const DiagnosisData got = DiagnosisDataFromJson(sent);
+  EXPECT_EQ(DiagnosisToJson(got.diagnosis).dump(), DiagnosisToJson(d).dump()) << name;
+  const std::filesystem::path direct = FreshDir("data_direct_" + name), rebuilt = FreshDir("data_rebuilt_" + name);
+  WriteDiagnosisReport(d, direct, &maps);
+  WriteDiagnosisReport(got.diagnosis, rebuilt, &got.maps);
+  for (const std::string& file : DiagnosisReportFiles())
+    EXPECT_EQ(ReadFile(rebuilt / file), ReadFile(direct / file)) << name << ": " << file;
+}
+
+TEST(DiagnosisDataTest, TheReportFromDataIsTheReportFromTheDiagnosis) {
+  Diagnosis named = Named();  // and the members Named leaves at their defaults
+  named.base.model_kind = FitModelKind::kLinear;
+  named.base.absolute_scale = false;
+  named.base.identifiability = "k_s not identifiable: no contacts";
+  named.base.warnings = {"rec3: drive 2 % off the manifest"};
+  named.before[1].power = 2.5;
+  named.before[1].model_period = 2;
+  named.candidates[0].model.cubic_stiffness_n_per_m3 = 2e6;
+  ExpectSameReportFromData(named, MapsOf(), "named");
+  DiagnosisMaps same = MapsOf();
+  same.same_model = true;
+  same.diagnosed.reset();
+  same.base->failures = {"row at 0.3 V: no periodic orbit"};
+  ExpectSameReportFromData(NothingMissing(), same, "nothing");
+  DiagnosisMaps none;
+  none.note = "no maps: map_frequency_points is 0";
+  ExpectSameReportFromData(Diagnosis{}, none, "empty");
+}
+
+TEST(DiagnosisDataTest, AWorkersMarkupIsRenderedAsText) {
+  Diagnosis d = Named();
+  const std::string markup = "<script>alert(1)</script><img src=x onerror=alert(2)>";
+  d.conclusion = d.model_note = d.candidates[1].note = d.signatures.evidence[0].summary = markup;
+  d.before[0].name = d.after[0].name = markup;
+  DiagnosisMaps maps = MapsOf();
+  maps.base_note = markup;
+  const DiagnosisData got = DiagnosisDataFromJson(DiagnosisDataToJson(d, maps));
+  const std::filesystem::path dir = FreshDir("data_markup");
+  WriteDiagnosisReport(got.diagnosis, dir, &got.maps);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  EXPECT_THAT(html, Not(HasSubstr("<script")));
+  EXPECT_THAT(html, Not(HasSubstr("<img")));
+  EXPECT_THAT(html, HasSubstr("&lt;script&gt;alert(1)&lt;/script&gt;"));
+}
+
+// Each damaged document is refused naming the member, as the server answers a worker's completion.
+TEST(DiagnosisDataTest, BadDataIsRefusedNamingTheMember) {
+  const nlohmann::json good = DiagnosisDataToJson(Named(), MapsOf());
+  ASSERT_NO_THROW(DiagnosisDataFromJson(good));
+  const auto field_of = [&](const std::function<void(nlohmann::json&)>& spoil) {
+    nlohmann::json bad = good;
+    spoil(bad);
+    try {
+      DiagnosisDataFromJson(bad);
+    } catch (const InputError& e) {
+      return e.field();
+    }
+    return std::string("(accepted)");
+  };
+  using nlohmann::json;
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"].erase("conclusion"); }), "/diagnosis/conclusion");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["before"][2]["nrmse"] = "small"; }), "/diagnosis/before/2/nrmse");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["before"][2]["nrmse"] = INFINITY; }), "/diagnosis/before/2/nrmse");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["candidates"][1]["effects"][0] = "magic"; }),
+            "/diagnosis/candidates/1/effects/0");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["chosen"] = 3; }), "/diagnosis/chosen");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["chosen"] = -1; }), "/diagnosis/chosen");  // yet an effect is named
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["heldout"][0] = 15; }), "/diagnosis/heldout/0");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["after"].erase(0); }), "/diagnosis/after");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["before"][0]["measured"] = json(std::vector<json>(65, {1, 0})); }),
+            "/diagnosis/before/0/measured");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["conclusion"] = std::string(70'000, 'x'); }), "/diagnosis/conclusion");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["model"]["mass_kg"] = -1; }).rfind("/diagnosis/model", 0), 0u);
+  EXPECT_EQ(field_of([](json& j) { j["maps"]["base"]["points"][0]["peak_force_n"] = INFINITY; }),
+            "/maps/base/points/0/peak_force_n");
+  EXPECT_EQ(field_of([](json& j) { j["maps"]["diagnosed"]["jump"] = json::object(); }), "/maps/diagnosed/jump");
+  EXPECT_EQ(field_of([](json& j) { j.erase("maps"); }), "/maps");
 }
 
 }  // namespace

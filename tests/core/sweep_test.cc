@@ -2,8 +2,10 @@
 // sweeps (the second method), and against what the paper reports and reference values.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "strokelab/steady/continuation.h"
 #include "strokelab/engines/engine.h"
@@ -271,12 +273,32 @@ TEST(SweepEngineTest, CancellationStopsTheSweep) {
   EXPECT_THROW(RunSweep(spec,
                         [&](const SweepProgress& p) {
                           ++calls;
-                          EXPECT_EQ(p.total, 250u);
+                          EXPECT_EQ(p.total, 50u * 200u + 200u);  // grid points and threshold columns
                           cancel = true;
                         },
                         &cancel),
                Cancelled);
   EXPECT_EQ(calls, 1u);
+}
+
+// Progress comes in grid points, a row's as its continuation passes them (issue 16, point 11: a
+// smooth model's row takes seconds, and a bar per row stood still that long): more reports than rows
+// and columns, each count above the one before, the last the whole grid and its columns.
+TEST(SweepEngineTest, ProgressCountsGridPointsAsTheRowsPassThem) {
+  SweepSpec spec;
+  spec.model = PaperModel();
+  spec.frequency_hz = {5.0, 20.0, 30};
+  spec.amplitude_v = {0.2, 0.4, 2};
+  spec.threads = 2;
+  std::vector<size_t> done;
+  RunSweep(spec, [&](const SweepProgress& p) {
+    EXPECT_EQ(p.total, 2u * 30u + 30u);
+    done.push_back(p.done);
+  });
+  ASSERT_GT(done.size(), 2u + 30u);
+  EXPECT_TRUE(std::is_sorted(done.begin(), done.end()));
+  EXPECT_EQ(std::adjacent_find(done.begin(), done.end()), done.end()) << "a report without progress";
+  EXPECT_EQ(done.back(), 90u);
 }
 
 // A strongly softening suspension (k3 = -1e9 N/m^3: the restoring force turns at 0.36 mm, no upper

@@ -118,7 +118,7 @@ class Compose(unittest.TestCase):
         command = " ".join(self.compose["services"]["server"]["command"])
         workers = re.search(r"--workers=\$\{STROKELAB_SERVER_WORKERS:-(\d+)\}", command)
         self.assertTrue(workers, command)
-        self.assertGreater(int(workers.group(1)), 0, "fit and diagnose jobs run on in-process workers only")
+        self.assertGreater(int(workers.group(1)), 0, "the server keeps an in-process worker")
 
     def test_workers_take_the_token_from_a_file_and_skip_the_server_healthcheck(self):
         worker = self.compose["services"]["worker"]

@@ -84,7 +84,10 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
     EXPECT_EQ(d.chosen, -1);
     // The diagnosed model is the base fit's.
     EXPECT_EQ(ModelToJson(d.model), ModelToJson(d.base.model));
-    EXPECT_THAT(d.model_note, ::testing::HasSubstr("nothing missing"));
+    EXPECT_THAT(d.model_note, ::testing::HasSubstr("nothing named"));
+    // What the base model leaves is noise.
+    EXPECT_FALSE(d.unexplained) << d.unexplained->description;
+    EXPECT_THAT(d.conclusion, ::testing::StartsWith("nothing missing"));
     return;
   }
   // Concealed: the effect's share of the raw response is below the noise (sensor volts over the
@@ -98,6 +101,9 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
 
   ASSERT_FALSE(d.missing_physics.empty());
   EXPECT_STREQ(Info(d.missing_physics.front()).id, c.name.c_str());
+  // One effect, no spurious second, and nothing left beyond noise.
+  EXPECT_EQ(d.missing_physics.size(), 1u);
+  EXPECT_FALSE(d.unexplained) << d.unexplained->description;
   ASSERT_GE(d.chosen, 0);
   const CandidateFit& chosen = d.candidates[d.chosen];
   const std::string key = Info(d.missing_physics.front()).parameter;

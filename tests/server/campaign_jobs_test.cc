@@ -17,15 +17,18 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/data/recordings.h"
 #include "strokelab/server/service.h"
+#include "strokelab/worker/remote_worker.h"
 #include "strokelab/data/synth.h"
 #include "campaign_upload.h"
 #include "ustar.h"
 #include "zip_writer.h"
+#include "small_campaign.h"
 #include "test_tokens.h"
 
 namespace strokelab::server {
@@ -37,6 +40,7 @@ using nlohmann::json;
 
 using ::strokelab::testing::kReadToken;
 using ::strokelab::testing::kSubmitToken;
+using ::strokelab::testing::kWorkerToken;
 
 // Parameters of the service's fit and of the direct fit agree to this relative difference: the same
 // files, options and code (dimensionless; the fit runs Ceres on one thread per record set).
@@ -123,16 +127,7 @@ class CampaignJobsTest : public ::testing::Test {
     root_ = fs::path(::testing::TempDir()) / ("campaign_jobs_test_" + std::to_string(::getpid()));
     fs::remove_all(root_);
     fs::create_directories(root_ / "data");
-    // Two amplitudes below the stop and two above it at 51.2 kHz, short records: a fit of ~1 s.
-    SynthOptions options;
-    options.frequencies_hz = {6, 8, 11, 13};
-    options.amplitudes_v = {0.1, 0.3, 0.45};
-    options.duration_s = 0.5;
-    options.settle_s = 3.0;
-    options.noise_rms_v = 2e-3 * DefaultSensitivity(ResponseKind::kForce);
-    options.voltage_noise_rms_v = 1e-4;
-    options.seed = 7;
-    WriteSynthesis(Synthesize(PaperModel(), options), campaign_dir(), root_ / "truth.json");
+    ::strokelab::testing::WriteSmallCampaign(campaign_dir(), root_ / "truth.json", /*seed=*/7);  // a fit of ~1 s
     direct_fit_ = new json(FitResultToJson(FitCampaign(ReadCampaign(campaign_dir()))));
   }
   static void TearDownTestSuite() {
@@ -145,7 +140,8 @@ class CampaignJobsTest : public ::testing::Test {
     dir_ = root_ / ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    std::ofstream(dir_ / "tokens") << "submit " << kSubmitToken << "\nread " << kReadToken << "\n";
+    std::ofstream(dir_ / "tokens") << "submit " << kSubmitToken << "\nread " << kReadToken << "\nworker " << kWorkerToken
+                                   << "\n";
     options_.port = 0;
     options_.db_path = (dir_ / "jobs.db").string();
     options_.workers = 1;
@@ -209,6 +205,20 @@ class CampaignJobsTest : public ::testing::Test {
   json WaitFinished(int64_t id) {
     return WaitFor(id, [](const json& j) { return j["status"] != "queued" && j["status"] != "running"; });
   }
+  // Waits as WaitFinished, polling every 10 ms, and keeps the progress of each poll that saw the job
+  // running in a stage.
+  json WaitFinishedWatchingStages(int64_t id, std::vector<json>* stages) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    json job;
+    while (std::chrono::steady_clock::now() < end) {
+      job = Get("/v1/jobs/" + std::to_string(id));
+      if (job["status"] != "queued" && job["status"] != "running") return job;
+      if (job["progress"].contains("stage")) stages->push_back(job["progress"]);
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ADD_FAILURE() << "job " << id << " did not finish: " << job.dump();
+    return job;
+  }
   // The error object of a reply, checking its status.
   static json Error(const httplib::Result& r, int status) {
     EXPECT_TRUE(r) << httplib::to_string(r.error());
@@ -257,6 +267,27 @@ TEST_F(CampaignJobsTest, UploadedCampaignFitsAsTheDirectFit) {
   // A fit has no HTML report; a sweep has no result document.
   EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(job) + "/report", Auth(kReadToken)), 400)["code"],
             "no_report");
+}
+
+// Issue 16 point 9: the model file of a fit (its fitted model) as a download of its own, for the web
+// page; a sweep has none, and an unfinished job none yet.
+TEST_F(CampaignJobsTest, AFitsModelFileIsADownload) {
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  ASSERT_EQ(WaitFinished(job)["status"], "succeeded");
+  const std::string base = "/v1/jobs/" + std::to_string(job);
+  auto model = Client().Get(base + "/model", Auth(kReadToken));
+  ASSERT_TRUE(model && model->status == 200) << (model ? model->body.substr(0, 300) : "");
+  EXPECT_THAT(model->get_header_value("Content-Type"), HasSubstr("application/json"));
+  EXPECT_EQ(model->get_header_value("Content-Disposition"),
+            "attachment; filename=\"job-" + std::to_string(job) + "-model.json\"");
+  EXPECT_EQ(json::parse(model->body), Get(base + "/result")["fitted_model"]);
+  EXPECT_EQ(json::parse(model->body)["contact_law"], "linear") << "a model file, as ModelToJson writes it";
+  const int64_t sweep = Submit({{"kind", "sweep"}, {"model", "paper"},
+                                {"grid", {{"frequency_hz", {{"from", 5}, {"to", 6}, {"points", 2}}},
+                                          {"amplitude_v", {{"from", 0.2}, {"to", 0.5}, {"points", 2}}}}}});
+  EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(sweep) + "/model", Auth(kReadToken)), 400)["code"],
+            "no_model_file");
+  EXPECT_EQ(Error(Client().Get("/v1/jobs/999999/model", Auth(kReadToken)), 404)["code"], "unknown_job");
 }
 
 TEST_F(CampaignJobsTest, ZipUploadFitsAsTheTarUpload) {
@@ -540,12 +571,56 @@ TEST_F(CampaignJobsTest, AJobsSecondsAreHeldToTheServersCap) {
   EXPECT_EQ(Get("/v1/jobs/" + std::to_string(job))["spec"]["options"]["max_seconds"], 30);
 }
 
-TEST_F(CampaignJobsTest, WithoutInProcessWorkersCampaignJobsAreRefused) {
+// Issue 16, point 5: a fit that did not converge showed as a plain "succeeded". The job succeeds as a
+// computation, and its status warns (the web page shows the warnings in amber); while it runs, its
+// progress names the stage (point 11).
+TEST_F(CampaignJobsTest, AFitThatDidNotConvergeSucceedsWithAWarning) {
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"max_iterations", 1}}}});
+  std::vector<json> stages;
+  const json status = WaitFinishedWatchingStages(job, &stages);
+  ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  EXPECT_THAT(status["warnings"].get<std::vector<std::string>>(), ::testing::Contains("fit did not converge"))
+      << status.dump();
+  json listed;
+  const json list = Get("/v1/jobs");
+  for (const json& j : list["jobs"])
+    if (j["id"] == job) listed = j;
+  EXPECT_EQ(listed["warnings"], status["warnings"]) << "the job list shows them too";
+  const json result = Get("/v1/jobs/" + std::to_string(job) + "/result");
+  EXPECT_FALSE(result["stages"]["refinement"]["converged"].get<bool>());
+  EXPECT_TRUE(result["parameters"]["m_p"]["standard_error"].is_null()) << result["parameters"].dump();
+  ASSERT_FALSE(stages.empty()) << "no poll saw the fit running in its stage";
+  EXPECT_EQ(stages.front()["stage"], 1);
+  EXPECT_EQ(stages.front()["stages"], 1);
+  EXPECT_THAT(stages.front()["stage_name"].get<std::string>(), HasSubstr("fit on "));
+  EXPECT_GE(stages.front()["elapsed_s"].get<double>(), 0.0);
+  // A fit that converges has no warnings.
+  const int64_t converged = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  const json fine = WaitFinished(converged);
+  ASSERT_EQ(fine["status"], "succeeded");
+  ASSERT_TRUE(Get("/v1/jobs/" + std::to_string(converged) + "/result")["stages"]["refinement"]["converged"].get<bool>());
+  EXPECT_EQ(fine["warnings"], json::array()) << fine.dump();
+}
+
+// A server without workers of its own takes fit jobs: a remote worker fetches the campaign and fits it
+// as the direct fit; one that cannot fetch campaigns (no cache directory) leaves the task waiting for it.
+TEST_F(CampaignJobsTest, WithoutInProcessWorkersARemoteWorkerRunsTheFit) {
   options_.workers = 0;
   Restart();
-  const json error = Error(Post({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}}), 400);
-  EXPECT_EQ(error["code"], "unsupported_kind");
-  EXPECT_EQ(error["field"], "/kind");
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}});
+  worker::RemoteWorkerOptions remote;
+  remote.server_url = "http://127.0.0.1:" + std::to_string(port_);
+  remote.token = kWorkerToken;
+  remote.idle_poll_ms = 20;
+  remote.exit_when_idle_ms = 300;
+  std::atomic<bool> stop{false};
+  EXPECT_EQ(worker::RunRemoteWorker(remote, stop), 0);  // no cache directory: the fit is not its
+  EXPECT_NE(Get("/v1/jobs/" + std::to_string(job))["status"], "failed");
+  remote.campaign_cache_dir = (dir_ / "cache").string();
+  remote.max_tasks = 1;
+  EXPECT_EQ(worker::RunRemoteWorker(remote, stop), 1);
+  ASSERT_EQ(WaitFinished(job)["status"], "succeeded");
+  ExpectSameFit(Get("/v1/jobs/" + std::to_string(job) + "/result"), *direct_fit_);
 }
 
 TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
@@ -553,8 +628,23 @@ TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
   const int64_t job = Submit({{"kind", "diagnose"},
                               {"campaign", {{"id", id}}},
                               {"options", {{"heldout_every", 4}, {"pairs", false}, {"max_seconds", 15}}}});
-  const json status = WaitFinished(job);
+  std::vector<json> stages;
+  const json status = WaitFinishedWatchingStages(job, &stages);
   ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  EXPECT_TRUE(status["warnings"].is_array()) << status.dump();
+  // While it ran: stage k of N (the analysis, the base fit, the signatures, the candidates, the two
+  // maps), with the time and, once a stage has finished, an estimate of the time left.
+  ASSERT_FALSE(stages.empty()) << "no poll saw the diagnosis running in a stage";
+  bool candidate = false, estimate = false;
+  for (const json& p : stages) {
+    EXPECT_GE(p["stage"].get<int>(), 1) << p.dump();
+    EXPECT_LE(p["stage"].get<int>(), p["stages"].get<int>()) << p.dump();
+    EXPECT_GE(p["elapsed_s"].get<double>(), 0.0) << p.dump();
+    candidate = candidate || p["stage_name"].get<std::string>().rfind("candidate ", 0) == 0;
+    estimate = estimate || p["eta_s"].is_number();
+  }
+  EXPECT_TRUE(candidate) << stages.back().dump();
+  EXPECT_TRUE(estimate) << stages.back().dump();
   const std::string base = "/v1/jobs/" + std::to_string(job);
   const json result = Get(base + "/result");
   EXPECT_TRUE(result.contains("missing_physics")) << result.dump().substr(0, 300);
@@ -574,6 +664,9 @@ TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
   ASSERT_TRUE(model && model->status == 200);
   EXPECT_THAT(model->get_header_value("Content-Type"), HasSubstr("application/json"));
   EXPECT_EQ(json::parse(model->body), result["model"]);
+  auto download = Client().Get(base + "/model", Auth(kReadToken));  // the web page's download, the same file
+  ASSERT_TRUE(download && download->status == 200);
+  EXPECT_EQ(json::parse(download->body), result["model"]);
   EXPECT_THAT(page->body, HasSubstr("<h2 id=\"maps\">"));
   // The report is in the database: it is served after a restart.
   Restart();

@@ -254,5 +254,32 @@ TEST_F(ServiceTest, HealthMetricsAndPage) {
   EXPECT_THAT(page->body, HasSubstr("<title>strokelab</title>"));
 }
 
+// Issue 16 point 8: the page's plotting library is served by the server itself (no token, no
+// network), and the page's policy lets exactly its two scripts run: its own and the library, both
+// by this response's nonce; no other script of this server, no eval.
+TEST_F(ServiceTest, ThePageLoadsItsPlottingLibraryFromThisServerByNonce) {
+  auto c = Client();
+  auto page = c.Get("/");
+  ASSERT_TRUE(page && page->status == 200);
+  const std::string policy = page->get_header_value("Content-Security-Policy");
+  const size_t at = policy.find("script-src ");
+  ASSERT_NE(at, std::string::npos) << policy;
+  const std::string scripts = policy.substr(at, policy.find(';', at) - at);
+  ASSERT_THAT(scripts, ::testing::MatchesRegex("script-src 'nonce-[0-9a-f]{32}'")) << policy;
+  const std::string nonce = scripts.substr(18, 32);
+  EXPECT_THAT(page->body, HasSubstr("<script nonce=\"" + nonce + "\" src=\"/vendor/uPlot.iife.min.js\"></script>"));
+  EXPECT_THAT(page->body, HasSubstr("<link rel=\"stylesheet\" href=\"/vendor/uPlot.min.css\">"));
+  auto library = c.Get("/vendor/uPlot.iife.min.js");
+  ASSERT_TRUE(library && library->status == 200);
+  EXPECT_EQ(library->get_header_value("Content-Type"), "text/javascript; charset=utf-8");
+  EXPECT_THAT(library->body, HasSubstr("var uPlot"));
+  EXPECT_GT(library->body.size(), 40000u);
+  auto style = c.Get("/vendor/uPlot.min.css");
+  ASSERT_TRUE(style && style->status == 200);
+  EXPECT_EQ(style->get_header_value("Content-Type"), "text/css; charset=utf-8");
+  EXPECT_THAT(style->body, HasSubstr(".uplot"));
+  EXPECT_EQ(Error(c.Get("/vendor/uPlotXiife.min.js"), 404)["code"], "not_found") << "paths match literally";
+}
+
 }  // namespace
 }  // namespace strokelab::server

@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -13,7 +14,10 @@
 #include <vector>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/jobs/campaign_bundle.h"
+#include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/jobs.h"
+#include "strokelab/jobs/sha256.h"
 #include "strokelab/sweep/sweep.h"
 #include "strokelab/base/json_parse.h"
 
@@ -74,6 +78,59 @@ class LeaseKeeper {
   std::thread thread_;  // last: started once the members it uses exist
 };
 
+namespace fs = std::filesystem;
+
+// Unpacks a downloaded bundle (already checked against `sha256`) into cache/SHA256 through a scratch
+// directory, so that a half-written campaign is never taken for a cached one.
+fs::path StoreCampaign(const fs::path& cache, const std::string& sha256, const std::string& bundle) {
+  const fs::path dir = cache / sha256;
+  const fs::path incoming = cache / (".incoming-" + jobs::NewCampaignId());
+  try {
+    jobs::UnpackCampaignBundle(bundle, incoming);
+    if (jobs::CampaignSha256(incoming) != sha256) throw std::runtime_error("campaign " + sha256 + " unpacked differently");
+    std::error_code taken;
+    fs::rename(incoming, dir, taken);  // fails when another thread stored it first: theirs is kept
+    if (taken) fs::remove_all(incoming);
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove_all(incoming, ignored);
+    throw;
+  }
+  return dir;
+}
+
+// The directory of the campaign `sha256` for the leased task: from the cache when its files still
+// hash to it (a changed cache is dropped), else fetched with the lease's headers and checked. A
+// download that fails the check is fetched again, up to three times, then the task fails with why.
+fs::path FetchCampaign(httplib::Client& client, httplib::Headers headers, const fs::path& cache,
+                       const std::string& sha256, const json& task, const std::atomic<bool>& stop) {
+  if (!jobs::IsSha256Hex(sha256)) throw std::runtime_error("the task's campaign_sha256 is not a SHA-256");
+  fs::create_directories(cache);
+  const fs::path dir = cache / sha256;
+  std::error_code ignored;
+  if (fs::is_directory(dir)) {
+    if (jobs::CampaignSha256(dir) == sha256) return dir;
+    fs::remove_all(dir, ignored);
+  }
+  headers.emplace("X-Strokelab-Task", std::to_string(task.at("task_id").get<int64_t>()));
+  headers.emplace("X-Strokelab-Job", std::to_string(task.at("job_id").get<int64_t>()));
+  headers.emplace("X-Strokelab-Lease", task.at("lease_token").get<std::string>());
+  std::string why = "no answer from the server";
+  for (int attempt = 0; attempt < 3 && !stop; ++attempt) {
+    if (attempt > 0) Pause(500, stop);
+    auto reply = client.Get("/v1/campaigns/" + sha256, headers);
+    if (!reply) continue;
+    if (reply->status != 200)
+      throw std::runtime_error("campaign " + sha256 + ": the server answered HTTP " + std::to_string(reply->status) +
+                               ": " + reply->body.substr(0, 300));
+    const std::string got = jobs::Sha256Hex(reply->body);
+    if (got == sha256) return StoreCampaign(cache, sha256, reply->body);
+    why = "the download failed its hash check (SHA-256 " + got + ", expected " + sha256 + ")";
+  }
+  if (stop) throw Cancelled();  // the worker stops: nothing to send, as for a running task
+  throw std::runtime_error("campaign " + sha256 + ": " + why);
+}
+
 }  // namespace
 
 std::pair<std::string, int> ParseServerUrl(const std::string& url) {
@@ -121,7 +178,9 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
     const std::string name = options.name + "-" + std::to_string(index);
     int idle_polls = 0;
     while (!stop && !refused && !idle_exit && (options.max_tasks < 0 || completed < options.max_tasks)) {
-      auto lease = client.Post("/v1/tasks/lease", headers, json({{"worker", name}}).dump(), "application/json");
+      const bool fetches_campaigns = !options.campaign_cache_dir.empty();
+      auto lease = client.Post("/v1/tasks/lease", headers,
+                               json({{"worker", name}, {"fetches_campaigns", fetches_campaigns}}).dump(), "application/json");
       if (!lease) {  // network trouble: the server may be restarting
         Pause(1000, stop);
         continue;
@@ -161,8 +220,12 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         const int64_t lease_ms = task.value("lease_ms", int64_t{120000});
         const LeaseKeeper keeper(host, port, headers, endpoint + "/renew", reply.dump(),
                                  static_cast<int>(std::max<int64_t>(lease_ms / 4, 10)), stop);
+        json spec = task.at("spec");
+        if (jobs::IsCampaignKind(spec.at("type")))
+          spec["campaign_dir"] =
+              FetchCampaign(client, headers, options.campaign_cache_dir, spec.value("campaign_sha256", ""), task, stop).string();
         json rows = json::array();
-        for (const jobs::ResultRow& row : jobs::RunTask(task.at("spec"), &keeper.cancel()))
+        for (const jobs::ResultRow& row : jobs::RunTaskForRemote(spec, &keeper.cancel()))
           rows.push_back({{"table", row.table}, {"values", row.values}});
         reply["rows"] = std::move(rows);
         endpoint += "/complete";

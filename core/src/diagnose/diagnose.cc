@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -59,6 +60,12 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const Re
     m.power = internal::PowerOf(a);
     m.nrmse = std::sqrt(mismatch / m.power);
     m.chi2 = mismatch / (a.harmonic_se * a.harmonic_se);
+    m.harmonic_chi2.assign(a.harmonics.size(), 0.0);
+    for (size_t h = 0; h < a.harmonics.size(); ++h) {
+      if (!a.usable.empty() && !a.usable[h]) continue;
+      m.harmonic_chi2[h] = std::norm(a.harmonics[h] - p->harmonics[h]) / (a.harmonic_se * a.harmonic_se);
+      m.residuals += 2;
+    }
     m.model_period = p->orbit.anchor.period;
     m.model_contacts_per_period = p->orbit.contacts_per_period;
   });
@@ -166,10 +173,22 @@ BaseStage FitBase(std::span<const RecordAnalysis> analyses, const Split& split, 
   return b;
 }
 
+// The report's maps, when the options ask for them: the diagnosis's last two progress stages.
+int MapStages(const DiagnoseOptions& options) {
+  return options.map_frequency_points > 0 && options.map_amplitude_points > 0 ? 2 : 0;
+}
+
+// The diagnosis's progress stages with `effects` candidate effects (DiagnoseOptions::progress).
+int PlannedStages(size_t effects, const DiagnoseOptions& options) {
+  return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + MapStages(options);
+}
+
 // Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
+// `step` (may be empty) hears where the fit is: the start values, each solve and Ceres iteration.
 CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
                           const EffectContext& context, const Split& split, std::span<const RecordAnalysis> analyses,
-                          ResponseKind kind, const FitFigures& base_figures, double seconds_left) {
+                          ResponseKind kind, const FitFigures& base_figures, double seconds_left,
+                          const std::function<void(const std::string&)>& step = {}) {
   const auto clock_start = std::chrono::steady_clock::now();
   CandidateFit c;
   c.effects = effects;
@@ -180,6 +199,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   if (variants > 1) {
     double best = kInf;
     for (int v = 0; v < variants; ++v) {
+      if (step) step("start value " + std::to_string(v + 1) + " of " + std::to_string(variants));
       const ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, v);
       const double chi2 = internal::Chi2At(split.fit_pointers, kind, problem,
                                            std::vector<double>(problem.parameters.size(), 1.0), orders);
@@ -191,6 +211,11 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   fit_options.orders = orders;
   fit_options.max_passes = options.max_passes;
   fit_options.max_seconds = std::max(1.0, seconds_left);
+  if (step)
+    fit_options.progress = [&](int solve, int iteration) {
+      step("solve " + std::to_string(solve) + " (at most " + std::to_string(options.max_passes) + "), iteration " +
+           std::to_string(iteration));
+    };
   ExtendedFitResult r;
   try {
     r = internal::FitExtended(split.fit_pointers, kind, problem, fit_options);
@@ -205,6 +230,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.model = r.model;
   c.parameters = r.parameters;
   c.effect_parameters = internal::EffectParameters(effects, r.parameters);
+  if (step) step("every record at the fitted model");
   const std::vector<RecordMatch> matches =
       MatchAll(r.model, analyses, split.heldout, kind, orders);
   c.figures = Figures(matches, problem.parameters.size());
@@ -215,9 +241,89 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   return c;
 }
 
-bool BeatsNoise(const CandidateFit& c, size_t extra_parameters, double min_heldout_gain) {
-  return c.fitted && std::isfinite(c.heldout_gain) && c.heldout_gain > min_heldout_gain &&
-         c.fit_gain > kAkaikePerParameter * static_cast<double>(extra_parameters);
+// Forward selection's limits: effects in one model, and candidates fitted per added effect (the
+// accepted singles in order of their own gain).
+constexpr size_t kMaxEffects = 3;
+constexpr int kMaxTriesPerRound = 3;
+// An effect whose parameter is within this many standard errors of its null value (zero) is not named.
+constexpr double kMinSignificance = 2.0;
+
+// Chi-square drop from `from` to `to` (held-out or fit records) in `to`'s residual variances.
+double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
+  const double variance = std::max(1.0, to.residual_variance);
+  return ((heldout ? from.heldout_chi2 : from.chi2) - (heldout ? to.heldout_chi2 : to.chi2)) / variance;
+}
+
+// Effects whose parameter is zero when the effect is absent (the others change a law or move a
+// limit from infinity; the held-out gain alone decides for them).
+bool NullIsZero(Effect e) {
+  return e == Effect::kCubicStiffness || e == Effect::kQuadraticStiffness || e == Effect::kContactDamping ||
+         e == Effect::kDryFriction;
+}
+
+// Why a zero-null effect parameter is not significant (within kMinSignificance standard errors of
+// zero, or without a standard error: held at a bound or not identifiable); empty when all are.
+std::string InsignificantParameter(const CandidateFit& c) {
+  for (Effect e : c.effects) {
+    if (!NullIsZero(e)) continue;
+    for (const FitParameter& p : c.effect_parameters)
+      if (p.name == Info(e).parameter &&
+          !(std::isfinite(p.standard_error) && std::abs(p.value) > kMinSignificance * p.standard_error))
+        return p.name + " = " + Format(p.value) + " +- " + Format(p.standard_error) + " is within " +
+               Format(kMinSignificance) + " standard errors of zero";
+  }
+  return "";
+}
+
+// Why the candidate does not improve on `from` beyond noise (empty: it does): the held-out
+// chi-square must drop by more than min_heldout_gain residual variances, the fit records' by more
+// than the Akaike penalty of its new parameters (beyond the `from_effect_parameters` it had), and its
+// effects' parameters must be significant.
+std::string Rejection(const CandidateFit& c, const FitFigures& from, size_t from_effect_parameters,
+                      double min_heldout_gain) {
+  if (!c.fitted) return "not fitted";
+  const double extra = std::max<size_t>(1, c.effect_parameters.size() - from_effect_parameters);
+  const double heldout_gain = GainOver(from, c.figures, true), fit_gain = GainOver(from, c.figures, false);
+  if (!std::isfinite(heldout_gain) || heldout_gain <= min_heldout_gain)
+    return "held-out gain " + Format(heldout_gain) + " <= " + Format(min_heldout_gain);
+  if (fit_gain <= kAkaikePerParameter * extra)
+    return "fit gain " + Format(fit_gain) + " <= Akaike penalty " + Format(kAkaikePerParameter * extra);
+  return InsignificantParameter(c);
+}
+
+int FindSingle(const std::vector<CandidateFit>& candidates, Effect e) {
+  for (size_t i = 0; i < candidates.size(); ++i)
+    if (candidates[i].effects.size() == 1 && candidates[i].effects[0] == e) return static_cast<int>(i);
+  return -1;
+}
+
+// The candidate of exactly these effects (any order), or -1.
+int FindFit(const std::vector<CandidateFit>& candidates, std::vector<Effect> effects) {
+  std::sort(effects.begin(), effects.end());
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    std::vector<Effect> have = candidates[i].effects;
+    std::sort(have.begin(), have.end());
+    if (candidates[i].fitted && have == effects) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+// Backward check of candidates[index]: dropping any one effect must raise the held-out chi-square
+// beyond noise. Returns why not (empty: each is needed). Models without one effect that were not
+// fitted (a triple's other pairs) are not checked.
+std::string UnneededEffect(const std::vector<CandidateFit>& candidates, int index, double min_heldout_gain) {
+  const CandidateFit& c = candidates[index];
+  for (size_t drop = 0; drop < c.effects.size(); ++drop) {
+    std::vector<Effect> without = c.effects;
+    without.erase(without.begin() + static_cast<long>(drop));
+    const int other = FindFit(candidates, without);
+    if (other < 0) continue;
+    const double gain = GainOver(candidates[other].figures, c.figures, true);
+    if (gain <= min_heldout_gain)
+      return std::string("backward check: without ") + Info(c.effects[drop]).id + " the held-out chi-square rises by only " +
+             Format(gain) + " <= " + Format(min_heldout_gain);
+  }
+  return "";
 }
 
 }  // namespace
@@ -260,12 +366,14 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   };
   const ResponseKind kind = campaign.response;
   const int orders = options.fit.harmonic_orders;
-  auto progress = [&](const std::string& stage) {
-    if (options.progress) options.progress(Format(options.max_seconds - seconds_left(), 3) + " s: " + stage);
+  // Progress: stage k of `stages` (diagnose.h); every effect is planned until the base fit says which apply.
+  int stages = PlannedStages(EffectLibrary().size(), options);
+  auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
+    if (options.progress) options.progress({stage, stages, name, step});
   };
   Diagnosis d;
   std::vector<std::string> warnings;
-  progress("analysing " + std::to_string(campaign.records.size()) + " records");
+  progress(1, "analysing " + std::to_string(campaign.records.size()) + " records");
   const std::vector<RecordAnalysis> analyses = AnalyseCampaign(campaign, options.fit, &warnings);
 
   // 1. The split.
@@ -275,8 +383,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
                                                          std::to_string(options.heldout_every) + ")");
 
   // 2. The base fit on the fit records, evaluated on all.
-  progress("base fit on " + std::to_string(split.fit.size()) + " records, " + std::to_string(d.heldout.size()) +
-           " held out");
+  progress(2, "base fit on " + std::to_string(split.fit.size()) + " records, " + std::to_string(d.heldout.size()) +
+                  " held out");
   BaseStage base = FitBase(analyses, split, kind, campaign.absolute_scale, options);
   d.base = std::move(base.fit);
   d.base.warnings.insert(d.base.warnings.begin(), warnings.begin(), warnings.end());
@@ -285,11 +393,16 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   d.fit_before = base.figures;
 
   // 3. Signatures.
+  std::vector<const EffectInfo*> applicable;
+  for (const EffectInfo& info : EffectLibrary())
+    if (internal::Applicable(info.effect, options.fit.model, context)) applicable.push_back(&info);
+  stages = PlannedStages(applicable.size(), options);
+  progress(3, "signatures of the base model's mismatch");
   d.signatures = internal::MeasureSignatures(campaign, analyses, d.before, d.base.model, kind, options.fit);
 
   // 4. Single effects, then the best pair.
-  for (const EffectInfo& info : EffectLibrary()) {
-    if (!internal::Applicable(info.effect, options.fit.model, context)) continue;
+  for (size_t i = 0; i < applicable.size(); ++i) {
+    const EffectInfo& info = *applicable[i];
     if (seconds_left() <= 0) {
       CandidateFit skipped;
       skipped.effects = {info.effect};
@@ -298,65 +411,123 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
       d.candidates.push_back(skipped);
       continue;
     }
-    progress("candidate " + std::string(info.id));
+    const int stage = 4 + static_cast<int>(i);
+    const std::string name = "candidate " + std::string(info.id);
+    progress(stage, name);
     d.candidates.push_back(RunCandidate({info.effect}, d.base.model, options, context, split, analyses, kind,
-                                        d.fit_before, seconds_left()));
+                                        d.fit_before, seconds_left(),
+                                        [&](const std::string& step) { progress(stage, name, step); }));
   }
   auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
     const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
     return ga > gb;
   };
   std::stable_sort(d.candidates.begin(), d.candidates.end(), by_gain);
-  std::vector<size_t> accepted;
-  for (size_t i = 0; i < d.candidates.size(); ++i) {
-    const size_t extra = d.candidates[i].effect_parameters.size();
-    if (BeatsNoise(d.candidates[i], std::max<size_t>(1, extra), options.min_heldout_gain)) accepted.push_back(i);
+  std::vector<Effect> accepted;  // singles that beat the base beyond noise, best first
+  for (CandidateFit& c : d.candidates) {
+    c.decision = Rejection(c, d.fit_before, 0, options.min_heldout_gain);
+    if (c.decision.empty()) accepted.push_back(c.effects[0]);
   }
-  if (!accepted.empty()) d.chosen = static_cast<int>(accepted[0]);
-  if (options.pairs && accepted.size() >= 2 && seconds_left() > 0) {
-    const CandidateFit& first = d.candidates[accepted[0]];
-    const CandidateFit& second = d.candidates[accepted[1]];
-    progress("pair " + first.label + "+" + second.label);
-    CandidateFit pair = RunCandidate({first.effects[0], second.effects[0]}, first.model, options, context, split,
-                                     analyses, kind, d.fit_before, seconds_left());
-    // The pair must beat the best single as the single beat the base.
-    const double variance = std::max(1.0, pair.figures.residual_variance);
-    const double gain_over_first = (first.figures.heldout_chi2 - pair.figures.heldout_chi2) / variance;
-    const double fit_gain_over_first = (first.figures.chi2 - pair.figures.chi2) / variance;
-    const bool better = pair.fitted && gain_over_first > options.min_heldout_gain &&
-                        fit_gain_over_first > kAkaikePerParameter;
-    pair.note += (pair.note.empty() ? "" : "; ") + std::string("held-out gain over ") + first.label + ": " +
-                 Format(gain_over_first);
-    d.candidates.push_back(pair);
-    if (better) d.chosen = static_cast<int>(d.candidates.size() - 1);
+  if (!accepted.empty()) d.chosen = FindSingle(d.candidates, accepted[0]);
+
+  // Forward selection: add the accepted effect that lowers the held-out chi-square most beyond noise
+  // over the current model, refit with every parameter free, repeat.
+  while (options.pairs && d.chosen >= 0 && d.candidates[d.chosen].effects.size() < kMaxEffects) {
+    const std::vector<Effect> current = d.candidates[d.chosen].effects;
+    int best = -1;
+    int tried = 0;
+    for (Effect e : accepted) {
+      if (std::find(current.begin(), current.end(), e) != current.end()) continue;
+      if (tried++ == kMaxTriesPerRound || seconds_left() <= 0) break;
+      std::vector<Effect> effects = current;
+      effects.push_back(e);
+      const int stage = 4 + static_cast<int>(applicable.size());
+      const std::string name = "forward selection: candidate " + Label(effects);
+      progress(stage, name);
+      CandidateFit next = RunCandidate(effects, d.candidates[d.chosen].model, options, context, split, analyses, kind,
+                                       d.fit_before, seconds_left(),
+                                       [&](const std::string& step) { progress(stage, name, step); });
+      const FitFigures& now = d.candidates[d.chosen].figures;
+      next.note += (next.note.empty() ? "" : "; ") + std::string("held-out gain over ") +
+                   d.candidates[d.chosen].label + ": " + Format(GainOver(now, next.figures, true));
+      next.decision = Rejection(next, now, d.candidates[d.chosen].effect_parameters.size(), options.min_heldout_gain);
+      d.candidates.push_back(next);
+      if (next.decision.empty() && (best < 0 || next.figures.heldout_chi2 < d.candidates[best].figures.heldout_chi2))
+        best = static_cast<int>(d.candidates.size() - 1);
+    }
+    if (best < 0) break;
+    // Backward check: each effect of the new model must still beat noise against the model without it.
+    d.candidates[best].decision = UnneededEffect(d.candidates, best, options.min_heldout_gain);
+    if (!d.candidates[best].decision.empty()) break;
+    d.chosen = best;
   }
 
-  // 5. The answer.
+  // 5. The answer, and what it leaves (the open-world test).
+  const ExtendedProblem chosen_problem =
+      internal::BuildProblem(d.chosen >= 0 ? d.candidates[d.chosen].model : d.base.model, options.fit.model,
+                             d.chosen >= 0 ? d.candidates[d.chosen].effects : std::vector<Effect>{}, context, 0);
+  d.after = d.chosen >= 0 ? MatchAll(d.candidates[d.chosen].model, analyses, split.heldout, kind, orders) : d.before;
+  d.unexplained = internal::FindUnexplained(d.after, analyses, chosen_problem.parameters.size());
+  // A library effect that removes less of the misfit than it leaves does not explain it: say so.
+  std::string partial;
+  std::vector<Effect> best_partial;
+  if (d.chosen >= 0 && d.unexplained) {
+    const CandidateFit& c = d.candidates[d.chosen];
+    const double removed = d.fit_before.heldout_chi2 - c.figures.heldout_chi2;
+    const double left = c.figures.heldout_chi2 - d.unexplained->expected_chi2;
+    if (removed < left) {
+      best_partial = c.effects;
+      partial = "the best library candidate, " + c.label + ", removes only " + Format(removed) +
+                " of the held-out chi-square's excess and leaves " + Format(left) + ": it is not named";
+      d.chosen = -1;
+      d.after = d.before;
+      const ExtendedProblem base_problem = internal::BuildProblem(d.base.model, options.fit.model, {}, context, 0);
+      d.unexplained = internal::FindUnexplained(d.after, analyses, base_problem.parameters.size());
+    }
+  }
+  if (d.unexplained && !partial.empty()) d.unexplained->description += "; " + partial;
+  for (size_t i = 0; i < d.candidates.size(); ++i) {
+    CandidateFit& c = d.candidates[i];
+    if (static_cast<int>(i) == d.chosen) c.decision = "named";
+    else if (!partial.empty() && c.decision.empty() && c.effects == best_partial) c.decision = "not named: " + partial;
+    else if (c.decision.empty()) c.decision = "beats noise, but another model is better";
+    else if (c.fitted) c.decision = "rejected: " + c.decision;
+  }
+
   if (d.chosen >= 0) {
     const CandidateFit& c = d.candidates[d.chosen];
     d.missing_physics = c.effects;
-    const ExtendedProblem problem = internal::BuildProblem(c.model, options.fit.model, c.effects, context, 0);
-    d.after = MatchAll(c.model, analyses, split.heldout, kind, orders);
     d.fit_after = c.figures;
     d.model = c.model;
     d.model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +
                    (c.converged ? "" : " (that fit did NOT converge: the parameters may still be off)");
     std::ostringstream text;
-    text << "missing physics: " << c.label << " (held-out chi-square down by " << Format(c.heldout_gain)
+    text << "missing physics: " << c.label << (c.converged ? "" : " (its fit did NOT converge)")
+         << " (held-out chi-square down by " << Format(c.heldout_gain)
          << " residual variances; normalised RMS error " << Format(d.fit_before.nrmse) << " -> "
          << Format(d.fit_after.nrmse) << ", held out " << Format(d.fit_before.heldout_nrmse) << " -> "
          << Format(d.fit_after.heldout_nrmse) << ")";
+    if (d.unexplained) text << "; more is missing that no library effect explains: " << d.unexplained->description;
     d.conclusion = text.str();
   } else {
-    d.after = d.before;
     d.fit_after = d.fit_before;
     d.model = d.base.model;
-    d.model_note = std::string("nothing missing: the base fit's model (") + ToString(options.fit.model) + ")";
-    d.conclusion = "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
-                   Format(options.min_heldout_gain) + " residual variances";
+    d.model_note = std::string("nothing named: the base fit's model (") + ToString(options.fit.model) + ")";
+    d.conclusion = d.unexplained
+                       ? "unexplained: the model misses something no library effect explains; " +
+                             d.unexplained->description
+                       : "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
+                             Format(options.min_heldout_gain) +
+                             " residual variances, and what the base model leaves on the held-out records is noise";
   }
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;
+}
+
+int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options) {
+  const size_t singles = std::count_if(diagnosis.candidates.begin(), diagnosis.candidates.end(),
+                                       [](const CandidateFit& c) { return c.effects.size() == 1; });
+  return PlannedStages(singles, options);
 }
 
 CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effects, const DiagnoseOptions& options) {

@@ -1,15 +1,28 @@
 // The diagnosis's parts (diagnose.h), shared by diagnose.cc, effects.cc, diagnose_signatures.cc.
 #pragma once
 
+#include <cmath>
 #include <limits>
 #include <span>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "strokelab/identify/extended_fit.h"
 #include "strokelab/identify/campaign.h"
 #include "strokelab/diagnose/diagnose.h"
+#include "strokelab/diagnose/open_world.h"
 
 namespace strokelab::internal {
+
+// A figure for the report's sentences: `digits` significant digits, "-" when not finite.
+inline std::string FormatFigure(double value, int digits = 3) {
+  if (!std::isfinite(value)) return "-";
+  std::ostringstream out;
+  out.precision(digits);
+  out << value;
+  return out.str();
+}
 
 // What the base fit tells about the campaign's scales, for the effects' start values.
 struct EffectContext {

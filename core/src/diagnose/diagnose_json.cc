@@ -13,12 +13,8 @@ namespace {
 nlohmann::json Parameters(const std::vector<FitParameter>& parameters) {
   nlohmann::json out = nlohmann::json::object();
   for (const FitParameter& p : parameters) {
-    out[p.name] = {{"value", JsonNumber(p.value)},
-                   {"standard_error", JsonNumber(p.standard_error)},
-                   {"unit", p.unit},
-                   {"fixed", p.fixed},
-                   {"identifiable", p.identifiable}};
-    if (!p.note.empty()) out[p.name]["note"] = p.note;
+    out[p.name] = FitParameterJson(p);
+    if (p.note.empty()) out[p.name].erase("note");
   }
   return out;
 }
@@ -48,6 +44,32 @@ nlohmann::json Complexes(const std::vector<std::complex<double>>& values) {
   return out;
 }
 
+nlohmann::json UnexplainedJson(const std::optional<Unexplained>& u) {
+  if (!u) return nullptr;
+  nlohmann::json places = nlohmann::json::array();
+  for (const Unexplained::Place& p : u->places)
+    places.push_back({{"record", p.record},
+                      {"frequency_hz", JsonNumber(p.frequency_hz)},
+                      {"amplitude_v", JsonNumber(p.amplitude_v)},
+                      {"heldout", p.heldout},
+                      {"chi2_per_residual", JsonNumber(p.chi2_per_residual)},
+                      {"worst_harmonic", p.worst_harmonic},
+                      {"worst_harmonic_hz", JsonNumber(p.worst_harmonic_hz)},
+                      {"residual_peak_phase_deg", JsonNumber(p.residual_peak_phase_deg)},
+                      {"impact_phase_deg", JsonNumber(p.impact_phase_deg)}});
+  nlohmann::json harmonics = nlohmann::json::array();
+  for (double v : u->harmonic_chi2_per_residual) harmonics.push_back(JsonNumber(v));
+  return {{"heldout_chi2", JsonNumber(u->heldout_chi2)},
+          {"heldout_residuals", u->heldout_residuals},
+          {"expected_chi2", JsonNumber(u->expected_chi2)},
+          {"threshold_chi2", JsonNumber(u->threshold_chi2)},
+          {"p_value", JsonNumber(u->p_value)},
+          {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
+          {"places", places},
+          {"harmonic_chi2_per_residual", harmonics},
+          {"description", u->description}};
+}
+
 }  // namespace
 
 nlohmann::json DiagnosisToJson(const Diagnosis& d) {
@@ -74,6 +96,7 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
       out["missing_physics"].push_back(entry);
     }
   }
+  out["unexplained"] = UnexplainedJson(d.unexplained);
   out["model"] = ModelToJson(d.model);
   out["model_note"] = d.model_note;
   out["fit_before"] = Figures(d.fit_before);
@@ -97,7 +120,8 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
                                  {"effect_parameters", Parameters(c.effect_parameters)},
                                  {"passes", c.passes},
                                  {"seconds", JsonNumber(c.seconds)},
-                                 {"note", c.note}});
+                                 {"note", c.note},
+                                 {"decision", c.decision}});
   }
 
   nlohmann::json signatures;

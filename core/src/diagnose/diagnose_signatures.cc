@@ -20,13 +20,6 @@ constexpr size_t kHotspots = 5;          // worst records listed
 constexpr double kWindowContactTimes = 2.0;  // half-width of a contact window, in contact times
 constexpr double kMinWindowS = 0.5e-3;       // ... and at least this [s]
 
-std::string Format(double value, int digits = 3) {
-  if (!std::isfinite(value)) return "-";
-  std::ostringstream out;
-  out.precision(digits);
-  out << value;
-  return out.str();
-}
 
 // Least-squares line y = a + b x; returns (b, se(b)) or NaN for fewer than 3 points.
 std::pair<double, double> Slope(const std::vector<double>& x, const std::vector<double>& y) {
@@ -78,7 +71,7 @@ Evidence HarmonicResidual(int h, std::span<const RecordAnalysis> analyses, const
   const double se = n > 0 ? 1.0 / std::sqrt(2.0 * static_cast<double>(n)) : kNaN;
   return Make(even ? "even_harmonics" : "odd_harmonics",
               "harmonic " + std::to_string(h) + " of the " + std::to_string(n) +
-                  " records clear of the stop misses by " + Format(rms) +
+                  " records clear of the stop misses by " + FormatFigure(rms) +
                   " noise standard errors (RMS; 1 is noise alone)",
               rms - 1.0, se, points);
 }
@@ -167,8 +160,8 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
     std::vector<Effect> points;
     if (std::abs(slope) > kSignificant * se) points = {Effect::kCubicStiffness};
     s.evidence.push_back(Make("resonance_shift",
-                              "the resonance of the records clear of the stop moves by " + Format(slope) + " +- " +
-                                  Format(se) + " Hz/V with the drive amplitude (" + std::to_string(level_v.size()) +
+                              "the resonance of the records clear of the stop moves by " + FormatFigure(slope) + " +- " +
+                                  FormatFigure(se) + " Hz/V with the drive amplitude (" + std::to_string(level_v.size()) +
                                   " levels; a linear suspension keeps it still)",
                               slope, se, points));
   }
@@ -190,7 +183,7 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
       if (slope < -kSignificant * se) points = {Effect::kHertzianContact};
       s.evidence.push_back(Make("contact_time_trend",
                                 "log contact time against log spike height over " + std::to_string(x.size()) +
-                                    " impacts: slope " + Format(slope) + " +- " + Format(se) +
+                                    " impacts: slope " + FormatFigure(slope) + " +- " + FormatFigure(se) +
                                     " (0 for a linear stop, -1/6 for Hertzian contact)",
                                 slope, se, points));
     }
@@ -226,9 +219,9 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
     std::vector<Effect> points;
     if (value > kSignificant * se) points = {Effect::kAmplifierSaturation};
     s.evidence.push_back(Make("first_harmonic_vs_amplitude",
-                              "the base model's |C_1| is off by " + Format(100 * top) + " % at " +
-                                  Format(levels.rbegin()->first) + " V and " + Format(100 * bottom) + " % at " +
-                                  Format(levels.begin()->first) + " V (mean over frequencies)",
+                              "the base model's |C_1| is off by " + FormatFigure(100 * top) + " % at " +
+                                  FormatFigure(levels.rbegin()->first) + " V and " + FormatFigure(100 * bottom) + " % at " +
+                                  FormatFigure(levels.begin()->first) + " V (mean over frequencies)",
                               value, se, points));
   }
 
@@ -273,8 +266,8 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
       std::vector<Effect> points;
       if (ratio > kSignificant) points = {Effect::kContactDamping, Effect::kHertzianContact};
       s.evidence.push_back(Make("contact_windows",
-                                "the time-domain residual is " + Format(ratio) + " times larger within +-" +
-                                    Format(1e3 * s.contact_window_s) + " ms of the impacts than elsewhere",
+                                "the time-domain residual is " + FormatFigure(ratio) + " times larger within +-" +
+                                    FormatFigure(1e3 * s.contact_window_s) + " ms of the impacts than elsewhere",
                                 ratio, 0.0, points));
     }
   }

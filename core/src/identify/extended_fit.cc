@@ -250,9 +250,11 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   }
   // After each successful step the anchors move to the new iterate's orbits (and stay on each
   // record's branch).
+  int solve_now = 0, steps_now = 0;  // for options.progress
   AfterSuccessfulStep callback([&] {
     const ActuatorModel model = problem.Decode(theta.data());
     ParallelFor(targets.size(), [&](size_t i) { MoveAnchor(model, *targets[i].record, kind, orders, &targets[i].anchor); });
+    if (options.progress) options.progress(solve_now, ++steps_now);
   });
   ceres::Solver::Options solver = RefinementSolverOptions(options.max_iterations, &callback);
   const auto deadline = clock_start + std::chrono::duration<double>(options.max_seconds);
@@ -282,6 +284,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
       break;
     }
     solver.max_solver_time_in_seconds = seconds_left;
+    solve_now = solve + 1, steps_now = 0;
+    if (options.progress) options.progress(solve_now, 0);
     const std::vector<double> before = theta;
     ceres::Solver::Summary summary;
     ceres::Solve(solver, &ceres_problem, &summary);

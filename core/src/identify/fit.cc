@@ -115,6 +115,12 @@ FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind res
                                 Format(kTable2ContactStiffness) + " N/m)");
     }
     if (!contact.lower_stop) result.warnings.push_back("impact spikes are negative: the stop is on the upper side");
+    const double distance = fit_internal::StopDistanceStart(analyses, response, start, contact, options.harmonic_orders);
+    result.contact.stop_distance_m = distance;
+    if (contact.lower_stop)
+      start.lower_stop_m = -distance;
+    else
+      start.upper_stop_m = distance;
   }
   // Step 4.
   RefineParameters(analyses, response, start, used, options, &result);

@@ -12,6 +12,7 @@
 #include <complex>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -35,6 +36,14 @@ inline std::string Format(double value) {
 
 // Throws InputError(field) unless value is finite and > 0 (fit_drive.cc).
 void RequirePositiveFinite(double value, const std::string& field);
+
+// Step 3's |d| bracket (largest clear, smallest contacting linear amplitude) can be wide when few
+// records fall between (a held-out split, a coarse amplitude grid), and its geometric middle then
+// starts the refinement in another minimum. The start instead: the |d| of a geometric grid over the
+// bracket whose model `start` (k_s, stop side as staged) matches the contacting records best by
+// chi-square (fit_stop_start.cc); contact.stop_distance_m when the bracket is one-sided.
+double StopDistanceStart(std::span<const RecordAnalysis> analyses, ResponseKind kind, const ActuatorModel& start,
+                         const ContactEstimate& contact, int orders);
 
 // ---- Parameters of the refinement (fit_parameters.cc) ---------------------------------------------
 

@@ -17,18 +17,32 @@ nlohmann::json ComplexJson(std::complex<double> c) {
 }  // namespace
 }  // namespace fit_internal
 
+ContactCounts CountContacts(const FitResult& r) {
+  ContactCounts n;
+  n.records_not_clear = r.contact.records.size();
+  for (size_t i : r.contact.records) {
+    if (r.records[i].spikes > 0) ++n.records_with_spikes;
+    n.spikes += r.records[i].spikes;
+  }
+  return n;
+}
+
+nlohmann::json FitParameterJson(const FitParameter& p) {
+  // A fixed parameter (m_p, c_s held at 0) was not estimated from the records: it has no standard
+  // error (FitParameter holds 0 there) and is not identifiable from them (m_p's note says so).
+  return {{"value", JsonNumber(p.value)},
+          {"standard_error", p.fixed ? nlohmann::json(nullptr) : JsonNumber(p.standard_error)},
+          {"unit", p.unit},
+          {"fixed", p.fixed},
+          {"identifiable", p.identifiable && !p.fixed},
+          {"note", p.note}};
+}
+
 nlohmann::json FitResultToJson(const FitResult& r) {
   using fit_internal::ComplexJson;
   using nlohmann::json;
   json parameters = json::object();
-  for (const FitParameter& p : r.parameters) {
-    parameters[p.name] = {{"value", JsonNumber(p.value)},
-                          {"standard_error", JsonNumber(p.standard_error)},
-                          {"unit", p.unit},
-                          {"fixed", p.fixed},
-                          {"identifiable", p.identifiable},
-                          {"note", p.note}};
-  }
+  for (const FitParameter& p : r.parameters) parameters[p.name] = FitParameterJson(p);
   const FrfFitSummary& l = r.linear.summary;
   json linear = {{"records", r.linear.records.size()},
                  {"natural_frequency_rad_s", JsonNumber(l.natural_frequency_rad_s)},
@@ -44,8 +58,11 @@ nlohmann::json FitResultToJson(const FitResult& r) {
                  {"rms_residual", JsonNumber(l.rms_residual)},
                  {"converged", l.converged}};
   const ContactEstimate& c = r.contact;
-  json contact = {{"records", c.records.size()},
-                  {"spikes", c.spikes},
+  const ContactCounts counts = CountContacts(r);
+  json contact = {{"records_not_clear", counts.records_not_clear},
+                  {"records_with_spikes", counts.records_with_spikes},
+                  {"spikes", counts.spikes},
+                  {"spikes_with_contact_time", c.spikes},
                   {"contact_time_s", JsonNumber(c.contact_time_s)},
                   {"contact_time_rsd", JsonNumber(c.contact_time_rsd)},
                   {"stiffness_n_per_m", JsonNumber(c.stiffness_n_per_m)},

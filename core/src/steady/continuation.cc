@@ -424,6 +424,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
     t = t_new;
     h = c->iterations <= 3 ? std::min(options.max_step, h * 1.5) : (c->iterations > 5 ? h * 0.6 : h);
     const double p = next.parameter;
+    if (options.on_point) options.on_point(p);
     if (p > p_max || p < p_min) {
       branch.stopped_because = "range";
       return branch;

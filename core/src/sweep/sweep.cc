@@ -138,10 +138,17 @@ std::optional<FieldError> AxisError(const GridAxis& axis, const std::string& nam
 
 // The steady states of one amplitude at every grid frequency, by continuation in frequency.
 SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
-                   const std::atomic<bool>* cancel) {
+                        const std::atomic<bool>* cancel, const std::function<void(size_t points)>& passed) {
   const CancelScope scope(cancel ? cancel : CurrentCancelFlag());  // the engines poll it too
   cancel = CurrentCancelFlag();
   SweepRowResult row;
+  ContinuationOptions continuation;
+  size_t reached = 0;
+  if (passed)
+    continuation.on_point = [&](double f_hz) {
+      const size_t n = static_cast<size_t>(std::count_if(grid_hz.begin(), grid_hz.end(), [&](double g) { return g <= f_hz; }));
+      if (n > reached) passed(reached = n);
+    };
   const double f_lo = grid_hz.front(), f_hi = grid_hz.back();
   const PeriodMap first(model, f_lo, amplitude_v);
   std::optional<SteadyState> start = Shoot(first, first.ClippedLinearStart(), 1);
@@ -149,7 +156,7 @@ SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const st
   std::optional<ContinuedBranch> branch;
   if (start) {
     branch = ContinueBranch(model, ContinuationParameter::kFrequencyHz, amplitude_v, f_lo, start->start,
-                            f_lo * (1 - kRangeMargin), f_hi * (1 + kRangeMargin), true, {}, cancel);
+                            f_lo * (1 - kRangeMargin), f_hi * (1 + kRangeMargin), true, continuation, cancel);
     row.jumps = JumpIntervals(*branch, amplitude_v, f_lo, f_hi);
   }
   for (double f : grid_hz) {
@@ -293,13 +300,26 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
   result.saturation_threshold.resize(columns);
   std::vector<std::string> failures(rows + columns);  // by unit, in slots: independent of the threads
 
+  // Progress in grid points and columns (SweepProgress); `done` is changed and reported under the
+  // mutex, so that the counts reported only grow.
   std::mutex progress_mutex;
-  std::atomic<size_t> done{0};
-  const size_t total = rows + columns;
-  ParallelFor(total, [&](size_t i) {
+  size_t done = 0;
+  const size_t row_points = result.frequency_hz.size();
+  const size_t total = rows * row_points + columns;
+  auto advance = [&](size_t units) {
+    if (!progress || units == 0) return;
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    done += units;
+    progress({done, total});
+  };
+  ParallelFor(rows + columns, [&](size_t i) {
+    size_t row_reported = 0;  // of this row's points
     try {
       if (i < rows) {
-        row_results[i] = SweepRow(spec.model, result.amplitude_v[i], result.frequency_hz, cancel);
+        row_results[i] = SweepRow(spec.model, result.amplitude_v[i], result.frequency_hz, cancel, [&](size_t points) {
+          advance(points - row_reported);
+          row_reported = points;
+        });
       } else {
         result.saturation_threshold[i - rows] = SweepColumn(spec.model, result.frequency_hz[i - rows], cancel);
       }
@@ -316,11 +336,7 @@ SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const Sweep
       }
       failures[i] = unit.str();
     }
-    const size_t finished = ++done;
-    if (progress) {
-      std::lock_guard<std::mutex> lock(progress_mutex);
-      progress({finished, total});
-    }
+    advance(i < rows ? row_points - row_reported : 1);
   }, static_cast<size_t>(spec.threads), cancel);
   if (cancel && cancel->load()) throw Cancelled();
   for (SweepRowResult& r : row_results) {

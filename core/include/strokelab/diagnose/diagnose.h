@@ -8,13 +8,20 @@
 //      records clear of the stop versus amplitude, the resonance (paper Eq. 3 per amplitude level)
 //      versus amplitude, contact times and spike polarity versus impact strength, and the time-domain
 //      residual in windows around contacts against the rest of the period.
-//   4. Candidates (EffectLibrary): the base model extended by each effect (and the best pair when two
-//      effects each beat noise), fitted with every base parameter free by identify/extended_fit.h
-//      (one least-squares problem on the variational flow's exact Jacobians).
-//   5. Choice: by the held-out chi-square (harmonic residuals over their standard errors, scaled by
-//      the candidate's residual variance on the fit records): an effect is named only when it lowers
-//      the held-out chi-square by more than `min_heldout_gain` and the fit records' chi-square by more
-//      than the Akaike penalty 2 k (k its parameters); else the answer is "nothing missing".
+//   4. Candidates (EffectLibrary): the base model extended by each effect, fitted with every base
+//      parameter free by identify/extended_fit.h (one least-squares problem on the variational flow's
+//      exact Jacobians).
+//   5. Choice, by forward selection: a single is accepted when it lowers the held-out chi-square
+//      (harmonic residuals over their standard errors, scaled by the candidate's residual variance on
+//      the fit records) by more than `min_heldout_gain`, the fit records' chi-square by more than the
+//      Akaike penalty 2 k (k its new parameters), and its parameter lies beyond two standard errors of
+//      zero (for effects whose absence is a zero parameter). The best accepted single is taken; then
+//      each other accepted effect is added in turn (up to three effects, three tries per round), the
+//      best that beats the current model by the same rules is kept if dropping any of its effects
+//      again costs more than noise (backward check), and so on.
+//   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
+//      is beyond noise, the report says where; when the chosen effects removed less of the excess than
+//      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).
 //
 // Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2-6
 // (Eq. 2 in its continuous form, model.h; Eq. 6 with its square root restored, signal.h).
@@ -30,6 +37,7 @@
 #include <vector>
 
 #include "strokelab/base/errors.h"  // FieldError
+#include "strokelab/base/progress.h"
 #include "strokelab/identify/campaign.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/model/model.h"
@@ -60,16 +68,22 @@ struct DiagnoseOptions {
   FitOptions fit;               // the base fit (model paper | linear, harmonics, ...)
   int heldout_every = 4;        // every n-th record is held out (>= 2)
   double min_heldout_gain = 10; // held-out chi-square drop (in residual variances) an effect must beat
-  bool pairs = true;            // try the best pair when two effects each beat noise
+  bool pairs = true;            // forward selection beyond one effect (pairs, triples)
   int max_passes = 8;           // solves of an extended fit (sampling corrections refreshed between)
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
   // The report's saturation maps of the base and the diagnosed model (report/diagnosis_maps.h) over
   // the campaign's frequency x amplitude range: grid points per axis, 0 in either: no maps. Read by
   // the report layer (strokelab diagnose --out, a diagnose job's report), not by DiagnoseCampaign,
   // which stays free of sweeps; kept here so that the CLI flags and job options come from one table.
+  // A caller that draws no maps sets them to 0, so that the progress plan leaves the maps out.
   int map_frequency_points = 40;
   int map_amplitude_points = 12;
-  std::function<void(const std::string&)> progress;  // one line per stage (may be empty)
+  // Called at each stage's start and within the candidates' fits (each solve and Ceres iteration),
+  // from the calling thread (may be empty). The stages, N of them: the records' analysis, the base
+  // fit, the signatures, one fit per candidate effect that applies (all seven planned until the base
+  // fit says which), the pair (when `pairs`; passed over unless two effects beat noise), and the
+  // report's two maps (when both map point counts are not 0; reported by report/diagnosis_maps.h).
+  ProgressHook progress;
   // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,
   // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds",
   // "map_frequency_points", "map_amplitude_points".
@@ -88,6 +102,8 @@ struct RecordMatch {
   double power = 0.0;  // sum_h |C_h|^2 over the usable harmonics (RecordAnalysis::usable)
   double nrmse = 0.0;  // sqrt(sum_h |C_h - C_h^model|^2 / power), usable harmonics
   double chi2 = 0.0;   // sum_h |(C_h - C_h^model) / se|^2 (2N real residuals)
+  std::vector<double> harmonic_chi2;  // its terms, h = 1..N (0 for harmonics not usable)
+  int residuals = 0;                  // real residuals in chi2: 2 per usable harmonic
   std::vector<std::complex<double>> measured, model;  // C_h, h = 1..N, response units
   int model_period = 1;
   double model_contacts_per_period = 0.0;
@@ -156,6 +172,42 @@ struct CandidateFit {
   int passes = 0;
   double seconds = 0.0;
   std::string note;
+  // "named", or why not, with the numbers: "rejected: held-out gain 1.6 <= 10", "rejected: k3 = ...
+  // is within 2 standard errors of zero", "rejected: backward check: ...", "beats noise, but another
+  // model is better", "not named: ..." (the open-world test), "not fitted" (time limit, failure).
+  std::string decision;
+};
+
+// What the diagnosed model leaves unexplained, when that is more than noise (the open-world test):
+// the held-out records' chi-square against what noise alone gives. A correct model's held-out
+// residuals are noise plus its parameters' prediction error, chi2 ~ (1 + P / M) chi-square(R), R the
+// held-out residuals, P the parameters, M the fit records' residuals (the prediction error of a
+// least-squares fit: Seber and Lee, "Linear Regression Analysis", 2nd ed., Wiley 2003, Sec. 5.3).
+// The test flags p < kUnexplainedP (unexplained.cc: the choice and its calibration on controls).
+struct Unexplained {
+  double heldout_chi2 = 0.0;      // of the diagnosed model
+  int heldout_residuals = 0;      // R
+  double expected_chi2 = 0.0;     // (1 + P / M) R: noise and parameter error alone
+  double threshold_chi2 = 0.0;    // flagged above: the calibrated chi-square's 1 - p quantile
+  double p_value = 0.0;           // of heldout_chi2 if the model were right
+  double misfit_to_noise = 0.0;   // sqrt(heldout_chi2 / expected_chi2): misfit RMS over noise's (1: noise)
+  // Where: records whose own chi-square is beyond noise (Bonferroni over the records at the same p),
+  // worst first, each with the harmonic that misses most and the drive phase where the residual
+  // waveform sum_h Re(dC_h e^{j h theta}) peaks (theta = 0: the drive's zero crossing upwards).
+  struct Place {
+    std::string record;
+    double frequency_hz = 0.0, amplitude_v = 0.0;
+    bool heldout = false;
+    double chi2_per_residual = 0.0;  // 1 is noise
+    int worst_harmonic = 1;
+    double worst_harmonic_hz = 0.0;
+    double residual_peak_phase_deg = 0.0;  // [0, 360)
+    double impact_phase_deg = 0.0;         // circular mean of the record's impact spikes; NaN: none
+  };
+  std::vector<Place> places;
+  // Per harmonic order h over every record: chi-square per residual (1 is noise).
+  std::vector<double> harmonic_chi2_per_residual;
+  std::string description;  // the above in words, with a guess at its shape from the data
 };
 
 struct Diagnosis {
@@ -173,12 +225,19 @@ struct Diagnosis {
   // as fitted together). `model_note` says which, and whether its fit converged.
   ActuatorModel model;
   std::string model_note;
+  // Empty: what the diagnosed model leaves on the held-out records is noise. Set: it is not, and
+  // says where (reported beside any named effect: that effect explains only part of the misfit).
+  std::optional<Unexplained> unexplained;
   std::string conclusion;                // in words
   double seconds = 0.0;
 };
 
 // Throws InputError for bad options or campaigns (as FitCampaign).
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
+
+// N of the progress's "stage k of N" for a diagnosis that has run (DiagnoseOptions::progress): the
+// report's maps are its last two stages when options ask for them.
+int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options);
 
 // One candidate of the diagnosis fitted to every record, none held out: the base fit (step 2), then
 // the base model extended by `effects` with every parameter free (step 4, the problem and start

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <complex>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -49,6 +50,9 @@ struct ExtendedFitOptions {
   int max_passes = 8;      // solves, each with the sampling corrections refreshed at its start
   int max_iterations = 100; // Ceres iterations per solve (the cubic fits of campaign-a and a 72-record campaign need 20-60)
   double max_seconds = 120.0;
+  // Reporting only: called at the start of each solve (iteration 0) and after each successful Ceres
+  // step within it (iteration 1, 2, ...), from the calling thread; may be empty.
+  std::function<void(int solve, int iteration)> progress;
 };
 
 struct ExtendedFitResult {

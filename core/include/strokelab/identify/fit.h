@@ -201,7 +201,10 @@ struct ContactEstimate {
   // nothing); NaN when there are none. With no spike in the campaign: clear against not clear.
   double largest_clear_amplitude_m = 0.0;
   double smallest_contacting_amplitude_m = 0.0;
-  double stop_distance_m = 0.0;  // |d| to start the refinement from [m] (NaN: no contacting record)
+  // |d| to start the refinement from [m] (NaN: no contacting record): the bracket's geometric middle
+  // (or an end when it is one-sided); FitAnalysed replaces it by the best of a grid over the bracket
+  // (fit_internal::StopDistanceStart).
+  double stop_distance_m = 0.0;
 };
 // `linear` is step 2's result (k_p, c_p, g at m_p = mass_kg).
 ContactEstimate EstimateContact(std::span<const RecordAnalysis> analyses, ResponseKind kind,
@@ -305,10 +308,24 @@ FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind res
 // stepped-sine records, bad records (naming the record), fewer than 3 records clear of the stop.
 FitResult FitCampaign(const Campaign& campaign, const FitOptions& options = {});
 
-// One JSON object: model, response, absolute_scale, mass_kg, identifiability, parameters (by name:
-// value, standard_error, unit, fixed, identifiable, note), fitted_model (model_json.h), stages
-// (linear, contact, refinement), records, nrmse_initial, nrmse, warnings, seconds. Non-finite numbers
-// are written as null.
+// One JSON object: model, response, absolute_scale, mass_kg, identifiability, parameters (by name,
+// FitParameterJson), fitted_model (model_json.h), stages (linear; contact: records_not_clear,
+// records_with_spikes, spikes (theirs, the sum of records[].spikes), spikes_with_contact_time, ...;
+// refinement), records, nrmse_initial, nrmse, warnings, seconds. Non-finite numbers are written as
+// null.
 nlohmann::json FitResultToJson(const FitResult& result);
+
+// The contact stage's counts as reported (FitResultToJson's stages.contact, strokelab fit): the records
+// not clear of the stop (impact spikes, or distortion above the limit), those of them with impact
+// spikes, and all their spikes (the sum of RecordFit::spikes; ContactEstimate::spikes counts those of
+// them whose contact time gave a k_s, the others being too wide for any stop of the model).
+struct ContactCounts {
+  size_t records_not_clear = 0, records_with_spikes = 0, spikes = 0;
+};
+ContactCounts CountContacts(const FitResult& result);
+
+// One reported parameter: value, standard_error (null for a fixed parameter, and where there is
+// none), unit, fixed, identifiable (estimated from these records: false for a fixed one), note.
+nlohmann::json FitParameterJson(const FitParameter& parameter);
 
 }  // namespace strokelab

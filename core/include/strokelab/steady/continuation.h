@@ -14,6 +14,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -55,6 +56,8 @@ struct ContinuationOptions {
   bool locate_events = true;
   // Stop at the first fold, grazing point or loss of stability that is not a period doubling.
   bool stop_at_first_event = false;
+  // Reporting only: called with the parameter of each point the branch reaches (may be empty).
+  std::function<void(double parameter)> on_point;
   std::optional<FieldError> IsValid() const;
 };
 

@@ -89,8 +89,11 @@ struct SweepResult {
   double points_per_second = 0.0;  // grid points (frequency x amplitude) per second of wall time
 };
 
+// A sweep's progress in units of work: its grid points (frequency x amplitude; a row's count as its
+// continuation in frequency passes them, so that a row of a smooth model, seconds long, moves the
+// count point by point) and its threshold columns (one unit each).
 struct SweepProgress {
-  size_t done = 0, total = 0;  // units of work (grid rows and columns)
+  size_t done = 0, total = 0;
 };
 
 // The two units of work a sweep is made of (the service runs them as separate tasks):
@@ -99,8 +102,11 @@ struct SweepRowResult {
   std::vector<SweepPoint> points;   // by frequency, then branch
   std::vector<JumpInterval> jumps;
 };
+// `passed` (may be empty) hears how many grid frequencies the row's continuation has passed, each
+// time that count grows (up to frequencies_hz.size()), from the calling thread.
 SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& frequencies_hz,
-                        const std::atomic<bool>* cancel = nullptr);
+                        const std::atomic<bool>* cancel = nullptr,
+                        const std::function<void(size_t points)>& passed = {});
 // ... and a column, the saturation threshold at one frequency.
 SaturationThreshold SweepColumn(const ActuatorModel& model, double frequency_hz, const std::atomic<bool>* cancel = nullptr);
 

@@ -19,4 +19,13 @@ namespace strokelab::jobs {
 // ("/rows/3/values/h_re", "/rows/0/table", "/rows").
 void ValidateTaskRows(const nlohmann::json& task_spec, const std::vector<ResultRow>& rows);
 
+// The rows to store for a fit or diagnose task from those a remote worker sent (RunTaskForRemote):
+// a fit task's one "fit" row (an object, finite, with its "parameters" object and a "model" within
+// ModelBounds; at most 16 MiB of JSON; served as JSON only), unchanged; a diagnose task's one
+// "diagnosis_data" row, read by report::DiagnosisDataFromJson, becomes the "diagnosis" row
+// (DiagnosisToJson) and the report's files rendered here ("report_files"): a worker's text reaches
+// the page only as escaped text. Any other table (a worker's own "report_files") is refused. Throws
+// InputError with the JSON pointer of the offending part ("/rows/0/values/diagnosis/conclusion").
+std::vector<ResultRow> CampaignRowsFromWorker(const nlohmann::json& task_spec, std::vector<ResultRow> rows);
+
 }  // namespace strokelab::jobs

@@ -33,7 +33,8 @@ struct DiagnosisMaps {
 // (map_frequency_points x map_amplitude_points; 0 in either: no maps, said in `note`) on one thread
 // per core, with the thresholds and jump intervals. The sweeps share what is left of the diagnosis's
 // time budget (options.max_seconds - diagnosis.seconds): a sweep still running when it is spent is
-// cut off at its next row or column and reported in its note. Stages go to options.progress.
+// cut off at its next row or column and reported in its note. The two sweeps are the diagnosis's last
+// two progress stages (options.progress, diagnose.h), with their grid points as they pass.
 DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& diagnosis, const DiagnoseOptions& options);
 
 // Where the saturation threshold moved, at one grid frequency [V]: base and diagnosed model's

@@ -12,6 +12,7 @@
 //   GET    /v1/jobs/{id}/report[/FILE]     a diagnose job's HTML report (and the files it links)
 //   POST   /v1/campaigns                   upload a campaign (tar or zip body) for fit and diagnose jobs
 //   POST   /v1/tasks/lease, /v1/tasks/{id}/complete, /v1/tasks/{id}/fail   remote workers
+//   GET    /v1/campaigns/{sha256}          a leased fit or diagnose task's campaign, for its remote worker
 //   GET    /v1/health, /metrics, /         health, Prometheus text, the web page
 #pragma once
 

@@ -1,7 +1,9 @@
 // A worker process that leases tasks from a strokelab server over HTTP, runs them, and sends the
 // results back (`strokelab worker --server URL --token T`), so that sweeps scale past one machine.
 // A task whose lease expires (the worker died or lost the network) is leased again by someone
-// else; a late completion of it is refused by the server, so nothing is stored twice.
+// else; a late completion of it is refused by the server, so nothing is stored twice. A fit or
+// diagnose task's campaign is fetched from the server by the SHA-256 in its spec, checked, and cached;
+// a diagnosis goes back as data (jobs::RunTaskForRemote), never as a rendered page.
 #pragma once
 
 #include <atomic>
@@ -22,6 +24,9 @@ struct RemoteWorkerOptions {
   // this the worker closes it: the server (cpp-httplib) holds one of its few threads for each open
   // connection, so many idle workers keeping theirs open would starve the clients.
   int keep_connection_max_wait_ms = 1000;
+  // Where fetched campaigns are kept (fit and diagnose tasks; DIR/SHA256/, checked against the hash
+  // before each use and fetched again when changed). Empty: this worker takes no fit or diagnose tasks.
+  std::string campaign_cache_dir;
   int max_tasks = -1;               // stop after this many tasks (-1: never; for tests)
   // Exit once every thread has found the queue empty for this long (-1: never), so that a worker
   // under a batch scheduler (Slurm) gives its allocation back when the work is done.

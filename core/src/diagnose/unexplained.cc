@@ -1,0 +1,177 @@
+// The open-world test (diagnose.h, Unexplained): is what the diagnosed model leaves on the held-out
+// records noise? If not, where is it and what does it look like?
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <numbers>
+#include <sstream>
+
+#include "diagnose_internal.h"
+
+namespace strokelab::internal {
+namespace {
+
+constexpr double kUndefined = std::numeric_limits<double>::quiet_NaN();
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kDegreesPerRadian = 180.0 / std::numbers::pi;
+constexpr size_t kMaxPlaces = 8;
+constexpr int kPhaseSamples = 360;  // residual waveform over one drive period, 1 degree apart
+// Worst harmonics that lie within this relative spread in Hz, across records of different drive
+// frequencies, point to one resonance rather than to the drive.
+constexpr double kSameFrequencySpread = 0.15;
+
+double WrapDegrees(double degrees) { return std::fmod(std::fmod(degrees, 360.0) + 360.0, 360.0); }
+
+// The residual waveform sum_h Re(dC_h e^{j h theta}) over one drive period: where |r| peaks [deg].
+double ResidualPeakPhaseDeg(const RecordMatch& m) {
+  double best = -1.0, best_theta = 0.0;
+  for (int k = 0; k < kPhaseSamples; ++k) {
+    const double theta = kTwoPi * k / kPhaseSamples;
+    double r = 0.0;
+    for (size_t h = 0; h < m.measured.size() && h < m.model.size(); ++h)
+      if (m.harmonic_chi2[h] > 0)
+        r += std::real((m.measured[h] - m.model[h]) * std::polar(1.0, static_cast<double>(h + 1) * theta));
+    if (std::abs(r) > best) best = std::abs(r), best_theta = theta;
+  }
+  return best_theta * kDegreesPerRadian;
+}
+
+// Circular mean of the impacts' drive phases theta = 2 pi f n / fs + phi [deg]; NaN without impacts.
+double ImpactPhaseDeg(const RecordAnalysis& a) {
+  if (a.spikes.empty()) return kUndefined;
+  std::complex<double> sum = 0.0;
+  for (const Spike& s : a.spikes) {
+    const double cycles = a.drive.frequency_hz * static_cast<double>(s.peak_index) / a.sample_rate_hz;
+    sum += std::polar(1.0, kTwoPi * (cycles - std::floor(cycles)) + a.drive.phase_rad);
+  }
+  return WrapDegrees(std::arg(sum) * kDegreesPerRadian);
+}
+
+// Words for what the places share: one frequency in Hz across drive frequencies (a resonance), the
+// fundamental, or harmonics; and where in the period against the impacts.
+std::string Describe(const Unexplained& u) {
+  std::ostringstream out;
+  out << "the diagnosed model misses the held-out records by " << FormatFigure(u.misfit_to_noise)
+      << " times the noise (chi-square " << FormatFigure(u.heldout_chi2, 4) << " against " << FormatFigure(u.expected_chi2, 4)
+      << " from noise alone, p = " << FormatFigure(u.p_value, 2) << ")";
+  if (u.places.empty()) {
+    out << ", spread over the records with none beyond noise on its own";
+    return out.str();
+  }
+  out << "; worst in " << u.places.size() << " record" << (u.places.size() > 1 ? "s" : "") << " (";
+  for (size_t i = 0; i < u.places.size() && i < 3; ++i)
+    out << (i ? ", " : "") << u.places[i].record << " at " << FormatFigure(u.places[i].frequency_hz) << " Hz, "
+        << FormatFigure(u.places[i].amplitude_v) << " V: " << FormatFigure(u.places[i].chi2_per_residual) << " x noise";
+  out << (u.places.size() > 3 ? ", ..." : "") << ")";
+  double lo = std::numeric_limits<double>::infinity(), hi = 0, drive_lo = lo, drive_hi = 0;
+  int fundamental = 0;
+  for (const auto& p : u.places) {
+    lo = std::min(lo, p.worst_harmonic_hz), hi = std::max(hi, p.worst_harmonic_hz);
+    drive_lo = std::min(drive_lo, p.frequency_hz), drive_hi = std::max(drive_hi, p.frequency_hz);
+    fundamental += p.worst_harmonic == 1;
+  }
+  const bool several_drives = drive_hi > drive_lo * (1 + kSameFrequencySpread);
+  if (fundamental == static_cast<int>(u.places.size())) {
+    out << "; at the drive frequency itself (harmonic 1): a force the model lacks that follows the drive";
+  } else if (several_drives && hi <= lo * (1 + kSameFrequencySpread)) {
+    out << "; near " << FormatFigure(0.5 * (lo + hi)) << " Hz whatever the drive frequency: a resonance near that "
+        << "frequency that the model lacks (a mode that rings when excited)";
+  } else {
+    out << "; in harmonics";
+    for (size_t i = 0; i < u.places.size() && i < 3; ++i) out << (i ? "," : "") << " " << u.places[i].worst_harmonic;
+    out << " of the drive";
+  }
+  const Unexplained::Place& worst = u.places.front();
+  if (std::isfinite(worst.impact_phase_deg)) {
+    const double lag = WrapDegrees(worst.residual_peak_phase_deg - worst.impact_phase_deg + 180.0) - 180.0;
+    out << "; in " << worst.record << " the residual peaks " << FormatFigure(std::abs(lag)) << " degrees of the period "
+        << (lag >= 0 ? "after" : "before") << " the impacts";
+  } else {
+    out << "; in " << worst.record << " the residual peaks at drive phase " << FormatFigure(worst.residual_peak_phase_deg)
+        << " degrees, with no impact";
+  }
+  return out.str();
+}
+
+}  // namespace
+
+// Upper tail of chi-square with k degrees of freedom by the Wilson-Hilferty cube-root normal
+// approximation (E. B. Wilson and M. M. Hilferty, "The distribution of chi-square", Proc. Natl.
+// Acad. Sci. 17 (1931) 684-688): (x/k)^(1/3) is near-normal with mean 1 - 2/(9k), variance 2/(9k).
+// Relative error of a few per cent at p ~ 1e-3 for k >= 10; the held-out sets have k >= 40.
+double ChiSquareUpperTail(double x, double k) {
+  if (!(x > 0)) return 1.0;
+  const double v = 2.0 / (9.0 * k);
+  const double z = (std::cbrt(x / k) - (1.0 - v)) / std::sqrt(v);
+  return 0.5 * std::erfc(z / std::numbers::sqrt2);
+}
+
+// The x with ChiSquareUpperTail(x, k) = p, by bisection (the tail falls monotonically in x).
+double ChiSquareQuantile(double p, double k) {
+  double lo = 0.0, hi = k;
+  while (ChiSquareUpperTail(hi, k) > p) hi *= 2.0;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (ChiSquareUpperTail(mid, k) > p ? lo : hi) = mid;
+  }
+  return hi;
+}
+
+std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& matches,
+                                           std::span<const RecordAnalysis> analyses, size_t parameters) {
+  Unexplained u;
+  double fit_residuals = 0;
+  std::vector<double> harmonic_sum, harmonic_count;
+  for (const RecordMatch& m : matches) {
+    if (!std::isfinite(m.chi2)) continue;
+    if (m.heldout) {
+      u.heldout_chi2 += m.chi2;
+      u.heldout_residuals += m.residuals;
+    } else {
+      fit_residuals += m.residuals;
+    }
+    harmonic_sum.resize(std::max(harmonic_sum.size(), m.harmonic_chi2.size()), 0.0);
+    harmonic_count.resize(harmonic_sum.size(), 0.0);
+    for (size_t h = 0; h < m.harmonic_chi2.size(); ++h)
+      if (m.harmonic_chi2[h] > 0) harmonic_sum[h] += m.harmonic_chi2[h], harmonic_count[h] += 2;
+  }
+  // A model that finds no orbit for a held-out record misses it beyond any noise.
+  bool orbit_missing = false;
+  for (const RecordMatch& m : matches) orbit_missing |= m.heldout && !std::isfinite(m.chi2);
+  if (u.heldout_residuals == 0 && !orbit_missing) return std::nullopt;
+  const double inflation = 1.0 + static_cast<double>(parameters) / std::max(1.0, fit_residuals);
+  const double k = std::max(1, u.heldout_residuals);
+  u.expected_chi2 = inflation * k;
+  u.threshold_chi2 = inflation * ChiSquareQuantile(kUnexplainedP, k);
+  u.p_value = orbit_missing ? 0.0 : ChiSquareUpperTail(u.heldout_chi2 / inflation, k);
+  if (u.p_value >= kUnexplainedP) return std::nullopt;
+  u.misfit_to_noise = std::sqrt(u.heldout_chi2 / u.expected_chi2);
+  for (size_t h = 0; h < harmonic_sum.size(); ++h)
+    u.harmonic_chi2_per_residual.push_back(harmonic_count[h] > 0 ? harmonic_sum[h] / harmonic_count[h] : kUndefined);
+
+  const double per_record_p = kUnexplainedP / static_cast<double>(std::max<size_t>(1, matches.size()));
+  for (size_t i = 0; i < matches.size(); ++i) {
+    const RecordMatch& m = matches[i];
+    if (m.residuals == 0 || !std::isfinite(m.chi2)) continue;
+    if (ChiSquareUpperTail(m.chi2 / inflation, m.residuals) >= per_record_p) continue;
+    Unexplained::Place p;
+    p.record = m.name;
+    p.frequency_hz = m.frequency_hz, p.amplitude_v = m.amplitude_v;
+    p.heldout = m.heldout;
+    p.chi2_per_residual = m.chi2 / m.residuals;
+    p.worst_harmonic = static_cast<int>(std::max_element(m.harmonic_chi2.begin(), m.harmonic_chi2.end()) -
+                                        m.harmonic_chi2.begin()) + 1;
+    p.worst_harmonic_hz = p.worst_harmonic * m.frequency_hz;
+    p.residual_peak_phase_deg = ResidualPeakPhaseDeg(m);
+    p.impact_phase_deg = i < analyses.size() ? ImpactPhaseDeg(analyses[i]) : kUndefined;
+    u.places.push_back(p);
+  }
+  std::sort(u.places.begin(), u.places.end(),
+            [](const auto& a, const auto& b) { return a.chi2_per_residual > b.chi2_per_residual; });
+  if (u.places.size() > kMaxPlaces) u.places.resize(kMaxPlaces);
+  u.description = Describe(u);
+  return u;
+}
+
+}  // namespace strokelab::internal

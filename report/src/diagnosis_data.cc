@@ -1,0 +1,506 @@
+// A diagnosis and its maps as plain data and back (diagnosis_data.h).
+#include "strokelab/report/diagnosis_data.h"
+
+#include <cmath>
+#include <limits>
+
+#include "strokelab/base/errors.h"
+#include "strokelab/base/json_number.h"
+#include "strokelab/model/model_json.h"
+#include "strokelab/report/sweep_tables.h"
+
+namespace strokelab::report {
+namespace {
+
+using nlohmann::json;
+
+constexpr size_t kMaxItems = 100'000;   // any array: records, points, candidates, ...
+constexpr size_t kMaxHarmonics = 64;    // complex coefficients per record and model
+constexpr size_t kMaxTextBytes = 64 << 10;
+
+// ---- Writing ----
+
+json ParametersOut(const std::vector<FitParameter>& parameters) {
+  json out = json::array();
+  for (const FitParameter& p : parameters)
+    out.push_back({{"name", p.name}, {"unit", p.unit}, {"value", JsonNumber(p.value)},
+                   {"standard_error", JsonNumber(p.standard_error)}, {"fixed", p.fixed},
+                   {"identifiable", p.identifiable}, {"note", p.note}});
+  return out;
+}
+
+json FiguresOut(const FitFigures& f) {
+  return {{"nrmse", JsonNumber(f.nrmse)}, {"heldout_nrmse", JsonNumber(f.heldout_nrmse)}, {"chi2", JsonNumber(f.chi2)},
+          {"heldout_chi2", JsonNumber(f.heldout_chi2)}, {"residual_variance", JsonNumber(f.residual_variance)}};
+}
+
+json NumbersOut(const std::vector<double>& values) {
+  json out = json::array();
+  for (double v : values) out.push_back(JsonNumber(v));
+  return out;
+}
+
+json ComplexesOut(const std::vector<std::complex<double>>& values) {
+  json out = json::array();
+  for (const auto& c : values) out.push_back({JsonNumber(c.real()), JsonNumber(c.imag())});
+  return out;
+}
+
+json EffectsOut(const std::vector<Effect>& effects) {
+  json out = json::array();
+  for (Effect e : effects) out.push_back(Info(e).id);
+  return out;
+}
+
+json MatchesOut(const std::vector<RecordMatch>& matches) {
+  json out = json::array();
+  for (const RecordMatch& m : matches)
+    out.push_back({{"name", m.name}, {"frequency_hz", JsonNumber(m.frequency_hz)},
+                   {"amplitude_v", JsonNumber(m.amplitude_v)}, {"heldout", m.heldout}, {"clear", m.clear},
+                   {"power", JsonNumber(m.power)}, {"nrmse", JsonNumber(m.nrmse)}, {"chi2", JsonNumber(m.chi2)},
+                   {"measured", ComplexesOut(m.measured)}, {"model", ComplexesOut(m.model)},
+                   {"model_period", m.model_period},
+                   {"model_contacts_per_period", JsonNumber(m.model_contacts_per_period)},
+                   {"harmonic_chi2", NumbersOut(m.harmonic_chi2)}, {"residuals", m.residuals}});
+  return out;
+}
+
+json UnexplainedOut(const std::optional<Unexplained>& u) {
+  if (!u) return nullptr;
+  json places = json::array();
+  for (const Unexplained::Place& p : u->places)
+    places.push_back({{"record", p.record}, {"frequency_hz", JsonNumber(p.frequency_hz)},
+                      {"amplitude_v", JsonNumber(p.amplitude_v)}, {"heldout", p.heldout},
+                      {"chi2_per_residual", JsonNumber(p.chi2_per_residual)}, {"worst_harmonic", p.worst_harmonic},
+                      {"worst_harmonic_hz", JsonNumber(p.worst_harmonic_hz)},
+                      {"residual_peak_phase_deg", JsonNumber(p.residual_peak_phase_deg)},
+                      {"impact_phase_deg", JsonNumber(p.impact_phase_deg)}});
+  return {{"heldout_chi2", JsonNumber(u->heldout_chi2)}, {"heldout_residuals", u->heldout_residuals},
+          {"expected_chi2", JsonNumber(u->expected_chi2)}, {"threshold_chi2", JsonNumber(u->threshold_chi2)},
+          {"p_value", JsonNumber(u->p_value)}, {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
+          {"places", places}, {"harmonic_chi2_per_residual", NumbersOut(u->harmonic_chi2_per_residual)},
+          {"description", u->description}};
+}
+
+json SweepOut(const std::optional<SweepResult>& sweep) {
+  if (!sweep) return nullptr;
+  json points = json::array(), thresholds = json::array(), jumps = json::array();
+  for (const SweepPoint& p : sweep->points) points.push_back(RowToJson(p));
+  for (const SaturationThreshold& t : sweep->saturation_threshold) thresholds.push_back(RowToJson(t));
+  for (const JumpInterval& j : sweep->jump) jumps.push_back(RowToJson(j));
+  return {{"frequency_hz", sweep->frequency_hz}, {"amplitude_v", sweep->amplitude_v}, {"points", points},
+          {"saturation_threshold", thresholds}, {"jump", jumps}, {"failures", sweep->failures},
+          {"wall_time_s", JsonNumber(sweep->wall_time_s)}, {"points_per_second", JsonNumber(sweep->points_per_second)}};
+}
+
+json AxisOut(const GridAxis& axis) {
+  return {{"from", JsonNumber(axis.from)}, {"to", JsonNumber(axis.to)}, {"points", axis.points}, {"geometric", axis.geometric}};
+}
+
+// ---- Reading, each member checked and named by its JSON pointer ----
+
+const json& Member(const json& object, const char* key, const std::string& at) {
+  if (!object.is_object()) throw InputError(at, "must be an object");
+  const auto it = object.find(key);
+  if (it == object.end()) throw InputError(at + "/" + key, "is missing");
+  return *it;
+}
+
+double Number(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  if (v.is_null()) return std::numeric_limits<double>::quiet_NaN();
+  if (!v.is_number() || !std::isfinite(v.get<double>())) throw InputError(at + "/" + key, "must be a finite number or null");
+  return v.get<double>();
+}
+
+int64_t Integer(const json& object, const char* key, const std::string& at, int64_t min, int64_t max) {
+  const json& v = Member(object, key, at);
+  if (!v.is_number_integer() || v.get<int64_t>() < min || v.get<int64_t>() > max)
+    throw InputError(at + "/" + key, "must be a whole number from " + std::to_string(min) + " to " + std::to_string(max));
+  return v.get<int64_t>();
+}
+
+bool Flag(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  if (!v.is_boolean()) throw InputError(at + "/" + key, "must be true or false");
+  return v.get<bool>();
+}
+
+std::string Text(const json& value, const std::string& at) {
+  if (!value.is_string()) throw InputError(at, "must be a string");
+  if (value.get_ref<const std::string&>().size() > kMaxTextBytes) throw InputError(at, "is longer than 64 KiB");
+  return value.get<std::string>();
+}
+std::string Text(const json& object, const char* key, const std::string& at) {
+  return Text(Member(object, key, at), at + "/" + key);
+}
+
+// The array at `key` (its pointer in *pointer), within `limit` items.
+const json& Array(const json& object, const char* key, const std::string& at, std::string* pointer,
+                  size_t limit = kMaxItems) {
+  *pointer = at + "/" + key;
+  const json& v = Member(object, key, at);
+  if (!v.is_array()) throw InputError(*pointer, "must be an array");
+  if (v.size() > limit) throw InputError(*pointer, "has more than " + std::to_string(limit) + " items");
+  return v;
+}
+
+std::vector<std::string> Texts(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<std::string> out;
+  const json& items = Array(object, key, at, &p);
+  for (size_t i = 0; i < items.size(); ++i) out.push_back(Text(items[i], p + "/" + std::to_string(i)));
+  return out;
+}
+
+std::vector<double> Numbers(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<double> out;
+  const json& items = Array(object, key, at, &p);
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (!items[i].is_number() || !std::isfinite(items[i].get<double>()))
+      throw InputError(p + "/" + std::to_string(i), "must be a finite number");
+    out.push_back(items[i].get<double>());
+  }
+  return out;
+}
+
+std::vector<Effect> EffectsIn(const json& object, const char* key, const std::string& at) {
+  std::vector<Effect> out;
+  const std::vector<std::string> ids = Texts(object, key, at);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    try {
+      out.push_back(ParseEffect(ids[i]));
+    } catch (const InputError& e) {
+      throw InputError(at + "/" + key + "/" + std::to_string(i), e.bare_message());
+    }
+  }
+  return out;
+}
+
+std::vector<FitParameter> ParametersIn(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<FitParameter> out;
+  const json& items = Array(object, key, at, &p);
+  for (size_t i = 0; i < items.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = items[i];
+    out.push_back({Text(v, "name", q), Text(v, "unit", q), Number(v, "value", q), Number(v, "standard_error", q),
+                   Flag(v, "fixed", q), Flag(v, "identifiable", q), Text(v, "note", q)});
+  }
+  return out;
+}
+
+FitFigures FiguresIn(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  const std::string q = at + "/" + key;
+  return {Number(v, "nrmse", q), Number(v, "heldout_nrmse", q), Number(v, "chi2", q), Number(v, "heldout_chi2", q),
+          Number(v, "residual_variance", q)};
+}
+
+std::vector<std::complex<double>> ComplexesIn(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<std::complex<double>> out;
+  const json& items = Array(object, key, at, &p, kMaxHarmonics);
+  for (size_t i = 0; i < items.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    if (!items[i].is_array() || items[i].size() != 2) throw InputError(q, "must be [re, im]");
+    const json pair = {{"re", items[i][0]}, {"im", items[i][1]}};
+    out.emplace_back(Number(pair, "re", q), Number(pair, "im", q));
+  }
+  return out;
+}
+
+ActuatorModel ModelIn(const json& object, const char* key, const std::string& at) {
+  return ModelFromJson(Member(object, key, at), at + "/" + key);
+}
+
+std::vector<RecordMatch> MatchesIn(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<RecordMatch> out;
+  const json& items = Array(object, key, at, &p);
+  for (size_t i = 0; i < items.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = items[i];
+    RecordMatch m;
+    m.name = Text(v, "name", q);
+    m.frequency_hz = Number(v, "frequency_hz", q);
+    m.amplitude_v = Number(v, "amplitude_v", q);
+    m.heldout = Flag(v, "heldout", q);
+    m.clear = Flag(v, "clear", q);
+    m.power = Number(v, "power", q);
+    m.nrmse = Number(v, "nrmse", q);
+    m.chi2 = Number(v, "chi2", q);
+    m.measured = ComplexesIn(v, "measured", q);
+    m.model = ComplexesIn(v, "model", q);
+    m.model_period = static_cast<int>(Integer(v, "model_period", q, -1, 1 << 20));
+    m.model_contacts_per_period = Number(v, "model_contacts_per_period", q);
+    m.harmonic_chi2 = Numbers(v, "harmonic_chi2", q);
+    if (m.harmonic_chi2.size() > kMaxHarmonics) throw InputError(q + "/harmonic_chi2", "has too many harmonics");
+    m.residuals = static_cast<int>(Integer(v, "residuals", q, 0, 2 * kMaxHarmonics));
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
+template <class Row>
+std::vector<Row> RowsIn(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<Row> out;
+  const json& items = Array(object, key, at, &p);
+  for (size_t i = 0; i < items.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    if (items[i].is_object())  // RowFromJson would take an infinity as a number
+      for (auto it = items[i].begin(); it != items[i].end(); ++it)
+        if (it->is_number() && !std::isfinite(it->template get<double>())) throw InputError(q + "/" + it.key(), "must be finite");
+    try {
+      out.push_back(RowFromJson<Row>(items[i]));
+    } catch (const InputError& e) {
+      throw InputError(q + "/" + e.field(), e.bare_message());
+    } catch (const json::exception& e) {
+      throw InputError(q, e.what());
+    }
+  }
+  return out;
+}
+
+std::optional<SweepResult> SweepIn(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  if (v.is_null()) return std::nullopt;
+  const std::string q = at + "/" + key;
+  SweepResult s;
+  s.frequency_hz = Numbers(v, "frequency_hz", q);
+  s.amplitude_v = Numbers(v, "amplitude_v", q);
+  s.points = RowsIn<SweepPoint>(v, "points", q);
+  s.saturation_threshold = RowsIn<SaturationThreshold>(v, "saturation_threshold", q);
+  s.jump = RowsIn<JumpInterval>(v, "jump", q);
+  s.failures = Texts(v, "failures", q);
+  s.wall_time_s = Number(v, "wall_time_s", q);
+  s.points_per_second = Number(v, "points_per_second", q);
+  return s;
+}
+
+GridAxis AxisIn(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  const std::string q = at + "/" + key;
+  GridAxis axis;
+  axis.from = Number(v, "from", q);
+  axis.to = Number(v, "to", q);
+  axis.points = static_cast<int>(Integer(v, "points", q, 0, 1 << 20));
+  axis.geometric = Flag(v, "geometric", q);
+  return axis;
+}
+
+std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, const std::string& at) {
+  const json& v = Member(object, key, at);
+  if (v.is_null()) return std::nullopt;
+  const std::string q = at + "/" + key;
+  Unexplained u;
+  u.heldout_chi2 = Number(v, "heldout_chi2", q);
+  u.heldout_residuals = static_cast<int>(Integer(v, "heldout_residuals", q, 0, 2 * kMaxHarmonics * kMaxItems));
+  u.expected_chi2 = Number(v, "expected_chi2", q);
+  u.threshold_chi2 = Number(v, "threshold_chi2", q);
+  u.p_value = Number(v, "p_value", q);
+  u.misfit_to_noise = Number(v, "misfit_to_noise", q);
+  std::string p;
+  const json& places = Array(v, "places", q, &p);
+  for (size_t i = 0; i < places.size(); ++i) {
+    const std::string r = p + "/" + std::to_string(i);
+    const json& w = places[i];
+    u.places.push_back({Text(w, "record", r), Number(w, "frequency_hz", r), Number(w, "amplitude_v", r),
+                        Flag(w, "heldout", r), Number(w, "chi2_per_residual", r),
+                        static_cast<int>(Integer(w, "worst_harmonic", r, 1, kMaxHarmonics)),
+                        Number(w, "worst_harmonic_hz", r), Number(w, "residual_peak_phase_deg", r),
+                        Number(w, "impact_phase_deg", r)});
+  }
+  const json& per_order = Array(v, "harmonic_chi2_per_residual", q, &p);  // null: no residual of that order
+  if (per_order.size() > kMaxHarmonics) throw InputError(p, "has too many harmonics");
+  for (size_t h = 0; h < per_order.size(); ++h) {
+    const json& x = per_order[h];
+    if (!x.is_null() && !(x.is_number() && std::isfinite(x.get<double>())))
+      throw InputError(p + "/" + std::to_string(h), "must be a finite number or null");
+    u.harmonic_chi2_per_residual.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
+  }
+  u.description = Text(v, "description", q);
+  return u;
+}
+
+void RequireIndex(int64_t index, size_t size, const std::string& at) {
+  if (index < 0 || static_cast<size_t>(index) >= size) throw InputError(at, "is not an index into its list");
+}
+
+}  // namespace
+
+json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
+  json base = {{"model_kind", ToString(d.base.model_kind)}, {"response", ToString(d.base.response)},
+               {"absolute_scale", d.base.absolute_scale}, {"parameters", ParametersOut(d.base.parameters)},
+               {"model", ModelToJson(d.base.model)}, {"identifiability", d.base.identifiability},
+               {"warnings", d.base.warnings}};
+  json evidence = json::array(), hotspots = json::array(), levels = json::array();
+  for (const Evidence& e : d.signatures.evidence)
+    evidence.push_back({{"kind", e.kind}, {"summary", e.summary}, {"value", JsonNumber(e.value)},
+                        {"standard_error", JsonNumber(e.standard_error)}, {"significance", JsonNumber(e.significance)},
+                        {"points_to", EffectsOut(e.points_to)}});
+  for (const auto& h : d.signatures.hotspots)
+    hotspots.push_back({{"record", h.record}, {"frequency_hz", JsonNumber(h.frequency_hz)},
+                        {"amplitude_v", JsonNumber(h.amplitude_v)}, {"harmonic", h.harmonic},
+                        {"magnitude_error", JsonNumber(h.magnitude_error)},
+                        {"phase_error_rad", JsonNumber(h.phase_error_rad)},
+                        {"chi2_per_residual", JsonNumber(h.chi2_per_residual)}});
+  for (const auto& l : d.signatures.levels)
+    levels.push_back({{"amplitude_v", JsonNumber(l.amplitude_v)}, {"clear_records", l.clear_records},
+                      {"resonance_hz", JsonNumber(l.resonance_hz)}, {"resonance_se_hz", JsonNumber(l.resonance_se_hz)},
+                      {"second_harmonic_ratio", JsonNumber(l.second_harmonic_ratio)},
+                      {"third_harmonic_ratio", JsonNumber(l.third_harmonic_ratio)},
+                      {"mean_contact_time_s", JsonNumber(l.mean_contact_time_s)}});
+  json candidates = json::array();
+  for (const CandidateFit& c : d.candidates)
+    candidates.push_back({{"effects", EffectsOut(c.effects)}, {"label", c.label}, {"fitted", c.fitted},
+                          {"converged", c.converged}, {"parameters", ParametersOut(c.parameters)},
+                          {"effect_parameters", ParametersOut(c.effect_parameters)}, {"model", ModelToJson(c.model)},
+                          {"figures", FiguresOut(c.figures)}, {"heldout_gain", JsonNumber(c.heldout_gain)},
+                          {"fit_gain", JsonNumber(c.fit_gain)}, {"passes", c.passes},
+                          {"seconds", JsonNumber(c.seconds)}, {"note", c.note}, {"decision", c.decision}});
+  json diagnosis = {{"base", base},
+                    {"heldout", d.heldout},
+                    {"before", MatchesOut(d.before)},
+                    {"after", MatchesOut(d.after)},
+                    {"fit_before", FiguresOut(d.fit_before)},
+                    {"fit_after", FiguresOut(d.fit_after)},
+                    {"signatures",
+                     {{"evidence", evidence}, {"hotspots", hotspots}, {"levels", levels},
+                      {"contact_window_s", JsonNumber(d.signatures.contact_window_s)},
+                      {"residual_rms_near_contacts", JsonNumber(d.signatures.residual_rms_near_contacts)},
+                      {"residual_rms_elsewhere", JsonNumber(d.signatures.residual_rms_elsewhere)}}},
+                    {"candidates", candidates},
+                    {"missing_physics", EffectsOut(d.missing_physics)},
+                    {"chosen", d.chosen},
+                    {"model", ModelToJson(d.model)},
+                    {"model_note", d.model_note},
+                    {"unexplained", UnexplainedOut(d.unexplained)},
+                    {"conclusion", d.conclusion},
+                    {"seconds", JsonNumber(d.seconds)}};
+  json map_json = {{"frequency_hz", AxisOut(maps.frequency_hz)}, {"amplitude_v", AxisOut(maps.amplitude_v)},
+                   {"base", SweepOut(maps.base)}, {"diagnosed", SweepOut(maps.diagnosed)},
+                   {"base_note", maps.base_note}, {"diagnosed_note", maps.diagnosed_note},
+                   {"same_model", maps.same_model}, {"note", maps.note}, {"seconds", JsonNumber(maps.seconds)}};
+  return {{"diagnosis", diagnosis}, {"maps", map_json}};
+}
+
+DiagnosisData DiagnosisDataFromJson(const json& in) {
+  DiagnosisData out;
+  Diagnosis& d = out.diagnosis;
+  const json& dj = Member(in, "diagnosis", "");
+  const std::string at = "/diagnosis";
+  std::string p;
+
+  const json& b = Member(dj, "base", at);
+  const std::string bat = at + "/base";
+  const std::string kind = Text(b, "model_kind", bat);
+  if (kind != ToString(FitModelKind::kPaper) && kind != ToString(FitModelKind::kLinear))
+    throw InputError(bat + "/model_kind", "is not a fit model kind");
+  d.base.model_kind = kind == ToString(FitModelKind::kPaper) ? FitModelKind::kPaper : FitModelKind::kLinear;
+  try {
+    d.base.response = ParseResponseKind(Text(b, "response", bat));
+  } catch (const InputError& e) {
+    throw InputError(bat + "/response", e.bare_message());
+  }
+  d.base.absolute_scale = Flag(b, "absolute_scale", bat);
+  d.base.parameters = ParametersIn(b, "parameters", bat);
+  d.base.model = ModelIn(b, "model", bat);
+  d.base.identifiability = Text(b, "identifiability", bat);
+  d.base.warnings = Texts(b, "warnings", bat);
+
+  d.before = MatchesIn(dj, "before", at);
+  d.after = MatchesIn(dj, "after", at);
+  if (!d.after.empty() && d.after.size() != d.before.size())
+    throw InputError(at + "/after", "must match /diagnosis/before record for record");
+  const json& heldout = Array(dj, "heldout", at, &p);
+  for (size_t i = 0; i < heldout.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    if (!heldout[i].is_number_integer()) throw InputError(q, "must be a record index");
+    RequireIndex(heldout[i].get<int64_t>(), d.before.size(), q);
+    d.heldout.push_back(heldout[i].get<size_t>());
+  }
+  d.fit_before = FiguresIn(dj, "fit_before", at);
+  d.fit_after = FiguresIn(dj, "fit_after", at);
+
+  const json& sj = Member(dj, "signatures", at);
+  const std::string sat = at + "/signatures";
+  const json& evidence = Array(sj, "evidence", sat, &p);
+  for (size_t i = 0; i < evidence.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = evidence[i];
+    d.signatures.evidence.push_back({Text(v, "kind", q), Text(v, "summary", q), Number(v, "value", q),
+                                     Number(v, "standard_error", q), Number(v, "significance", q),
+                                     EffectsIn(v, "points_to", q)});
+  }
+  const json& hotspots = Array(sj, "hotspots", sat, &p);
+  for (size_t i = 0; i < hotspots.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = hotspots[i];
+    d.signatures.hotspots.push_back({Text(v, "record", q), Number(v, "frequency_hz", q), Number(v, "amplitude_v", q),
+                                     static_cast<int>(Integer(v, "harmonic", q, 1, kMaxHarmonics)),
+                                     Number(v, "magnitude_error", q), Number(v, "phase_error_rad", q),
+                                     Number(v, "chi2_per_residual", q)});
+  }
+  const json& levels = Array(sj, "levels", sat, &p);
+  for (size_t i = 0; i < levels.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = levels[i];
+    d.signatures.levels.push_back({Number(v, "amplitude_v", q),
+                                   static_cast<size_t>(Integer(v, "clear_records", q, 0, kMaxItems)),
+                                   Number(v, "resonance_hz", q), Number(v, "resonance_se_hz", q),
+                                   Number(v, "second_harmonic_ratio", q), Number(v, "third_harmonic_ratio", q),
+                                   Number(v, "mean_contact_time_s", q)});
+  }
+  d.signatures.contact_window_s = Number(sj, "contact_window_s", sat);
+  d.signatures.residual_rms_near_contacts = Number(sj, "residual_rms_near_contacts", sat);
+  d.signatures.residual_rms_elsewhere = Number(sj, "residual_rms_elsewhere", sat);
+
+  const json& candidates = Array(dj, "candidates", at, &p);
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = candidates[i];
+    CandidateFit c;
+    c.effects = EffectsIn(v, "effects", q);
+    c.label = Text(v, "label", q);
+    c.fitted = Flag(v, "fitted", q);
+    c.converged = Flag(v, "converged", q);
+    c.parameters = ParametersIn(v, "parameters", q);
+    c.effect_parameters = ParametersIn(v, "effect_parameters", q);
+    c.model = ModelIn(v, "model", q);
+    c.figures = FiguresIn(v, "figures", q);
+    c.heldout_gain = Number(v, "heldout_gain", q);
+    c.fit_gain = Number(v, "fit_gain", q);
+    c.passes = static_cast<int>(Integer(v, "passes", q, 0, 1 << 20));
+    c.seconds = Number(v, "seconds", q);
+    c.note = Text(v, "note", q);
+    c.decision = Text(v, "decision", q);
+    d.candidates.push_back(std::move(c));
+  }
+  d.missing_physics = EffectsIn(dj, "missing_physics", at);
+  d.chosen = static_cast<int>(Integer(dj, "chosen", at, -1, static_cast<int64_t>(d.candidates.size()) - 1));
+  if ((d.chosen < 0) != d.missing_physics.empty())
+    throw InputError(at + "/chosen", "names a candidate exactly when missing_physics is not empty");
+  d.model = ModelIn(dj, "model", at);
+  d.model_note = Text(dj, "model_note", at);
+  d.unexplained = UnexplainedIn(dj, "unexplained", at);
+  d.conclusion = Text(dj, "conclusion", at);
+  d.seconds = Number(dj, "seconds", at);
+
+  const json& mj = Member(in, "maps", "");
+  DiagnosisMaps& m = out.maps;
+  m.frequency_hz = AxisIn(mj, "frequency_hz", "/maps");
+  m.amplitude_v = AxisIn(mj, "amplitude_v", "/maps");
+  m.base = SweepIn(mj, "base", "/maps");
+  m.diagnosed = SweepIn(mj, "diagnosed", "/maps");
+  m.base_note = Text(mj, "base_note", "/maps");
+  m.diagnosed_note = Text(mj, "diagnosed_note", "/maps");
+  m.same_model = Flag(mj, "same_model", "/maps");
+  m.note = Text(mj, "note", "/maps");
+  m.seconds = Number(mj, "seconds", "/maps");
+  return out;
+}
+
+}  // namespace strokelab::report

@@ -1,0 +1,150 @@
+#!/usr/bin/python3
+"""Checks of the second generator against strokelab (README.md, "Checks").
+
+    STROKELAB_BINARY=build/release/strokelab /usr/bin/python3 tools/gen2/test_gen2.py        # all
+    STROKELAB_BINARY=... /usr/bin/python3 -m unittest -v test_gen2.FastTest                    # ctest gen2_fast
+
+Noiseless records of both generators for the same drive are compared by the complex amplitudes of
+their first harmonics (a DFT over the whole periods of the record); then noise, offset and hum are
+checked against what was asked, and `strokelab fit` / `strokelab diagnose` must read the campaigns.
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+from campaign_io import harmonics, read_campaign
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+GENERATOR = os.path.join(HERE, "synth_campaign.py")
+PYTHON = "/usr/bin/python3"
+
+
+def binary():
+    path = os.environ.get("STROKELAB_BINARY", os.path.join(HERE, "..", "..", "build", "release", "strokelab"))
+    if not os.path.exists(path):
+        raise unittest.SkipTest(f"no strokelab binary at {path} (set STROKELAB_BINARY)")
+    return path
+
+
+def run(command, **kwargs):
+    result = subprocess.run(command, capture_output=True, text=True, **kwargs)
+    if result.returncode != 0:
+        raise AssertionError(f"{' '.join(command)} failed ({result.returncode}):\n{result.stdout}\n{result.stderr}")
+    return result
+
+
+def generate(out, flags):
+    run([PYTHON, GENERATOR, "--out", out] + list(flags))
+
+
+def compare(test, common, gen2_extra=(), tolerance=1e-6, label=""):
+    """Both generators on the same drive, no noise: max over records and harmonics of
+    |A_h(gen2) - A_h(synth)| / |A_1(synth)|; returns it (and prints the worst harmonic-relative one)."""
+    with tempfile.TemporaryDirectory(prefix="gen2_") as work:
+        run([PYTHON, GENERATOR, "--out", os.path.join(work, "gen2")] + list(common) + list(gen2_extra))
+        run([binary(), "synth", "--out", os.path.join(work, "synth")] + list(common))
+        ours, theirs = read_campaign(os.path.join(work, "gen2")), read_campaign(os.path.join(work, "synth"))
+        test.assertEqual(len(ours), len(theirs))
+        worst, worst_each = 0.0, 0.0
+        for (entry, header, a, sa, fs), (entry_b, header_b, b, sb, _) in zip(ours, theirs):
+            test.assertEqual(header, header_b)
+            test.assertEqual((entry["drive_frequency_hz"], entry["drive_amplitude_v"]),
+                             (entry_b["drive_frequency_hz"], entry_b["drive_amplitude_v"]))
+            test.assertEqual(a.shape, b.shape)
+            np.testing.assert_allclose(a[:, 0], b[:, 0], rtol=1e-9, atol=0)   # time (synth writes fewer digits)
+            np.testing.assert_allclose(a[:, 1], b[:, 1], rtol=0, atol=1e-9)    # drive voltage (10 digits)
+            f = entry["drive_frequency_hz"]
+            ha, hb = harmonics(a[:, 2] / sa, f, fs), harmonics(b[:, 2] / sb, f, fs)
+            difference = np.abs(ha - hb) / abs(hb[0])
+            each = np.abs(ha - hb) / np.maximum(np.abs(hb), 1e-300)
+            significant = np.abs(hb) > 1e-6 * abs(hb[0])
+            worst = max(worst, difference.max())
+            worst_each = max(worst_each, each[significant].max())
+        print(f"\n  {label}: max |dA_h|/|A_1| = {worst:.2e}; max |dA_h|/|A_h| (harmonics above 1e-6 A_1) = "
+              f"{worst_each:.2e}", file=sys.stderr)
+        test.assertLess(worst, tolerance, label)
+        return worst
+
+
+FAST = ["--frequencies-hz", "8", "--amplitudes-v", "0.1,0.5", "--settle-s", "1.5", "--duration-s", "0.25"]
+
+
+class FastTest(unittest.TestCase):
+    """A few seconds: 2 short records of the paper's model (one linear, one hitting the stop)."""
+
+    def test_paper_model_agrees_with_strokelab_synth(self):
+        compare(self, FAST, tolerance=1e-8, label="paper model, 8 Hz, 0.1 and 0.5 V")
+
+    def test_noise_offset_and_hum_are_what_was_asked(self):
+        with tempfile.TemporaryDirectory(prefix="gen2_noise_") as work:
+            base = ["--frequencies-hz", "8", "--amplitudes-v", "0.1,0.5", "--settle-s", "0.3", "--duration-s", "0.25",
+                    "--seed", "5"]
+            generate(os.path.join(work, "clean"), base)
+            generate(os.path.join(work, "noisy"), base + ["--noise-rms", "0.002", "--offset-v", "0.01",
+                                                          "--hum-v", "0.003", "--voltage-noise-rms", "0.001"])
+            clean, noisy = read_campaign(os.path.join(work, "clean")), read_campaign(os.path.join(work, "noisy"))
+            for (_, _, a, _, fs), (_, _, b, _, _) in zip(clean, noisy):
+                extra = b[:, 2] - a[:, 2]
+                t = a[:, 0]
+                self.assertAlmostEqual(np.mean(extra), 0.01, delta=3 * 0.002 / math.sqrt(len(t)) + 1e-4)
+                hum = abs(2 * np.mean((extra - 0.01) * np.exp(-2j * math.pi * 50 * t)))
+                self.assertAlmostEqual(hum, 0.003, delta=2e-4)
+                residual = extra - 0.01
+                hum_removed = residual - 2 * np.real(np.mean(residual * np.exp(-2j * math.pi * 50 * t))
+                                                     * np.exp(2j * math.pi * 50 * t))
+                self.assertAlmostEqual(np.std(hum_removed), 0.002, delta=0.002 * 0.05)
+                self.assertAlmostEqual(np.std(b[:, 1] - a[:, 1]), 0.001, delta=0.001 * 0.05)
+            with open(os.path.join(work, "noisy", "truth.json")) as f:
+                truth = json.load(f)
+            self.assertEqual(truth["noise_rms_v"], 0.002)
+            self.assertEqual(len({r["hum_phase_rad"] for r in truth["records"]}), 2)
+
+    def test_strokelab_fit_reads_the_campaign(self):
+        with tempfile.TemporaryDirectory(prefix="gen2_fit_") as work:
+            out = os.path.join(work, "c")
+            # The linear fit needs 3 records clear of the stop.
+            generate(out, ["--frequencies-hz", "8,10,13", "--amplitudes-v", "0.1", "--settle-s", "1",
+                           "--duration-s", "0.5", "--noise-rms", "0.0005", "--perturb", "k_p=0.1,g=0.1", "--seed", "9"])
+            result = run([binary(), "fit", "--data", out, "--json"])
+            json.loads(result.stdout)
+
+
+COMMON = ["--frequencies-hz", "6,8,13", "--amplitudes-v", "0.1,0.3,0.5", "--settle-s", "5", "--duration-s", "1"]
+
+
+class AgreementTest(unittest.TestCase):
+    """The paper's model and two library effects, 9 records each (about a minute each)."""
+
+    def test_paper_model(self):
+        compare(self, COMMON, tolerance=1e-8, label="paper model")
+
+    def test_cubic_stiffness(self):
+        compare(self, COMMON + ["--set", "k3=1.5e7"], label="k3 = 1.5e7 N/m^3")
+
+    def test_hertzian_contact(self):
+        compare(self, COMMON + ["--set", "k_s=1.5e7", "--set", "contact_law=hertzian"],
+                label="Hertzian contact k_s = 1.5e7 N/m^1.5")
+
+
+class ReadersTest(unittest.TestCase):
+    """strokelab fit and diagnose read a noisy 24-record campaign with a new effect."""
+
+    def test_fit_and_diagnose_read_it(self):
+        with tempfile.TemporaryDirectory(prefix="gen2_diag_") as work:
+            out = os.path.join(work, "c")
+            generate(out, ["--frequencies-hz", "5,6,7,8,9,11", "--amplitudes-v", "0.1,0.3,0.4,0.5",
+                           "--settle-s", "5", "--duration-s", "1", "--noise-rms", "0.0005", "--offset-v", "0.01",
+                           "--hum-v", "0.0005", "--perturb", "k_p=0.1,c_p=0.1,g=0.1,d=0.1,k_s=0.1",
+                           "--effect", "quadratic_damping=2", "--seed", "77", "--jobs", "2"])
+            json.loads(run([binary(), "fit", "--data", out, "--json"]).stdout)
+            json.loads(run([binary(), "diagnose", "--data", out, "--json"]).stdout)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
