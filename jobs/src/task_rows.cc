@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <string>
 
 #include "strokelab/base/errors.h"
@@ -16,8 +17,16 @@ using nlohmann::json;
 // The same double as the task's, allowing for a decimal round trip.
 bool SameValue(double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(std::abs(a), std::abs(b)); }
 
-bool OnGrid(double value, const std::vector<double>& grid) {
-  return std::any_of(grid.begin(), grid.end(), [value](double g) { return SameValue(value, g); });
+// `sorted`: the grid in ascending order. A value within the tolerance of a grid value lies beside
+// the first grid value not below it (grid steps are far wider than 1e-12 relative).
+bool OnGrid(double value, const std::vector<double>& sorted) {
+  const auto at = std::lower_bound(sorted.begin(), sorted.end(), value);
+  return (at != sorted.end() && SameValue(value, *at)) || (at != sorted.begin() && SameValue(value, *(at - 1)));
+}
+
+std::vector<double> Sorted(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v;
 }
 
 // The first non-finite number under `value` (JSON text cannot hold one, but 1e999 parses to inf).
@@ -27,9 +36,20 @@ void RequireFinite(const json& value, const std::string& pointer) {
     for (const auto& [key, child] : value.items()) RequireFinite(child, pointer + "/" + key);
 }
 
+// The schema of one row definition, built once per definition: copying the result schema's
+// definitions for every row cost far more than checking the row (a completion has thousands).
+const json& DefinitionSchema(const std::string& definition) {
+  static const std::map<std::string, json> schemas = [] {
+    std::map<std::string, json> m;
+    const json& defs = BuiltInSchema("result").at("$defs");
+    for (const auto& [name, unused] : defs.items()) m[name] = {{"$defs", defs}, {"$ref", "#/$defs/" + name}};
+    return m;
+  }();
+  return schemas.at(definition);
+}
+
 void RequireDefinition(const json& values, const std::string& definition, const std::string& pointer) {
-  const json schema = {{"$defs", BuiltInSchema("result").at("$defs")}, {"$ref", "#/$defs/" + definition}};
-  if (const std::optional<SchemaViolation> v = ValidateAgainstSchema(schema, values))
+  if (const std::optional<SchemaViolation> v = ValidateAgainstSchema(DefinitionSchema(definition), values))
     throw InputError(pointer + v->pointer, v->message + " (a " + definition + " row)");
 }
 
@@ -50,7 +70,7 @@ void ValidateTaskRows(const json& task, const std::vector<ResultRow>& rows) {
   };
   for (size_t i = 0; i < rows.size(); ++i) RequireFinite(rows[i].values, "/rows/" + std::to_string(i) + "/values");
   if (type == "sweep_row") {
-    const std::vector<double> frequencies = task.at("frequencies_hz").get<std::vector<double>>();
+    const std::vector<double> frequencies = Sorted(task.at("frequencies_hz").get<std::vector<double>>());
     const std::vector<double> amplitude = {task.at("amplitude_v").get<double>()};
     const std::vector<double> span = {frequencies.front(), frequencies.back()};
     for (size_t i = 0; i < rows.size(); ++i) {

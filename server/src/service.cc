@@ -30,10 +30,10 @@ using namespace internal;
 // When this thread's current request was routed (steady clock); unset for requests refused before.
 static thread_local std::optional<std::chrono::steady_clock::time_point> t_request_start;
 
-// Health and the task routes a worker polls go to the gate's priority pool: they answer while the
-// main pool is busy with slow bodies or heavy pictures.
+// Health, a job's status and the task routes a worker polls go to the gate's priority pool: they
+// answer while the main pool is busy with slow bodies (task completions), or heavy pictures.
 static bool IsPriorityRequest(std::string_view request_line) {
-  static const std::regex priority(R"((GET /v1/health|POST /v1/tasks/(lease|\d+/renew))[ ?].*)");
+  static const std::regex priority(R"((GET /v1/health|GET /v1/jobs/\d+|POST /v1/tasks/(lease|\d+/renew))[ ?].*)");
   return std::regex_match(request_line.begin(), request_line.end(), priority);
 }
 

@@ -1,6 +1,11 @@
-// The store on SQLite, whose methods are defined by subject: store.cc (the connection: opening, the
-// integrity check, migrations, prepared statements, errors), store_jobs.cc (jobs, their events and
-// counts), store_tasks.cc (leases) and store_results.cc (result rows). Internal to the store.
+// The store on SQLite, whose methods are defined by subject: store.cc (opening: the integrity check,
+// migrations, the reader pool), store_jobs.cc (jobs, their events and counts), store_tasks.cc
+// (leases) and store_results.cc (result rows). Its connections: store_connection.h. Internal to the
+// store.
+//
+// Writes go through one connection under write_mu_ (SQLite has one writer at a time anyway); reads
+// go through the reader pool and never wait for a write. Work that needs no database (encoding a
+// completion's rows, parsing a leased task's spec) is done outside write_mu_.
 #pragma once
 
 #include <sqlite3.h>
@@ -12,18 +17,32 @@
 #include <optional>
 #include <random>
 #include <string>
-#include <string_view>
-#include <unordered_map>
 #include <vector>
 
+#include "store_connection.h"
 #include "strokelab/server/store.h"
 
 namespace strokelab::server::internal {
 
+// A task's rows as they are stored, encoded once (store_results.cc): each row's JSON text and its
+// filter columns, and the cache entry made of the same texts.
+struct EncodedRow {
+  const std::string* table = nullptr;  // the ResultRow's table name (the rows outlive this)
+  std::string json;                    // the values as JSON text
+  std::optional<double> frequency_hz, amplitude_v;
+  std::optional<std::string> branch;
+};
+struct EncodedRows {
+  std::vector<EncodedRow> rows;
+  std::string cache_json;  // [{"table": ..., "values": ...}, ...] as the cache keeps them
+  int64_t points = 0;      // rows of the "points" table
+};
+EncodedRows EncodeRows(const std::vector<ResultRow>& rows);
+
 class SqliteStore final : public Store {
  public:
   explicit SqliteStore(const std::string& path);
-  ~SqliteStore() override;
+  ~SqliteStore() override = default;
   SqliteStore(const SqliteStore&) = delete;
   SqliteStore& operator=(const SqliteStore&) = delete;
 
@@ -51,60 +70,13 @@ class SqliteStore final : public Store {
   Counts GetCounts(int64_t now_ms) override;
 
  private:
-  // A cached prepared statement in use: binds (1-based, chainable), steps, and resets on scope exit.
-  class Stmt {
-   public:
-    Stmt(SqliteStore& store, sqlite3_stmt* stmt) : store_(store), stmt_(stmt) {}
-    ~Stmt() {
-      sqlite3_reset(stmt_);
-      sqlite3_clear_bindings(stmt_);
-    }
-    Stmt(const Stmt&) = delete;
-    Stmt& operator=(const Stmt&) = delete;
-
-    Stmt& Int(int i, int64_t v) { return Bound(sqlite3_bind_int64(stmt_, i, v)); }
-    Stmt& Double(int i, double v) { return Bound(sqlite3_bind_double(stmt_, i, v)); }
-    Stmt& Text(int i, std::string_view v) {
-      return Bound(sqlite3_bind_text64(stmt_, i, v.data(), v.size(), SQLITE_TRANSIENT, SQLITE_UTF8));
-    }
-    Stmt& Null(int i) { return Bound(sqlite3_bind_null(stmt_, i)); }
-    Stmt& OptDouble(int i, const std::optional<double>& v) { return v ? Double(i, *v) : Null(i); }
-    Stmt& OptText(int i, const std::optional<std::string>& v) { return v ? Text(i, *v) : Null(i); }
-
-    // True when a row is available, false when done; throws on an error.
-    bool Step() {
-      const int rc = sqlite3_step(stmt_);
-      if (rc == SQLITE_ROW) return true;
-      if (rc == SQLITE_DONE) return false;
-      store_.Fail(rc, sqlite3_sql(stmt_));
-    }
-    void Run() {
-      while (Step()) {
-      }
-    }
-    int64_t ColInt(int c) { return sqlite3_column_int64(stmt_, c); }
-    std::string ColText(int c) {
-      const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, c));
-      return p ? std::string(p, static_cast<size_t>(sqlite3_column_bytes(stmt_, c))) : std::string();
-    }
-
-   private:
-    Stmt& Bound(int rc) {
-      if (rc != SQLITE_OK) store_.Fail(rc, sqlite3_sql(stmt_));
-      return *this;
-    }
-    SqliteStore& store_;
-    sqlite3_stmt* stmt_;
-  };
-
-  // BEGIN IMMEDIATE (write) or BEGIN (read snapshot); rolls back unless committed.
+  // BEGIN IMMEDIATE on the writer (held under write_mu_); rolls back unless committed.
   class Transaction {
    public:
-    explicit Transaction(SqliteStore& store, bool write = true) : store_(store) {
-      store_.Exec(write ? "BEGIN IMMEDIATE" : "BEGIN");
-    }
+    explicit Transaction(SqliteStore& store) : store_(store) { store_.writer_.Exec("BEGIN IMMEDIATE"); }
     ~Transaction() {
-      if (!sqlite3_get_autocommit(store_.db_)) sqlite3_exec(store_.db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      sqlite3* db = store_.writer_.db();
+      if (!sqlite3_get_autocommit(db)) sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
       store_.pending_events_.clear();  // rolled back: those changes never happened
     }
     Transaction(const Transaction&) = delete;
@@ -112,7 +84,7 @@ class SqliteStore final : public Store {
     // Commits, then tells the sink of the job state changes this transaction made (only now are
     // they true for every reader).
     void Commit() {
-      store_.Exec("COMMIT");
+      store_.writer_.Exec("COMMIT");
       if (store_.sink_)
         for (const JobEvent& e : store_.pending_events_) store_.sink_(e);
       store_.pending_events_.clear();
@@ -132,32 +104,28 @@ class SqliteStore final : public Store {
   static JobRecord ReadJob(Stmt& s);
 
   // store_tasks.cc
-  std::optional<HeldTask> CheckLease(const TaskLease& lease, int64_t now_ms);
+  int64_t OldestLeasable(Connection& c, int64_t now_ms);
+  std::optional<HeldTask> CheckLease(Connection& c, const TaskLease& lease, int64_t now_ms);
   std::string NewToken();
 
-  // store_results.cc
-  void InsertResultRows(int64_t job_id, int64_t task_idx, const std::vector<ResultRow>& rows);
+  // store_results.cc: the rows of one task (in the open write transaction).
+  void InsertResultRows(int64_t job_id, int64_t task_idx, const EncodedRows& rows);
 
   // store.cc
-  Stmt Prepare(const std::string& sql);
-  void Exec(const char* sql);
-  [[noreturn]] void Fail(int rc, const char* sql);
-  std::string Describe(int rc);
   void OpenAndMigrate();
   void CheckIntegrity();
   void Migrate();
-  int UserVersion();
-  [[noreturn]] void OpenFailed(int rc);
+  int UserVersion(Connection& c);
   static int ReadFirstColumn(void* out, int columns, char** values, char**);
-  void Close();
 
-  std::mutex mu_;  // guards everything below; held for the whole of every public method
-  std::string path_;
-  sqlite3* db_ = nullptr;
-  std::unordered_map<std::string, sqlite3_stmt*> statements_;
+  std::mutex write_mu_;  // guards the members below up to readers_; held for the whole of every write
+  Connection writer_;
   std::random_device random_;
   std::function<void(const JobEvent&)> sink_;
   std::vector<JobEvent> pending_events_;  // of the open transaction, for the sink
+  // Declared after writer_, so closed before it: the writer, closing last, checkpoints the WAL
+  // into the file and removes it.
+  ReaderPool readers_;
 };
 
 }  // namespace strokelab::server::internal

@@ -52,14 +52,14 @@ constexpr const char* kJobColumns =
 }  // namespace
 
 void SqliteStore::SetJobEventSink(std::function<void(const JobEvent&)> sink) {
-  std::lock_guard lock(mu_);
+  std::lock_guard lock(write_mu_);
   sink_ = std::move(sink);
 }
 
 std::vector<JobEvent> SqliteStore::JobEvents(int64_t job_id) {
-  std::lock_guard lock(mu_);
+  ReaderPool::Handle reader = readers_.Acquire();
   std::vector<JobEvent> events;
-  Stmt s = Prepare(
+  Stmt s = reader->Prepare(
       "SELECT e.id, e.job_id, j.kind, e.status, e.at_ms, e.tasks_done, j.tasks_total, e.points, e.reason "
       "FROM job_events e JOIN jobs j ON j.id = e.job_id WHERE e.job_id = ?1 ORDER BY e.id");
   s.Int(1, job_id);
@@ -81,43 +81,50 @@ std::vector<JobEvent> SqliteStore::JobEvents(int64_t job_id) {
 
 int64_t SqliteStore::SubmitJob(const std::string& kind, const json& spec, const std::vector<TaskSpec>& tasks,
                                int64_t now_ms) {
-  std::lock_guard lock(mu_);
+  const std::string spec_json = spec.dump();
+  std::vector<std::string> task_specs_json;
+  task_specs_json.reserve(tasks.size());
+  for (const TaskSpec& t : tasks) task_specs_json.push_back(t.spec.dump());
+  std::lock_guard lock(write_mu_);
   Transaction tx(*this);
   int64_t job_id = 0;
   {
-    Stmt s = Prepare(
+    Stmt s = writer_.Prepare(
         "INSERT INTO jobs (kind, status, spec_json, tasks_total, tasks_done, created_ms) "
         "VALUES (?1, 'queued', ?2, ?3, 0, ?4)");
-    s.Text(1, kind).Text(2, spec.dump()).Int(3, static_cast<int64_t>(tasks.size())).Int(4, now_ms).Run();
-    job_id = sqlite3_last_insert_rowid(db_);
+    s.Text(1, kind).Text(2, spec_json).Int(3, static_cast<int64_t>(tasks.size())).Int(4, now_ms).Run();
+    job_id = writer_.LastInsertRowid();
   }
   RecordEvent(job_id, JobStatus::kQueued, now_ms, "submitted");
-  int64_t cached = 0;
+  int64_t cached = 0, points = 0;
   for (size_t i = 0; i < tasks.size(); ++i) {
     const int64_t idx = static_cast<int64_t>(i);
     std::optional<std::string> rows_json;
     {
-      Stmt s = Prepare("SELECT rows_json FROM cache WHERE key = ?1");
+      Stmt s = writer_.Prepare("SELECT rows_json FROM cache WHERE key = ?1");
       if (s.Text(1, tasks[i].key).Step()) rows_json = s.ColText(0);
     }
     {
-      Stmt s = Prepare(
+      Stmt s = writer_.Prepare(
           "INSERT INTO tasks (job_id, idx, key, spec_json, status, finished_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
-      s.Int(1, job_id).Int(2, idx).Text(3, tasks[i].key).Text(4, tasks[i].spec.dump());
+      s.Int(1, job_id).Int(2, idx).Text(3, tasks[i].key).StaticText(4, task_specs_json[i]);
       s.Text(5, rows_json ? "done" : "queued").Int(6, rows_json ? now_ms : 0).Run();
     }
     if (rows_json) {
       std::vector<ResultRow> rows;
       for (const json& r : ParseJson(*rows_json)) rows.push_back({r.at("table").get<std::string>(), r.at("values")});
-      InsertResultRows(job_id, idx, rows);
+      const EncodedRows encoded = EncodeRows(rows);
+      InsertResultRows(job_id, idx, encoded);
+      points += encoded.points;
       ++cached;
     }
   }
   if (cached > 0 || tasks.empty()) {
     const bool all = cached == static_cast<int64_t>(tasks.size());
-    Stmt s = Prepare(
-        "UPDATE jobs SET tasks_done = ?2, status = ?3, started_ms = ?4, finished_ms = ?4 WHERE id = ?1");
-    s.Int(1, job_id).Int(2, cached).Text(3, all ? "succeeded" : "queued").Int(4, all ? now_ms : 0).Run();
+    Stmt s = writer_.Prepare(
+        "UPDATE jobs SET tasks_done = ?2, status = ?3, started_ms = ?4, finished_ms = ?4, points = ?5 WHERE id = ?1");
+    s.Int(1, job_id).Int(2, cached).Text(3, all ? "succeeded" : "queued").Int(4, all ? now_ms : 0).Int(5, points);
+    s.Run();
     if (all)
       RecordEvent(job_id, JobStatus::kSucceeded, now_ms,
                   tasks.empty() ? "no tasks" : "all " + std::to_string(cached) + " tasks from the result cache");
@@ -127,34 +134,34 @@ int64_t SqliteStore::SubmitJob(const std::string& kind, const json& spec, const 
 }
 
 std::optional<JobRecord> SqliteStore::GetJob(int64_t id) {
-  std::lock_guard lock(mu_);
-  Stmt s = Prepare(std::string(kJobColumns) + " WHERE id = ?1");
+  ReaderPool::Handle reader = readers_.Acquire();
+  Stmt s = reader->Prepare(std::string(kJobColumns) + " WHERE id = ?1");
   if (!s.Int(1, id).Step()) return std::nullopt;
   return ReadJob(s);
 }
 
 std::vector<JobRecord> SqliteStore::ListJobs(int limit, int64_t before_id) {
-  std::lock_guard lock(mu_);
   std::vector<JobRecord> jobs;
   if (limit <= 0) return jobs;
-  Stmt s = Prepare(std::string(kJobColumns) + " WHERE id < ?1 ORDER BY id DESC LIMIT ?2");
+  ReaderPool::Handle reader = readers_.Acquire();
+  Stmt s = reader->Prepare(std::string(kJobColumns) + " WHERE id < ?1 ORDER BY id DESC LIMIT ?2");
   s.Int(1, before_id > 0 ? before_id : std::numeric_limits<int64_t>::max()).Int(2, limit);
   while (s.Step()) jobs.push_back(ReadJob(s));
   return jobs;
 }
 
 bool SqliteStore::CancelJob(int64_t id, int64_t now_ms) {
-  std::lock_guard lock(mu_);
+  std::lock_guard lock(write_mu_);
   Transaction tx(*this);
   {
-    Stmt s = Prepare(
+    Stmt s = writer_.Prepare(
         "UPDATE jobs SET status = 'cancelled', finished_ms = ?2 WHERE id = ?1 AND status IN ('queued', 'running')");
     s.Int(1, id).Int(2, now_ms).Run();
   }
-  if (sqlite3_changes(db_) == 0) return false;
+  if (writer_.Changes() == 0) return false;
   RecordEvent(id, JobStatus::kCancelled, now_ms, "cancelled by request");
   {
-    Stmt s = Prepare(
+    Stmt s = writer_.Prepare(
         "UPDATE tasks SET status = 'cancelled', lease_token = NULL, finished_ms = ?2 "
         "WHERE job_id = ?1 AND status IN ('queued', 'leased')");
     s.Int(1, id).Int(2, now_ms).Run();
@@ -164,15 +171,15 @@ bool SqliteStore::CancelJob(int64_t id, int64_t now_ms) {
 }
 
 Store::Counts SqliteStore::GetCounts(int64_t now_ms) {
-  std::lock_guard lock(mu_);
-  Transaction tx(*this, /*write=*/false);  // one consistent snapshot
+  ReaderPool::Handle reader = readers_.Acquire();
+  ReadSnapshot snapshot(*reader);  // one consistent snapshot
   Counts c;
   {
-    Stmt s = Prepare("SELECT status, count(*) FROM jobs GROUP BY status");
+    Stmt s = reader->Prepare("SELECT status, count(*) FROM jobs GROUP BY status");
     while (s.Step()) c.jobs[static_cast<int>(ParseJobStatus(s.ColText(0)))] = s.ColInt(1);
   }
   {
-    Stmt s = Prepare(
+    Stmt s = reader->Prepare(
         "SELECT count(*) FILTER (WHERE status = 'queued' OR lease_expires_ms <= ?1), "
         "       count(*) FILTER (WHERE status = 'leased' AND lease_expires_ms > ?1) "
         "FROM tasks WHERE status IN ('queued', 'leased')");
@@ -181,11 +188,10 @@ Store::Counts SqliteStore::GetCounts(int64_t now_ms) {
     c.tasks_leased = s.ColInt(1);
   }
   {
-    Stmt s = Prepare("SELECT count(*) FROM tasks WHERE status = 'done'");
+    Stmt s = reader->Prepare("SELECT count(*) FROM tasks WHERE status = 'done'");
     s.Step();
     c.tasks_done = s.ColInt(0);
   }
-  tx.Commit();
   return c;
 }
 
@@ -197,21 +203,19 @@ void SqliteStore::RecordEvent(int64_t job_id, JobStatus status, int64_t now_ms, 
   e.status = status;
   e.at_ms = now_ms;
   e.reason = reason;
-  {
-    Stmt s = Prepare(
-        "SELECT kind, tasks_done, tasks_total, "
-        "(SELECT count(*) FROM results WHERE job_id = ?1 AND table_name = 'points') FROM jobs WHERE id = ?1");
+  {  // the points counter, not the results table: a finishing job's event costs no scan of its rows
+    Stmt s = writer_.Prepare("SELECT kind, tasks_done, tasks_total, points FROM jobs WHERE id = ?1");
     if (!s.Int(1, job_id).Step()) BrokenInvariant("job store: event of a job that does not exist");
     e.kind = s.ColText(0);
     e.tasks_done = static_cast<int>(s.ColInt(1));
     e.tasks_total = static_cast<int>(s.ColInt(2));
     e.points = s.ColInt(3);
   }
-  Stmt s = Prepare(
+  Stmt s = writer_.Prepare(
       "INSERT INTO job_events (job_id, at_ms, status, tasks_done, points, reason) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
   s.Int(1, job_id).Int(2, now_ms).Text(3, ToString(status)).Int(4, e.tasks_done).Int(5, e.points).Text(6, reason);
   s.Run();
-  e.id = sqlite3_last_insert_rowid(db_);
+  e.id = writer_.LastInsertRowid();
   pending_events_.push_back(std::move(e));
 }
 

@@ -1,5 +1,5 @@
-// The store's result rows (store.h): written with their filter columns, read back in pages with
-// keyset cursors.
+// The store's result rows (store.h): encoded once, written with their filter columns in batches,
+// read back in pages with keyset cursors.
 #include <cmath>
 #include <cstdint>
 #include <mutex>
@@ -63,8 +63,8 @@ Store::Page SqliteStore::Results(int64_t job_id, const std::string& table, const
   if (filter.branch) sql += " AND branch = ?9";
   sql += " ORDER BY task_idx, row_idx LIMIT ?10";
 
-  std::lock_guard lock(mu_);
-  Stmt s = Prepare(sql);
+  ReaderPool::Handle reader = readers_.Acquire();
+  Stmt s = reader->Prepare(sql);
   s.Int(1, job_id).Text(2, table);
   if (cursor > 0) s.Int(3, cursor >> 32).Int(4, (cursor & kRowsPerTaskLimit) - 1);
   if (filter.frequency_min_hz) s.Double(5, *filter.frequency_min_hz);
@@ -90,22 +90,74 @@ Store::Page SqliteStore::Results(int64_t job_id, const std::string& table, const
 }
 
 int64_t SqliteStore::CountResults(int64_t job_id, const std::string& table) {
-  std::lock_guard lock(mu_);
-  Stmt s = Prepare("SELECT count(*) FROM results WHERE job_id = ?1 AND table_name = ?2");
+  ReaderPool::Handle reader = readers_.Acquire();
+  Stmt s = reader->Prepare("SELECT count(*) FROM results WHERE job_id = ?1 AND table_name = ?2");
   s.Int(1, job_id).Text(2, table).Step();
   return s.ColInt(0);
 }
 
-void SqliteStore::InsertResultRows(int64_t job_id, int64_t task_idx, const std::vector<ResultRow>& rows) {
+EncodedRows EncodeRows(const std::vector<ResultRow>& rows) {
   if (static_cast<int64_t>(rows.size()) >= kRowsPerTaskLimit) throw std::length_error("job store: too many rows");
-  for (size_t r = 0; r < rows.size(); ++r) {
-    const FilterColumns c = ExtractFilterColumns(rows[r].values);
-    Stmt s = Prepare(
-        "INSERT INTO results (job_id, table_name, task_idx, row_idx, frequency_hz, amplitude_v, branch, json) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
-    s.Int(1, job_id).Text(2, rows[r].table).Int(3, task_idx).Int(4, static_cast<int64_t>(r));
-    s.OptDouble(5, c.frequency_hz).OptDouble(6, c.amplitude_v).OptText(7, c.branch);
-    s.Text(8, rows[r].values.dump(-1, ' ', false, json::error_handler_t::replace)).Run();
+  EncodedRows out;
+  out.rows.reserve(rows.size());
+  size_t bytes = 2;
+  for (const ResultRow& r : rows) {
+    const FilterColumns c = ExtractFilterColumns(r.values);
+    out.rows.push_back({&r.table, r.values.dump(-1, ' ', false, json::error_handler_t::replace), c.frequency_hz,
+                        c.amplitude_v, c.branch});
+    bytes += out.rows.back().json.size() + r.table.size() + 24;
+    if (r.table == "points") ++out.points;
+  }
+  // The cache entry is the array of {"table": ..., "values": ...} objects that json::dump writes
+  // (keys in order, no spaces), made of the texts above rather than by encoding every row again.
+  out.cache_json.reserve(bytes);
+  out.cache_json += '[';
+  for (const EncodedRow& e : out.rows) {
+    if (out.cache_json.size() > 1) out.cache_json += ',';
+    out.cache_json += "{\"table\":";
+    out.cache_json += json(*e.table).dump(-1, ' ', false, json::error_handler_t::replace);
+    out.cache_json += ",\"values\":";
+    out.cache_json += e.json;
+    out.cache_json += '}';
+  }
+  out.cache_json += ']';
+  return out;
+}
+
+// Rows go in by kBatchRows per INSERT statement (fewer statement executions than one per row), each
+// batch statement prepared once per connection; the last rows of a task one by one.
+void SqliteStore::InsertResultRows(int64_t job_id, int64_t task_idx, const EncodedRows& encoded) {
+  constexpr int kColumns = 8;
+  constexpr size_t kBatchRows = 50;  // 400 parameters, within every SQLite's limit (999)
+  static const std::string kInsertOne =
+      "INSERT INTO results (job_id, table_name, task_idx, row_idx, frequency_hz, amplitude_v, branch, json) "
+      "VALUES (?, ?, ?, ?, ?, ?, ?, ?)";
+  static const std::string kInsertBatch = [] {
+    std::string sql = kInsertOne;
+    for (size_t r = 1; r < kBatchRows; ++r) sql += ", (?, ?, ?, ?, ?, ?, ?, ?)";
+    return sql;
+  }();
+  const std::vector<EncodedRow>& rows = encoded.rows;
+  const auto bind_row = [&](Stmt& s, int first, size_t r) {
+    const EncodedRow& e = rows[r];
+    s.Int(first, job_id).StaticText(first + 1, *e.table).Int(first + 2, task_idx).Int(first + 3, static_cast<int64_t>(r));
+    s.OptDouble(first + 4, e.frequency_hz).OptDouble(first + 5, e.amplitude_v).OptStaticText(first + 6, e.branch);
+    s.StaticText(first + 7, e.json);
+  };
+  size_t r = 0;
+  if (rows.size() >= kBatchRows) {
+    Stmt s = writer_.Prepare(kInsertBatch);
+    for (; r + kBatchRows <= rows.size(); r += kBatchRows) {
+      for (size_t k = 0; k < kBatchRows; ++k) bind_row(s, static_cast<int>(k) * kColumns + 1, r + k);
+      s.Run();
+      s.Reset();
+    }
+  }
+  Stmt s = writer_.Prepare(kInsertOne);
+  for (; r < rows.size(); ++r) {
+    bind_row(s, 1, r);
+    s.Run();
+    s.Reset();
   }
 }
 

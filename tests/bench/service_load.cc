@@ -13,61 +13,41 @@
 //
 //   service_load [--binary PATH] [--server URL] [--workers 1] [--threads 4] [--seconds 5]
 //                [--frequency-points 1000] [--amplitude-points 200] [--baseline] [--json]
-#include <fcntl.h>
 #include <httplib.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
 
-extern char** environ;
+#include "bench_server.h"
 
 namespace {
 
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
-namespace fs = std::filesystem;
 
 double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-struct Options {
-  std::string binary = STROKELAB_BINARY;
-  std::string server;  // empty: start one
-  int workers = 1, threads = 4, frequency_points = 1000, amplitude_points = 200;
-  double seconds = 5;
-  bool json_out = false, baseline = false;
+struct Options : strokelab::bench::LoadOptions {
+  int workers = 1, threads = 4;
+  bool baseline = false;
 };
 
 Options Parse(int argc, char** argv) {
   Options o;
+  o.binary = STROKELAB_BINARY;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::runtime_error(a + ": needs a value");
-      return argv[++i];
-    };
-    if (a == "--binary") o.binary = next();
-    else if (a == "--server") o.server = next();
-    else if (a == "--workers") o.workers = std::stoi(next());
-    else if (a == "--threads") o.threads = std::stoi(next());
-    else if (a == "--seconds") o.seconds = std::stod(next());
-    else if (a == "--frequency-points") o.frequency_points = std::stoi(next());
-    else if (a == "--amplitude-points") o.amplitude_points = std::stoi(next());
-    else if (a == "--json") o.json_out = true;
+    if (strokelab::bench::TakeLoadFlag(argc, argv, i, o)) continue;
+    if (a == "--workers") o.workers = std::stoi(strokelab::bench::FlagValue(argc, argv, i));
+    else if (a == "--threads") o.threads = std::stoi(strokelab::bench::FlagValue(argc, argv, i));
     else if (a == "--baseline") o.baseline = true;
     else if (a == "--help") {
       std::printf(
@@ -81,49 +61,6 @@ Options Parse(int argc, char** argv) {
     }
   }
   return o;
-}
-
-// The server child, killed on exit.
-struct ServerProcess {
-  pid_t pid = 0;
-  fs::path dir;
-  ~ServerProcess() {
-    if (pid > 0) {
-      kill(pid, SIGTERM);
-      int status = 0;
-      for (int i = 0; i < 200 && waitpid(pid, &status, WNOHANG) == 0; ++i) usleep(50000);
-      kill(pid, SIGKILL);
-      waitpid(pid, &status, 0);
-    }
-    if (!dir.empty()) fs::remove_all(dir);
-  }
-};
-
-int StartServer(const Options& o, ServerProcess& p) {
-  std::string pattern = (fs::temp_directory_path() / "strokelab-load-XXXXXX").string();
-  if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
-  p.dir = pattern;
-  const std::string log = (p.dir / "serve.log").string(), db = (p.dir / "load.db").string();
-  const std::vector<std::string> args = {o.binary, "serve", "--port", "0", "--workers", std::to_string(o.workers),
-                                         "--db", db, "--quiet"};
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  const int rc = posix_spawn(&p.pid, o.binary.c_str(), &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) throw std::runtime_error("cannot start " + o.binary + ": " + std::strerror(rc));
-  const std::string marker = "strokelab serving http://127.0.0.1:";
-  for (const auto start = Clock::now(); Since(start) < 15;) {
-    std::ifstream in(log);
-    std::stringstream s;
-    s << in.rdbuf();
-    if (const size_t at = s.str().find(marker); at != std::string::npos) return std::atoi(s.str().c_str() + at + marker.size());
-    usleep(10000);
-  }
-  throw std::runtime_error("the server did not come up (see " + log + ")");
 }
 
 double RowsWritten(httplib::Client& c) {
@@ -141,13 +78,7 @@ struct PhaseResult {
   std::vector<double> latencies_ms;
   double rows_per_s = 0;
   int tasks_done_before = 0, tasks_done_after = 0;
-  double Percentile(double q) const {
-    if (latencies_ms.empty()) return 0;
-    std::vector<double> v = latencies_ms;
-    const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-    return v[k];
-  }
+  double Percentile(double q) const { return strokelab::bench::Percentile(latencies_ms, q); }
 };
 
 int TasksDone(httplib::Client& c, int64_t id) {
@@ -216,16 +147,8 @@ PhaseResult RunPhase(const std::string& kind, const Options& o, const std::strin
 
 int main(int argc, char** argv) try {
   const Options o = Parse(argc, argv);
-  ServerProcess owned;
-  std::string host = "127.0.0.1";
-  int port = 0;
-  if (o.server.empty()) {
-    port = StartServer(o, owned);
-  } else {
-    const std::string rest = o.server.substr(o.server.find("//") + 2);
-    host = rest.substr(0, rest.rfind(':'));
-    port = std::stoi(rest.substr(rest.rfind(':') + 1));
-  }
+  strokelab::bench::ServerProcess owned;
+  const auto [host, port] = strokelab::bench::ServerToLoad(o.server, owned, o.binary, {"--workers", std::to_string(o.workers)});
   httplib::Client c(host, port);
   c.set_read_timeout(30);
   const json job = {{"kind", "sweep"},

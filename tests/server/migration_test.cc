@@ -1,8 +1,9 @@
 // Schema migrations (schema/migrations/, server/src/store.cc Migrate): an empty file reaches the
 // latest version; a file at every earlier version, built by applying only the migrations up to it
 // and filled with jobs, tasks, results and cache rows, reaches the latest with that data intact
-// (and, from version 1, with the job history that 002_job_events.sql backfills); a file of a newer
-// version is refused untouched; a migration that fails half-way leaves the file at its old version.
+// (and, from version 1, with the job history that 002_job_events.sql backfills; from any, with the
+// points counts that 004_job_points.sql backfills); a file of a newer version is refused untouched;
+// a migration that fails half-way leaves the file at its old version.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -24,12 +25,12 @@ using strokelab::testing::ScratchDirectory;
 int Latest() { return internal::Migrations().back().version; }
 
 // The tables every version has (version 1 created them) with version 1's columns, as text, for
-// before/after comparisons (later versions add columns: tasks.budget_failures in 4).
+// before/after comparisons (later versions add columns: jobs.points in 4, tasks.budget_failures in 5).
 std::vector<std::string> DumpVersion1Tables(const std::string& path) {
   RawDb db(path);
   std::vector<std::string> all;
   const std::pair<const char*, const char*> tables[] = {
-      {"jobs", "*"},
+      {"jobs", "id, kind, status, spec_json, tasks_total, tasks_done, created_ms, started_ms, finished_ms, error"},
       {"tasks", "id, job_id, idx, key, spec_json, status, lease_token, lease_owner, lease_expires_ms, attempts, finished_ms"},
       {"results", "*"},
       {"cache", "*"}};
@@ -41,7 +42,8 @@ std::vector<std::string> DumpVersion1Tables(const std::string& path) {
 }
 
 // A database at `version`: migrations 1..version applied as Store would (each with its
-// user_version), then jobs in every state written with plain SQL into the version-1 tables.
+// user_version), then jobs in every state written with plain SQL into the version-1 tables (and,
+// from version 4, their points counted as the store counts them).
 //   1 sweep     succeeded, 2 tasks done, 3 points each      created 1000, started 1100, finished 1500
 //   2 simulate  running, task 0 done (1 point), task 1 leased with token "tok-2" until 10^13
 //   3 sweep     queued, 1 task queued
@@ -81,6 +83,10 @@ void BuildAtVersion(const std::string& path, int version) {
     INSERT INTO cache (key, rows_json, created_ms)
     VALUES ('k1a', '[]', 1300), ('k2a', '[{"table":"points","values":{"frequency_hz":9}}]', 2200);
   )sql");
+  // From version 4 the store keeps jobs.points as it stores rows (004_job_points.sql): a file at
+  // such a version has them counted.
+  if (version >= 4)
+    db.Exec("UPDATE jobs SET points = (SELECT count(*) FROM results r WHERE r.job_id = jobs.id AND r.table_name = 'points')");
 }
 
 TEST(Migration, EmptyFileReachesTheLatestVersion) {
@@ -188,6 +194,19 @@ TEST(Migration, StoredPointsTakeTheFrfColumnsUnitNames) {
   EXPECT_EQ(rows[0], json::parse(R"({"frequency_hz":8,"amplitude_v":0.3,"branch":"up","h_re_n_per_v":-0.25,
                                      "h_im_n_per_v":null})"));
   EXPECT_EQ(store->Results(1, "points", {}, 0, 10).rows[0], json::parse(R"({"frequency_hz":5,"amplitude_v":0.1,"branch":"up"})"));
+}
+
+// 004_job_points.sql: every job counts its stored points rows (the results of table "points", not
+// thresholds), and the store goes on counting from there: job 2's event when its last task
+// completes with one more point says 2 (EveryEarlierVersionReachesTheLatestWithItsDataIntact).
+TEST(Migration, JobsCountTheirStoredPoints) {
+  ASSERT_GE(Latest(), 4);
+  ScratchDirectory dir("strokelab-migrate");
+  const std::string path = (dir.path() / "jobs.db").string();
+  BuildAtVersion(path, 3);
+  Store::Open(path);
+  EXPECT_EQ(RawDb(path).Rows("SELECT id, points FROM jobs ORDER BY id"),
+            (std::vector<std::string>{"1|6", "2|1", "3|0", "4|0", "5|0"}));
 }
 
 TEST(Migration, NewerVersionIsRefusedAndLeftUntouched) {

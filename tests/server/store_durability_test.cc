@@ -89,6 +89,48 @@ TEST_F(StoreTest, ConcurrentWorkersCompleteEveryTaskOnce) {
   std::printf("[          ] %d completions refused after a lease was taken over\n", lost.load());
 }
 
+// Readers beside two writers: the reader pool's connections, handed from thread to thread, see
+// only whole completions (a task's rows all or none, the job's counter no further than its rows),
+// and progress never goes back. Under TSan this is also the pool's race check.
+TEST_F(StoreTest, ReadersBesideWritersSeeWholeCompletions) {
+  constexpr int kTasks = 60, kRows = 20, kWriters = 2, kReaders = 3;
+  const int64_t id = store_->SubmitJob("sweep", json::object(), MakeTasks(kTasks, "k"), 0);
+  std::atomic<bool> writers_done{false};
+  std::atomic<int> reads{0};
+  std::vector<std::thread> threads;
+  for (int w = 0; w < kWriters; ++w) {
+    threads.emplace_back([&, w] {
+      while (std::optional<TaskLease> lease = store_->LeaseTask("w" + std::to_string(w), 1, kLeaseMs))
+        EXPECT_TRUE(store_->CompleteTask(*lease, MakeRows(lease->index, kRows), 2));
+    });
+  }
+  for (int r = 0; r < kReaders; ++r) {
+    threads.emplace_back([&] {
+      int64_t last_done = 0;
+      for (bool last_round = false; !last_round;) {
+        last_round = writers_done;
+        const int64_t done_before = store_->GetJob(id)->tasks_done;
+        const int64_t rows = store_->CountResults(id, "points");
+        const Store::Page page = store_->Results(id, "points", {}, 0, kTasks * kRows);
+        const int64_t done_after = store_->GetJob(id)->tasks_done;
+        EXPECT_EQ(rows % kRows, 0) << "a task's rows seen in part";
+        EXPECT_LE(done_before * kRows, rows);
+        EXPECT_LE(rows, static_cast<int64_t>(page.rows.size()));
+        EXPECT_LE(static_cast<int64_t>(page.rows.size()), done_after * kRows);
+        EXPECT_GE(done_before, last_done) << "progress went back";
+        last_done = done_after;
+        ++reads;
+      }
+    });
+  }
+  for (int w = 0; w < kWriters; ++w) threads[w].join();
+  writers_done = true;
+  for (size_t t = kWriters; t < threads.size(); ++t) threads[t].join();
+  EXPECT_EQ(Job(id).status, JobStatus::kSucceeded);
+  EXPECT_EQ(store_->CountResults(id, "points"), kTasks * kRows);
+  EXPECT_GE(reads.load(), kReaders);
+}
+
 TEST_F(StoreTest, ReopenedStoreResumesUnfinishedTasks) {
   const int64_t id = store_->SubmitJob("sweep", json{{"grid", "eq1"}}, MakeTasks(3, "k"), 0);
   const TaskLease a = store_->LeaseTask("w", 0, kLeaseMs).value();

@@ -5,9 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "store_test_util.h"
@@ -164,6 +168,16 @@ TEST_F(StoreTest, CachedTasksAreDoneAtSubmission) {
     ASSERT_TRUE(store_->CompleteTask(lease, rows, 20));
   }
   ASSERT_EQ(Job(first).status, JobStatus::kSucceeded);
+  // The cache entry is what json::dump writes for the rows as [{"table", "values"}, ...], byte for
+  // byte (the store builds it from each row's one encoding).
+  const std::string cached = store_test::QueryText(path_, "SELECT rows_json FROM cache WHERE key = 'k0'");
+  EXPECT_EQ(cached, json::parse(cached).dump());
+  json expected_cache = json::array();
+  std::vector<ResultRow> rows0 = MakeRows(0, 3);
+  rows0.push_back({"thresholds", json{{"frequency_hz", 7.0}, {"grazing_v", 0.2}}});
+  for (const ResultRow& r : rows0) expected_cache.push_back({{"table", r.table}, {"values", r.values}});
+  EXPECT_EQ(cached, expected_cache.dump());
+  EXPECT_EQ(store_->JobEvents(first).back().points, 6) << "points rows only, thresholds are not points";
 
   // The same work again: succeeded at once, the same rows, nothing to lease.
   const int64_t repeat = store_->SubmitJob("sweep", json::object(), MakeTasks(2, "k"), 30);
@@ -175,6 +189,7 @@ TEST_F(StoreTest, CachedTasksAreDoneAtSubmission) {
   EXPECT_EQ(AllRows(repeat, "points", {}, 100), AllRows(first, "points", {}, 100));
   EXPECT_EQ(AllRows(repeat, "thresholds", {}, 100), AllRows(first, "thresholds", {}, 100));
   EXPECT_EQ(store_->CountResults(repeat, "thresholds"), 2);
+  EXPECT_EQ(store_->JobEvents(repeat).back().points, 6) << "the points served from the cache";
 
   // Half known: only the new task is leased; its index is its place in the new job.
   std::vector<TaskSpec> mixed = {{"new", json{{"chunk", "new"}}}, {"k1", json{{"chunk", 1}}}};
@@ -192,9 +207,60 @@ TEST_F(StoreTest, CachedTasksAreDoneAtSubmission) {
   ASSERT_EQ(rows.size(), 5u);
   EXPECT_EQ(rows[0]["task"], 9);  // task 0 (computed) first, then task 1 (from the cache of "k1")
   EXPECT_EQ(rows[2]["task"], 1);
+  EXPECT_EQ(store_->JobEvents(partial).back().points, 5) << "3 from the cache at submission, 2 computed";
 
   // A job without tasks has nothing to wait for.
   EXPECT_EQ(Job(store_->SubmitJob("sweep", json::object(), {}, 80)).status, JobStatus::kSucceeded);
+}
+
+// Reads while a write holds the store's write lock (the event sink runs under it, just after
+// COMMIT): each answers at once from the last commit instead of waiting for the write to end, and an
+// empty queue's lease request does not wait either. The reads run on another thread while the sink
+// waits up to 5 s for them.
+TEST_F(StoreTest, ReadsDoNotWaitBehindAWrite) {
+  const int64_t id = store_->SubmitJob("sweep", json::object(), MakeTasks(2, "k"), 0);
+  const TaskLease first = store_->LeaseTask("w1", 10, kLeaseMs).value();
+  const TaskLease second = store_->LeaseTask("w1", 10, kLeaseMs).value();
+  ASSERT_TRUE(store_->CompleteTask(first, MakeRows(0, 3), 20));
+
+  std::atomic<bool> reads_done{false};
+  bool answered_under_the_write = false;
+  std::optional<JobRecord> job;
+  int64_t points = -1;
+  size_t page_rows = 0, jobs_listed = 0, events = 0;
+  Store::Counts counts;
+  bool leased = true;
+  std::thread reader;
+  store_->SetJobEventSink([&](const JobEvent& e) {
+    if (e.status != JobStatus::kSucceeded) return;
+    reader = std::thread([&] {
+      job = store_->GetJob(id);
+      points = store_->CountResults(id, "points");
+      page_rows = store_->Results(id, "points", {}, 0, 100).rows.size();
+      jobs_listed = store_->ListJobs(10, 0).size();
+      events = store_->JobEvents(id).size();
+      counts = store_->GetCounts(30);
+      leased = store_->LeaseTask("w2", 30, kLeaseMs).has_value();
+      reads_done = true;
+    });
+    const auto start = std::chrono::steady_clock::now();
+    while (!reads_done && std::chrono::steady_clock::now() - start < std::chrono::seconds(5))
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    answered_under_the_write = reads_done;
+  });
+  ASSERT_TRUE(store_->CompleteTask(second, MakeRows(1, 3), 30));
+  reader.join();
+  EXPECT_TRUE(answered_under_the_write) << "the reads waited for the write lock";
+  ASSERT_TRUE(job.has_value());
+  EXPECT_EQ(job->status, JobStatus::kSucceeded) << "committed before the sink is told";
+  EXPECT_EQ(job->tasks_done, 2);
+  EXPECT_EQ(points, 6);
+  EXPECT_EQ(page_rows, 6u);
+  EXPECT_EQ(jobs_listed, 1u);
+  EXPECT_EQ(events, 3u);  // queued, running, succeeded
+  EXPECT_EQ(counts.jobs[static_cast<int>(JobStatus::kSucceeded)], 1);
+  EXPECT_EQ(counts.tasks_done, 2);
+  EXPECT_FALSE(leased);
 }
 
 TEST_F(StoreTest, ResultsPageInTaskRowOrderAndFilter) {

@@ -68,9 +68,12 @@ class StoreError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Every method is thread-safe (one SQLite connection behind a mutex); errors of the database
-// (disk full, I/O, locked by another process for more than 5 s) throw StoreError naming the
-// file and SQLite's message, with the transaction rolled back.
+// Every method is thread-safe: writes go through one SQLite connection behind a mutex, reads
+// (GetJob, ListJobs, JobEvents, Results, CountResults, GetCounts, LeasedTaskSpec, SchemaVersion,
+// and a LeaseTask that finds the queue empty) through a pool of read-only connections, which in WAL
+// mode see the last committed transaction and never wait for a write. Errors of the database (disk
+// full, I/O, locked by another process for more than 5 s) throw StoreError naming the file and
+// SQLite's message, with the transaction rolled back.
 class Store {
  public:
   // Opens (creating if needed) the database, sets WAL mode, checks every page (PRAGMA quick_check),
@@ -82,7 +85,8 @@ class Store {
   virtual int SchemaVersion() = 0;
 
   // Called with every job state change after its transaction has committed, in commit order, with
-  // the store's lock held: the sink must not call back into the store. Empty: no calls.
+  // the store's write lock held: the sink may read the store but must not write to it. Empty: no
+  // calls.
   virtual void SetJobEventSink(std::function<void(const JobEvent&)> sink) = 0;
   // A job's state changes, oldest first (empty for an unknown job).
   virtual std::vector<JobEvent> JobEvents(int64_t job_id) = 0;
