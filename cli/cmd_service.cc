@@ -159,16 +159,23 @@ json WaitForJob(const Connection& c, int64_t id) {
 
 int RunServe(const std::vector<std::string>& argv) {
   const Args args(argv, {"--port", "--db", "--workers", "--token-file", "--host", "--lease-s", "--max-body-bytes",
-                   "--data-root", "--max-campaign-bytes"},
+                   "--data-root", "--max-campaign-bytes", "--upload-quota-bytes", "--uploads-total-quota-bytes",
+                   "--max-job-seconds"},
                   {"--demo", "--quiet", "--help"});
   if (args.Has("--help")) {
     std::cout << "usage: strokelab serve [--port 8080] [--db var/strokelab.db] [--workers N] [--token-file F]\n"
                  "                       [--host 127.0.0.1] [--lease-s 120] [--demo] [--quiet]\n"
                  "                       [--data-root DIR] [--max-campaign-bytes 268435456]\n"
+                 "                       [--upload-quota-bytes 268435456] [--uploads-total-quota-bytes 4294967296]\n"
+                 "                       [--max-job-seconds 600]\n"
                  "  --workers 0 leaves all work to remote workers (strokelab worker --server URL);\n"
                  "    fit and diagnose jobs need in-process workers.\n"
                  "  --data-root DIR lets fit and diagnose jobs name campaigns as {\"path\": P} relative to DIR;\n"
                  "    uploads (POST /v1/campaigns) are kept next to the database, in DB.campaigns/.\n"
+                 "  --upload-quota-bytes: what one upload may unpack to; --uploads-total-quota-bytes: all\n"
+                 "    uploads on disk together (an upload past it is refused, 507; uploads are never deleted).\n"
+                 "  --max-job-seconds: the most a diagnose job's max_seconds or a fit's max_refinement_seconds\n"
+                 "    may ask for (more is refused, 400); jobs that give none get at most this.\n"
                  "  --demo submits a sweep of the paper's model once the service is up and prints where to look.\n";
     return 0;
   }
@@ -183,13 +190,18 @@ int RunServe(const std::vector<std::string>& argv) {
   if (options.lease_ms < 1000) throw InputError("--lease-s", "must be at least 1 s");
   options.max_body_bytes = static_cast<size_t>(args.Number("--max-body-bytes", 1 << 20));
   options.max_campaign_bytes = static_cast<size_t>(args.Number("--max-campaign-bytes", 256.0 * (1 << 20)));
+  options.upload_quota_bytes = static_cast<uint64_t>(args.Number("--upload-quota-bytes", 256.0 * (1 << 20)));
+  options.uploads_total_quota_bytes =
+      static_cast<uint64_t>(args.Number("--uploads-total-quota-bytes", 4.0 * (1 << 30)));
+  options.max_job_seconds = args.Number("--max-job-seconds", 600);
   options.data_root = args.GetOr("--data-root", "");
   options.quiet = args.Has("--quiet");
   if (const std::optional<FieldError> error = options.IsValid()) {
     static const std::map<std::string, std::string> kFlags = {
         {"port", "--port"}, {"workers", "--workers"}, {"db_path", "--db"}, {"lease_ms", "--lease-s"},
         {"max_body_bytes", "--max-body-bytes"}, {"max_campaign_bytes", "--max-campaign-bytes"},
-        {"data_root", "--data-root"}};
+        {"data_root", "--data-root"}, {"upload_quota_bytes", "--upload-quota-bytes"},
+        {"uploads_total_quota_bytes", "--uploads-total-quota-bytes"}, {"max_job_seconds", "--max-job-seconds"}};
     throw InputError(kFlags.at(error->field), error->message);
   }
   if (const auto parent = std::filesystem::path(options.db_path).parent_path(); !parent.empty())

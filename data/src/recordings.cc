@@ -30,9 +30,8 @@ using data_internal::RequirePositiveRate;
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-}  // namespace
-
-Campaign ReadCampaign(const fs::path& dir) {
+// manifest.json of `dir`, parsed and checked as far as its format; InputError naming its line.
+json ReadManifest(const fs::path& dir) {
   if (!fs::is_directory(dir)) throw InputError(dir.string(), "not a campaign directory (it does not exist)");
   const fs::path manifest_path = dir / kManifestName;
   if (!fs::is_regular_file(manifest_path)) ManifestError("", "not found in " + dir.string());
@@ -61,6 +60,23 @@ Campaign ReadCampaign(const fs::path& dir) {
   if (!format) ManifestError("/format", std::string("missing; expected \"") + kRecordingsFormat + "\"");
   if (!format->is_string() || format->get<std::string>() != kRecordingsFormat)
     ManifestError("/format", "unsupported format " + format->dump() + " (expected \"" + kRecordingsFormat + "\")");
+  return manifest;
+}
+
+}  // namespace
+
+std::vector<std::string> CampaignFiles(const fs::path& dir) {
+  const json manifest = ReadManifest(dir);
+  const json* rate = Find(manifest, "sample_rate_hz");
+  if (!rate) ManifestError("/sample_rate_hz", "missing: the sample rate [Hz]");
+  std::vector<std::string> files = {kManifestName};
+  for (const RecordSpec& spec : ParseRecords(manifest, RequirePositiveRate(*rate, "/sample_rate_hz")))
+    files.push_back(spec.file);
+  return files;
+}
+
+Campaign ReadCampaign(const fs::path& dir) {
+  const json manifest = ReadManifest(dir);
   Campaign campaign;
   if (const json* actuator = Find(manifest, "actuator")) {
     if (!actuator->is_string()) ManifestError("/actuator", "expected a string");

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/data/recordings.h"
 #include "strokelab/jobs/campaigns.h"
 #include "strokelab/jobs/sha256.h"
 
@@ -39,18 +40,17 @@ std::string BadNameReason(std::string_view name) {
 }  // namespace
 
 std::string CampaignBundle(const fs::path& dir) {
-  std::vector<fs::path> files;
-  for (const fs::directory_entry& e : fs::recursive_directory_iterator(dir)) {
-    if (!fs::is_regular_file(e.status())) continue;
-    files.push_back(e.path());
-    if (files.size() > kMaxBundleFiles)
-      throw InputError("/campaign", "holds more than " + std::to_string(kMaxBundleFiles) + " files");
-  }
-  std::sort(files.begin(), files.end());
+  // manifest.json and the files it lists, no others (issue 15: a directory under the data root may
+  // hold large or private files beside a campaign; they are neither read nor sent to a worker).
+  std::vector<std::string> names = CampaignFiles(dir);
+  if (names.size() > kMaxBundleFiles)
+    throw InputError("/campaign", "holds more than " + std::to_string(kMaxBundleFiles) + " files");
+  for (std::string& name : names) name = fs::path(name).lexically_normal().generic_string();
+  std::sort(names.begin(), names.end());
   std::string bundle(kBundleHeader);
-  for (const fs::path& file : files) {
-    const std::string bytes = ReadFileBytes(file);
-    bundle += file.lexically_relative(dir).generic_string();
+  for (const std::string& name : names) {
+    const std::string bytes = ReadFileBytes(dir / name);
+    bundle += name;
     bundle += '\0';
     bundle += std::to_string(bytes.size()) + '\n';
     bundle += bytes;

@@ -7,6 +7,7 @@
 #include <system_error>
 #include <vector>
 
+#include "strokelab/data/recordings.h"
 #include "strokelab/jobs/jobs.h"
 
 namespace strokelab::jobs {
@@ -79,26 +80,38 @@ fs::path ResolveCampaign(const json& campaign, const CampaignDirs& dirs) {
   return dir;
 }
 
-std::string CampaignDigest(const fs::path& dir, const fs::path& root) {
-  std::vector<fs::path> files;
-  for (const fs::directory_entry& e : fs::recursive_directory_iterator(dir)) {
-    if (!root.empty()) {
-      std::error_code error;
-      const fs::path target = fs::canonical(e.path(), error);
-      if (error || !Inside(target, root))
-        throw InputError("/campaign/path", "'" + e.path().lexically_relative(dir).string() +
-                                               "' is a symbolic link leading outside the data root (or nowhere)");
-    }
-    if (!fs::is_regular_file(e.status())) continue;
-    files.push_back(e.path());
-    if (files.size() > kMaxCampaignFiles)
-      throw InputError("/campaign", "holds more than " + std::to_string(kMaxCampaignFiles) + " files");
+std::string CampaignDigest(const fs::path& dir, const fs::path& root, uint64_t max_bytes) {
+  // The manifest first: only the files it lists are looked at (a directory holding other large
+  // files is never read), and their sizes are checked before any is.
+  std::vector<std::string> names;
+  try {
+    names = CampaignFiles(dir);
+  } catch (const InputError& e) {
+    throw CampaignError(e.field(), e.bare_message());
   }
-  std::sort(files.begin(), files.end());
+  if (names.size() > kMaxCampaignFiles)
+    throw InputError("/campaign", "lists more than " + std::to_string(kMaxCampaignFiles) + " files");
+  uint64_t total_bytes = 0;
+  for (const std::string& name : names) {
+    const fs::path file = dir / name;
+    std::error_code error;
+    if (!root.empty()) {
+      const fs::path target = fs::canonical(file, error);
+      if (error || !Inside(target, root))
+        throw InputError("/campaign/path", "'" + name + "' is a symbolic link leading outside the data root (or nowhere)");
+    }
+    if (!fs::is_regular_file(file, error))
+      throw CampaignError(name, "not a regular file (the manifest lists it)");
+    total_bytes += fs::file_size(file, error);
+    if (error) throw CampaignError(name, "cannot be read: " + error.message());
+    if (total_bytes > max_bytes)
+      throw InputError("/campaign", "the files its manifest lists hold more than the server's limit of " +
+                                        std::to_string(max_bytes) + " bytes (serve --max-campaign-bytes)");
+  }
   std::string listing;
-  for (const fs::path& file : files) {
-    const std::string bytes = ReadFileBytes(file);
-    listing += file.lexically_relative(dir).generic_string() + '\0' + std::to_string(bytes.size()) + '\0' +
+  for (const std::string& name : names) {
+    const std::string bytes = ReadFileBytes(dir / name);
+    listing += fs::path(name).lexically_normal().generic_string() + '\0' + std::to_string(bytes.size()) + '\0' +
                ContentKey(bytes) + '\n';
   }
   return ContentKey(listing);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/report/diagnose_report.h"
@@ -143,7 +144,8 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
   } else if (IsCampaignKind(kind)) {
     const fs::path dir = ResolveCampaign(job.at("campaign"), campaigns);
     const bool under_root = job.at("campaign").contains("path");
-    const std::string digest = CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path());
+    const std::string digest =
+        CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path(), campaigns.max_campaign_bytes);
     if (under_root) {  // uploads were read when they were stored
       try {
         (void)ReadCampaign(dir);
@@ -161,26 +163,23 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
   return tasks;
 }
 
-std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel,
-                                        const TaskProgressHook& progress) {
-  if (IsCampaignKind(task.at("type"))) return RunCampaignTask(task, true, progress);
-  return RunTask(task, cancel, progress);
-}
+namespace {
 
-std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel,
-                               const TaskProgressHook& progress) {
+// One task's rows; its loops poll the thread's cancel flag (RunTask sets it). `as_data`: a diagnose
+// task's result as data (RunTaskForRemote) instead of the rendered report.
+std::vector<ResultRow> RunTaskRows(const nlohmann::json& task, bool as_data, const TaskProgressHook& progress) {
   const std::string type = task.at("type");
-  if (IsCampaignKind(type)) return RunCampaignTask(task, false, progress);  // not cancellable: see service.cc
+  if (IsCampaignKind(type)) return RunCampaignTask(task, as_data, progress);
   const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
   std::vector<ResultRow> rows;
   if (type == "sweep_row") {
     const SweepRowResult row =
-        SweepRow(model, task.at("amplitude_v").get<double>(), task.at("frequencies_hz").get<std::vector<double>>(), cancel);
+        SweepRow(model, task.at("amplitude_v").get<double>(), task.at("frequencies_hz").get<std::vector<double>>());
     for (const SweepPoint& p : row.points) rows.push_back({"points", report::RowToJson(p)});
     for (const JumpInterval& j : row.jumps) rows.push_back({"jumps", report::RowToJson(j)});
   } else if (type == "sweep_columns") {
     for (double f : task.at("frequencies_hz").get<std::vector<double>>()) {
-      rows.push_back({"thresholds", report::RowToJson(SweepColumn(model, f, cancel))});
+      rows.push_back({"thresholds", report::RowToJson(SweepColumn(model, f))});
     }
   } else if (type == "simulate") {
     const SineDrive drive{task.at("amplitude_v").get<double>(), task.at("frequency_hz").get<double>(), 0.0};
@@ -206,6 +205,29 @@ std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<boo
     throw InputError("type", "unknown task type '" + type + "'");
   }
   return rows;
+}
+
+// Runs the task's rows under `cancel`: every loop of the task polls it (base/cancel.h): engines,
+// sweeps, ParallelFor, Ceres solves.
+std::vector<ResultRow> RunRowsUnder(const nlohmann::json& task, const std::atomic<bool>* cancel, bool as_data,
+                                    const TaskProgressHook& progress) {
+  const CancelScope scope(cancel);
+  std::vector<ResultRow> rows = RunTaskRows(task, as_data, progress);
+  // A solve the flag aborted returns what it had: rows computed while it was raised are dropped.
+  ThrowIfCancelled();
+  return rows;
+}
+
+}  // namespace
+
+std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel,
+                               const TaskProgressHook& progress) {
+  return RunRowsUnder(task, cancel, false, progress);
+}
+
+std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel,
+                                        const TaskProgressHook& progress) {
+  return RunRowsUnder(task, cancel, true, progress);
 }
 
 }  // namespace strokelab::jobs

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "format.h"
+#include "strokelab/base/cancel.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/model/model_json.h"
 
@@ -27,13 +28,21 @@ double SecondsSince(Clock::time_point start) {
 }
 
 // Sets `stop` at `deadline` unless the owner finishes first (a row or column of a smooth model can
-// take seconds, so waiting for the sweep's progress calls could overrun the budget by that much).
+// take seconds, so waiting for the sweep's progress calls could overrun the budget by that much), or
+// as soon as the caller's own cancel flag (base/cancel.h: a cancelled job) is raised.
 class Deadline {
  public:
   Deadline(Clock::time_point deadline, std::atomic<bool>* stop)
-      : thread_([this, deadline, stop] {
+      : thread_([this, deadline, stop, outer = CurrentCancelFlag()] {
           std::unique_lock<std::mutex> lock(mutex_);
-          if (!done_cv_.wait_until(lock, deadline, [this] { return done_; })) stop->store(true);
+          while (!done_) {
+            const Clock::time_point next = std::min(deadline, Clock::now() + std::chrono::milliseconds(50));
+            if (done_cv_.wait_until(lock, next, [this] { return done_; })) break;
+            if (Clock::now() >= deadline || (outer != nullptr && outer->load())) {
+              stop->store(true);
+              break;
+            }
+          }
         }) {}
   ~Deadline() {
     {
@@ -80,6 +89,7 @@ std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const Diagn
     const Deadline watch(deadline, &stop);
     return RunSweep(spec, points, &stop);
   } catch (const Cancelled&) {
+    if (CancelRequested()) throw;  // the caller's flag, not the deadline
     *note = Format("cut off after %.3g s: ", SecondsSince(start)) + budget + " was spent";
   } catch (const std::exception& e) {
     *note = std::string("the sweep failed: ") + e.what();

@@ -24,7 +24,7 @@ struct ArchiveLimits {
   uint64_t max_file_bytes = 1ull << 30;      // one member's data [bytes]
   uint64_t max_total_bytes = 1ull << 30;     // all members' data [bytes]
   size_t max_name_bytes = 1024;              // a member's path after normalisation [bytes]
-  uint64_t max_ratio = 100;                  // zip: inflated over compressed bytes of a member over 1 MiB
+  uint64_t max_ratio = 100;                  // zip: inflated over compressed bytes, of a member over 1 MiB and of the whole archive
 };
 
 // "member 3 'a/b.csv'": where a message says which member it is about (index counts from 0).

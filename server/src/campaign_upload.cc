@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <mutex>
 #include <system_error>
 #include <vector>
 
@@ -42,6 +43,20 @@ void Unpack(const std::vector<Member>& members, const fs::path& dir) {
   }
 }
 
+// The bytes of the regular files under `dir` (the uploads' storage, for its quota).
+uint64_t BytesUnder(const fs::path& dir) {
+  uint64_t bytes = 0;
+  std::error_code error;
+  for (fs::recursive_directory_iterator it(dir, error), end; !error && it != end; it.increment(error)) {
+    std::error_code size_error;
+    if (it->is_regular_file(size_error)) {
+      const uint64_t size = it->file_size(size_error);
+      if (!size_error) bytes += size;
+    }
+  }
+  return bytes;
+}
+
 // The campaign directory of an unpacked archive: its top, or its single top-level directory.
 fs::path CampaignRoot(const fs::path& unpacked) {
   if (fs::is_regular_file(fs::symlink_status(unpacked / kManifestName))) return unpacked;
@@ -57,13 +72,22 @@ fs::path CampaignRoot(const fs::path& unpacked) {
 }  // namespace
 
 UploadedCampaign StoreUploadedCampaign(std::string_view archive, const fs::path& uploads_dir,
-                                       const ArchiveLimits& limits) {
+                                       const ArchiveLimits& limits, uint64_t total_quota_bytes) {
   // The archive is read whole before anything is written: a bad one leaves no trace.
   std::vector<TarMember> tar;
   std::vector<ZipMember> zip;
   if (LooksLikeZip(archive)) zip = ReadZip(archive, limits);
   else tar = ReadUstar(archive, limits);
+  uint64_t upload_bytes = 0;
+  for (const TarMember& m : tar) upload_bytes += m.data.size();
+  for (const ZipMember& m : zip) upload_bytes += m.data.size();
+  static std::mutex quota_mutex;  // one upload at a time from the quota check to its rename
+  const std::lock_guard<std::mutex> quota_lock(quota_mutex);
   fs::create_directories(uploads_dir);
+  if (const uint64_t stored = BytesUnder(uploads_dir); stored + upload_bytes > total_quota_bytes)
+    throw UploadQuotaError("the server's uploads hold " + std::to_string(stored) + " bytes; this upload's " +
+                           std::to_string(upload_bytes) + " would pass their quota of " +
+                           std::to_string(total_quota_bytes) + " bytes (serve --uploads-total-quota-bytes)");
   UploadedCampaign result;
   result.id = jobs::NewCampaignId();
   const fs::path incoming = uploads_dir / (".incoming-" + result.id);

@@ -8,6 +8,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <stdexcept>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -24,12 +26,20 @@ struct UploadedCampaign {
   Campaign campaign;
 };
 
+// The uploads on disk would pass their total quota (serve --uploads-total-quota-bytes).
+class UploadQuotaError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Unpacks, validates and stores an uploaded archive (zip by its first bytes, else tar) under
-// `uploads_dir` (created if needed).
-// Throws ArchiveError (a bad archive), jobs::CampaignError (a bad campaign; nothing is kept), or
-// std::runtime_error when the file system refuses.
+// `uploads_dir` (created if needed). The members' bytes are limited by `limits` (max_total_bytes:
+// the per-upload quota); the files already under `uploads_dir` plus this upload's must stay within
+// `total_quota_bytes` (checked and written under one lock, so two uploads cannot both pass).
+// Throws ArchiveError (a bad archive), jobs::CampaignError (a bad campaign; nothing is kept),
+// UploadQuotaError, or std::runtime_error when the file system refuses.
 UploadedCampaign StoreUploadedCampaign(std::string_view archive, const std::filesystem::path& uploads_dir,
-                                       const ArchiveLimits& limits = {});
+                                       const ArchiveLimits& limits = {}, uint64_t total_quota_bytes = UINT64_MAX);
 
 // A short description of a campaign for replies: actuator, response, absolute_scale, records,
 // stepped_sine_records.

@@ -78,12 +78,6 @@ void LingerAndClose(socket_t sock) {
   ::close(sock);
 }
 
-std::string JsonErrorResponse(int status, const char* reason, const std::string& code, const std::string& message) {
-  const std::string body = nlohmann::json({{"error", {{"code", code}, {"message", message}}}}).dump();
-  return "HTTP/1.1 " + std::to_string(status) + " " + reason + "\r\nContent-Type: application/json\r\nContent-Length: " +
-         std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
-}
-
 // A request's stream: the bytes the gate read first, then the socket, with read and write timeouts
 // and a floor on the body's rate (GateLimits).
 class GateStream final : public httplib::Stream {
@@ -151,6 +145,14 @@ class GateStream final : public httplib::Stream {
 };
 
 }  // namespace
+
+std::string JsonErrorResponse(int status, const char* reason, const std::string& code, const std::string& message) {
+  const std::string body = nlohmann::json({{"error", {{"code", code}, {"message", message}}}}).dump();
+  std::string response = "HTTP/1.1 " + std::to_string(status) + " " + reason + "\r\n";
+  for (const auto& [name, value] : SecurityHeaders()) response += name + ": " + value + "\r\n";
+  return response + "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
+         "\r\nConnection: close\r\n\r\n" + body;
+}
 
 // The listen loop's task queue: "enqueue" is cpp-httplib handing over an accepted connection (its
 // process_and_close_socket, which GatedServer makes an Admit), done at once on the listener thread.

@@ -26,6 +26,18 @@
 
 namespace strokelab::server::internal {
 
+// The headers every reply carries, the gate's own refusals too: no MIME sniffing, no framing
+// (clickjacking), no referrer leaving the page.
+inline const httplib::Headers& SecurityHeaders() {
+  static const httplib::Headers headers = {
+      {"X-Content-Type-Options", "nosniff"}, {"X-Frame-Options", "DENY"}, {"Referrer-Policy", "no-referrer"}};
+  return headers;
+}
+
+// A complete response that closes its connection: `status reason`, the security headers and
+// {"error": {"code", "message"}} (the gate's refusals, and those built on a raw header block).
+std::string JsonErrorResponse(int status, const char* reason, const std::string& code, const std::string& message);
+
 struct GateLimits {
   std::chrono::milliseconds header_timeout{10000};
   std::chrono::milliseconds keep_alive_timeout{5000};

@@ -1,5 +1,5 @@
 // The service's in-process workers: each leases tasks from the store (or takes one handed over by a
-// remote lease), runs it, and stores its rows; fit and diagnose tasks run on threads of their own.
+// remote lease), runs it, and stores its rows; every task runs on a thread of its own (RunHeldTask).
 #include "service_impl.h"
 
 #include <algorithm>
@@ -31,12 +31,13 @@ std::optional<TaskLease> Service::Impl::TakeHandoff(bool with_campaign_hash) {
   }
 }
 
-// Runs a fit or diagnose task on a thread of its own, renewing the lease every lease_ms / 4 (these
-// tasks take seconds to minutes). Gives up, returning nullopt, when the service stops (the lease is
-// released at the next start and the task runs again), the job is cancelled or the lease is lost;
-// the computation then runs on to its end (core cannot interrupt it) and its result is dropped.
+// Runs a task on a thread of its own under the task's cancel flag (jobs::RunTask polls it in every
+// loop), renewing the lease every lease_ms / 4 (a simulate of an extreme model or a diagnosis takes
+// minutes). Gives up, returning nullopt, when the service stops (Stop returns the task to the queue),
+// the job is cancelled or the lease is lost; the flag is then raised, so the computation ends within
+// a few ms (a Ceres iteration at most) and its result is dropped.
 std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease& lease,
-                                                                 const std::atomic<bool>& cancel) {
+                                                                 const std::shared_ptr<std::atomic<bool>>& cancel) {
   auto computation = std::make_shared<Computation>();
   computation->job_id = lease.job_id;
   {
@@ -47,11 +48,11 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
       c.first.join();
       return true;
     });
-    computations.emplace_back(std::thread([computation, spec = lease.spec] {
+    computations.emplace_back(std::thread([computation, cancel, spec = lease.spec] {
                                 std::vector<ResultRow> rows;
                                 std::exception_ptr error;
                                 try {
-                                  rows = jobs::RunTask(spec, nullptr, [&computation](const ProgressReport& r) {
+                                  rows = jobs::RunTask(spec, cancel.get(), [&computation](const ProgressReport& r) {
                                     json progress = StageProgressJson(r);
                                     std::lock_guard<std::mutex> progress_lock(computation->mutex);
                                     computation->progress = std::move(progress);
@@ -69,15 +70,22 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
   }
   int64_t renewed_ms = NowMs();
   std::unique_lock<std::mutex> lock(computation->mutex);
+  // Raises the flag and waits (a second at most) for the computation to end, so that a worker
+  // never has two running.
+  const auto give_up = [&]() -> std::optional<std::vector<ResultRow>> {
+    *cancel = true;
+    computation->done_cv.wait_for(lock, std::chrono::seconds(1), [&] { return computation->done; });
+    return std::nullopt;
+  };
   while (!computation->done) {
     computation->done_cv.wait_for(lock, std::chrono::milliseconds(100));
     if (computation->done) break;
-    if (stopping || cancel) return std::nullopt;
+    if (stopping || *cancel) return give_up();
     if (NowMs() - renewed_ms >= options.lease_ms / 4) {
       lock.unlock();
       const bool held = store->RenewLease(lease, NowMs(), options.lease_ms);
       lock.lock();
-      if (!held) return std::nullopt;
+      if (!held) return give_up();  // another worker has the task now (or the job is over)
       renewed_ms = NowMs();
     }
   }
@@ -121,12 +129,20 @@ void Service::Impl::WorkLoop(int index) {
       std::lock_guard<std::mutex> lock(cancel_mutex);
       running.emplace(lease->job_id, cancel);
     }
+    if (stopping) *cancel = true;  // Stop raised the flags it found before this one was listed
     try {
-      const std::optional<std::vector<ResultRow>> rows =
-          jobs::IsCampaignKind(lease->kind) ? RunHeldTask(*lease, *cancel) : jobs::RunTask(lease->spec, cancel.get());
+      const std::optional<std::vector<ResultRow>> rows = RunHeldTask(*lease, cancel);
       if (rows && StoreCompletion(*lease, *rows, name)) metrics.TaskDone(rows->size());
     } catch (const Cancelled&) {
-      // The job was cancelled: its lease is void and nothing is written.
+      // The job was cancelled (its lease is void and nothing is written) or the service stops (Stop
+      // returns the task to the queue).
+    } catch (const WorkBudgetSpent& e) {
+      // Back to the queue the first time, the job failed the second (Store::FailTaskOnBudget).
+      try {
+        store->FailTaskOnBudget(*lease, WithoutServerPaths(e.what()), NowMs());
+      } catch (const std::exception& inner) {
+        std::fprintf(stderr, "%s\n", json({{"worker", name}, {"error", inner.what()}}).dump().c_str());
+      }
     } catch (const std::exception& e) {
       try {
         store->FailTask(*lease, WithoutServerPaths(e.what()), NowMs());  // shown to clients

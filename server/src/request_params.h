@@ -49,9 +49,12 @@ T BodyField(const nlohmann::json& object, const std::string& key, const std::str
   if (!object.is_object()) throw HttpError{400, "bad_request", "expected a JSON object", pointer.substr(0, pointer.rfind('/'))};
   const auto it = object.find(key);
   if (it == object.end()) throw HttpError{400, "bad_request", "is required", pointer};
-  static_assert(std::is_same_v<T, std::string> || std::is_same_v<T, int64_t> || std::is_same_v<T, nlohmann::json>);
+  static_assert(std::is_same_v<T, std::string> || std::is_same_v<T, int64_t> || std::is_same_v<T, bool> ||
+                std::is_same_v<T, nlohmann::json>);
   if constexpr (std::is_same_v<T, std::string>) {
     if (!it->is_string()) throw HttpError{400, "bad_request", "expected a string", pointer};
+  } else if constexpr (std::is_same_v<T, bool>) {
+    if (!it->is_boolean()) throw HttpError{400, "bad_request", "expected true or false", pointer};
   } else if constexpr (std::is_same_v<T, int64_t>) {
     if (!it->is_number_integer()) throw HttpError{400, "bad_request", "expected an integer", pointer};
   } else if (!it->is_object()) {

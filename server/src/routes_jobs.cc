@@ -75,9 +75,31 @@ JobRecord Service::Impl::RequireJob(const std::string& id_text) {
   return *job;
 }
 
+// A job's own wall-time limit held to the server's (serve --max-job-seconds, issue 15): a diagnose
+// job's max_seconds or a fit's max_refinement_seconds above it is refused naming the field; a
+// job without one gets min(its default, the cap). Jobs of other shapes are left to the
+// schema check.
+static void HoldToJobSeconds(json* job, double cap_s) {
+  if (!job->is_object() || !job->contains("kind") || !(*job)["kind"].is_string()) return;
+  const std::string kind = (*job)["kind"];
+  const char* key = kind == "diagnose" ? "max_seconds" : kind == "fit" ? "max_refinement_seconds" : nullptr;
+  if (key == nullptr) return;
+  if (job->contains("options") && !(*job)["options"].is_object()) return;
+  const std::string field = std::string("/options/") + key;
+  if (job->contains("options") && (*job)["options"].contains(key)) {
+    const json& given = (*job)["options"][key];
+    if (given.is_number() && given.get<double>() > cap_s)
+      throw HttpError{400, "invalid_job", "must be at most " + json(cap_s).dump() + " s on this server (serve --max-job-seconds)", field};
+    return;
+  }
+  const double default_s = kind == "diagnose" ? 600 : 120;  // the schema's defaults
+  if (cap_s < default_s) (*job)["options"][key] = cap_s;
+}
+
 void Service::Impl::AddJobRoutes() {
   On("POST", "/v1/jobs", Route(Role::kSubmit, [this](const httplib::Request& req, httplib::Response& res) {
-              const json job = JsonBody(req);
+              json job = JsonBody(req);
+              HoldToJobSeconds(&job, options.max_job_seconds);
               // Validates; InputError -> 400 (a campaign's file and line: jobs::CampaignError).
               const std::vector<TaskSpec> tasks = jobs::PlanTasks(job, campaigns);
               const int64_t id = store->SubmitJob(job.at("kind"), job, tasks, NowMs());
@@ -129,9 +151,14 @@ void Service::Impl::AddJobRoutes() {
               if (!is("application/x-tar") && !is("application/zip") && !is("application/x-zip-compressed"))
                 throw HttpError{415, "unsupported_media_type", UnsupportedCampaignMessage(type), ""};
               // The body's first bytes, not the type, choose the reader (campaign_upload.h).
-              ArchiveLimits limits;
-              limits.max_file_bytes = limits.max_total_bytes = options.max_campaign_bytes;
-              const UploadedCampaign upload = StoreUploadedCampaign(req.body, campaigns.uploads, limits);
+              ArchiveLimits limits;  // the per-upload quota bounds what the members unpack to
+              limits.max_file_bytes = limits.max_total_bytes = options.upload_quota_bytes;
+              UploadedCampaign upload;
+              try {
+                upload = StoreUploadedCampaign(req.body, campaigns.uploads, limits, options.uploads_total_quota_bytes);
+              } catch (const UploadQuotaError& e) {
+                throw HttpError{507, "storage_quota", e.what(), "archive"};
+              }
               SendJson(res, {{"campaign_id", upload.id}, {"campaign", CampaignSummary(upload.campaign)}}, 201);
             }));
 }

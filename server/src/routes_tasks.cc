@@ -105,7 +105,11 @@ void Service::Impl::AddTaskRoutes() {
               const TaskLease lease = LeaseOf(req, body);
               const std::string error =
                   body.contains("error") ? BodyField<std::string>(body, "error", "/error") : "worker failure";
-              store->FailTask(lease, error, NowMs());
+              // "budget": true, a spent work budget (WorkBudgetSpent): the task is retried once.
+              if (body.contains("budget") && BodyField<bool>(body, "budget", "/budget"))
+                store->FailTaskOnBudget(lease, error, NowMs());
+              else
+                store->FailTask(lease, error, NowMs());
               SendJson(res, {{"accepted", true}});
             }));
 }

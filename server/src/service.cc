@@ -14,6 +14,7 @@
 
 #include "event_log.h"
 #include "http_reply.h"
+#include "memory_trim.h"
 #include "now.h"
 #include "request_params.h"
 #include "service_impl.h"
@@ -95,9 +96,7 @@ void Service::Impl::SetUpRoutes() {
   if (tokens.enabled()) {
     gate.refuse_headers = [](std::string_view block) -> std::string {
       if (!AuthorizationEndsInBlank(block)) return "";
-      const std::string body = R"json({"error":{"code":"unauthorized","message":"unknown token (it ends in a blank)"}})json";
-      return "HTTP/1.1 401 Unauthorized\r\nContent-Type: application/json\r\nContent-Length: " +
-             std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+      return JsonErrorResponse(401, "Unauthorized", "unauthorized", "unknown token (it ends in a blank)");
     };
   }
   if (!options.quiet) {
@@ -171,8 +170,7 @@ void Service::Impl::SetUpRoutes() {
   });
 
   // Every response: no MIME sniffing, no framing (clickjacking), no referrer leaving the page.
-  http.set_default_headers(
-      {{"X-Content-Type-Options", "nosniff"}, {"X-Frame-Options", "DENY"}, {"Referrer-Policy", "no-referrer"}});
+  http.set_default_headers(SecurityHeaders());
   On("GET", "/", [](const httplib::Request&, httplib::Response& res) {
     const std::string nonce = PageNonce();
     res.set_header("Content-Security-Policy", PageContentSecurityPolicy(nonce));
@@ -214,6 +212,9 @@ std::optional<FieldError> ServiceOptions::IsValid() const {
   if (lease_ms < 1) return FieldError{"lease_ms", "must be positive"};
   if (max_body_bytes < 1) return FieldError{"max_body_bytes", "must be at least 1"};
   if (max_campaign_bytes < 1) return FieldError{"max_campaign_bytes", "must be at least 1"};
+  if (upload_quota_bytes < 1) return FieldError{"upload_quota_bytes", "must be at least 1"};
+  if (uploads_total_quota_bytes < 1) return FieldError{"uploads_total_quota_bytes", "must be at least 1"};
+  if (!(max_job_seconds >= 1)) return FieldError{"max_job_seconds", "must be at least 1 s"};
   if (header_timeout_ms < 1) return FieldError{"header_timeout_ms", "must be positive"};
   if (max_pending_per_address < 1) return FieldError{"max_pending_per_address", "must be at least 1"};
   if (http_threads < 1 || http_threads > 1024) return FieldError{"http_threads", "must be between 1 and 1024"};
@@ -224,10 +225,12 @@ std::optional<FieldError> ServiceOptions::IsValid() const {
 
 Service::Service(const ServiceOptions& options) : impl_(std::make_unique<Impl>()) {
   Validate(options);
+  BoundHeapRetention();  // memory_trim.h: RSS comes back after large request bodies
   impl_->options = options;
   impl_->store = Store::Open(options.db_path);
   impl_->campaigns.uploads = options.db_path + ".campaigns";
   impl_->campaigns.data_root = options.data_root;
+  impl_->campaigns.max_campaign_bytes = options.max_campaign_bytes;
   if (!options.quiet)
     impl_->store->SetJobEventSink([](const JobEvent& e) { internal::WriteLogLine(internal::JobEventLogLine(e)); });
   if (!options.token_file.empty()) impl_->tokens = TokenTable::Load(options.token_file);
@@ -239,11 +242,7 @@ Service::Service(const ServiceOptions& options) : impl_(std::make_unique<Impl>()
   impl_->SetUpRoutes();
 }
 
-Service::~Service() {
-  Stop();
-  // Fit and diagnose computations given up by Stop run to their end (core cannot interrupt them).
-  for (auto& [thread, computation] : impl_->computations) thread.join();
-}
+Service::~Service() { Stop(); }
 
 int Service::Start() {
   Impl& s = *impl_;
@@ -282,9 +281,24 @@ void Service::Stop() {
   Impl& s = *impl_;
   if (s.stopping.exchange(true)) return;
   s.http.stop();
+  // Every running computation polls its flag (jobs::RunTask) and ends within a few ms.
+  {
+    std::lock_guard<std::mutex> lock(s.cancel_mutex);
+    for (auto& [job, flag] : s.running) *flag = true;
+  }
   s.wake.notify_all();
-  // Each finishes (and stores) the task it holds; a fit or diagnose task is given up (RunHeldTask).
   for (std::thread& t : s.workers) t.join();
+  {
+    std::lock_guard<std::mutex> lock(s.computations_mutex);
+    for (auto& [thread, computation] : s.computations) thread.join();
+    s.computations.clear();
+  }
+  // The tasks they held go back to the queue now, not only at the next start.
+  try {
+    if (s.local_workers > 0) s.store->ReleaseLeases("local-");
+  } catch (const StoreError&) {
+    // Released at the next start instead.
+  }
   if (s.http_thread.joinable()) s.http_thread.join();
 }
 

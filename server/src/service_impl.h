@@ -64,8 +64,8 @@ struct Service::Impl {
   // kept under that lease for an in-process worker or a remote one that can (LeaseForRemote).
   std::mutex handoff_mutex;
   std::deque<TaskLease> handoff;
-  // Fit and diagnose computations on threads of their own (RunHeldTask); joined when the service is
-  // destroyed, since core's fit and diagnosis cannot be interrupted.
+  // Every task's computation on a thread of its own (RunHeldTask), ended by its cancel flag; joined
+  // when the service stops.
   struct Computation {
     int64_t job_id = 0;
     std::mutex mutex;
@@ -144,7 +144,8 @@ struct Service::Impl {
   // Remote and in-process workers (routes_tasks.cc, local_workers.cc).
   std::optional<TaskLease> LeaseForRemote(const std::string& worker, bool fetches_campaigns);
   std::optional<TaskLease> TakeHandoff(bool with_campaign_hash);
-  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease, const std::atomic<bool>& cancel);
+  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease,
+                                                    const std::shared_ptr<std::atomic<bool>>& cancel);
   void WorkLoop(int index);
 
   // Stores a task's rows. A storage error (disk full, I/O) is not the task's fault: the rows are

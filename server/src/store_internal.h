@@ -62,6 +62,7 @@ class SqliteStore final : public Store {
   std::optional<nlohmann::json> LeasedTaskSpec(const TaskLease& lease, int64_t now_ms) override;
   bool CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) override;
   void FailTask(const TaskLease& lease, const std::string& error, int64_t now_ms) override;
+  bool FailTaskOnBudget(const TaskLease& lease, const std::string& error, int64_t now_ms) override;
 
   Page Results(int64_t job_id, const std::string& table, const Filter& filter, int64_t cursor, int limit) override;
   int64_t CountResults(int64_t job_id, const std::string& table) override;

@@ -173,6 +173,28 @@ void SqliteStore::FailTask(const TaskLease& lease, const std::string& error, int
   tx.Commit();
 }
 
+bool SqliteStore::FailTaskOnBudget(const TaskLease& lease, const std::string& error, int64_t now_ms) {
+  int64_t failures = 0;
+  {
+    std::lock_guard lock(write_mu_);
+    Transaction tx(*this);
+    if (!CheckLease(writer_, lease, now_ms)) return false;
+    Stmt s = writer_.Prepare("UPDATE tasks SET budget_failures = budget_failures + 1 WHERE id = ?1 RETURNING budget_failures");
+    if (s.Int(1, lease.task_id).Step()) failures = s.ColInt(0);
+    s.Run();
+    if (failures < kMaxBudgetFailures) {
+      Stmt q = writer_.Prepare(
+          "UPDATE tasks SET status = 'queued', lease_token = NULL, lease_owner = NULL, lease_expires_ms = 0 WHERE id = ?1");
+      q.Int(1, lease.task_id).Run();
+      tx.Commit();
+      return false;
+    }
+    tx.Commit();
+  }
+  FailTask(lease, "work budget spent twice (" + std::to_string(failures) + " leases): " + error, now_ms);
+  return true;
+}
+
 // The task row behind `lease` if the lease is still held: the task is leased with this token
 // (a new lease, a cancel or a completion changes or clears it) and the lease has not expired.
 std::optional<SqliteStore::HeldTask> SqliteStore::CheckLease(Connection& c, const TaskLease& lease, int64_t now_ms) {

@@ -163,6 +163,14 @@ std::vector<Entry> ReadCentralDirectory(std::string_view archive, size_t end, co
   for (size_t index = 0; index < entries; ++index)
     result.push_back(ReadEntry(archive, at, cd_offset, end, index, limits, tally));
   if (at != end) throw ArchiveError("the central directory holds more than its " + std::to_string(entries) + " entries");
+  // The ratio rule on the archive as a whole (issue 15): 250 members of 1 MiB each, none over the
+  // per-member floor, inflated 262 MB from a 638 KB archive.
+  uint64_t inflated = 0;
+  for (const Entry& e : result) inflated += e.size;
+  if (inflated > kRatioFloorBytes && inflated / std::max<uint64_t>(1, limits.max_ratio) > archive.size())
+    throw ArchiveError("the members inflate to " + std::to_string(inflated) + " bytes, over " +
+                       std::to_string(limits.max_ratio) + " times the archive's " + std::to_string(archive.size()) +
+                       " (a zip bomb)");
   return result;
 }
 

@@ -1,4 +1,4 @@
-// The database on a file system that fills up: a 192 kB tmpfs (tests/fault/small_tmpfs.h; skipped
+// The database on a file system that fills up: a 256 kB tmpfs (tests/fault/small_tmpfs.h; skipped
 // where user namespaces are not allowed). Writes fail with ENOSPC ("database or disk is full"): the
 // service must report it (/v1/health degraded with the file and the cause), keep the job (not fail
 // it: the disk is not the job's fault) and, once the file system is given room, finish the job
@@ -29,7 +29,7 @@ json WaitForDegradedHealth(httplib::Client& client, const Child& server, double 
 TEST(FullDisk, TmpfsFillsUpThenGrows) {
   const auto test_start = Clock::now();
   ScratchDir dir("strokelab-fault-tmpfs");
-  SmallTmpfs tmpfs(dir.path() / "mnt", 192 * 1024);
+  SmallTmpfs tmpfs(dir.path() / "mnt", 256 * 1024);  // room for the schema (5 migrations) and a job
   // Mounting needs unprivileged user namespaces (unshare -rm), which a CI container may forbid:
   // then this test skips, saying why, and FullDisk.WritesFailClearlyAndNothingIsLost (a file-size
   // limit, no privileges) still drives the same server path to a full disk and back.

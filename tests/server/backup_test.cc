@@ -21,7 +21,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr int kLatestSchema = 4;  // schema/migrations/004_job_points.sql
+constexpr int kLatestSchema = 5;  // schema/migrations/005_task_budget_failures.sql
 constexpr int kAmplitudes = 40;   // the sweep's amplitude points: one task each (thresholds off)
 
 struct CliRun {

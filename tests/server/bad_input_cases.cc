@@ -4,6 +4,7 @@
 // its length, nested deeply, made huge, made invalid UTF-8. Routes, query parameters and
 // authorisation are crossed with the endpoints they apply to.
 #include "bad_input_cases.h"
+#include "zip_writer.h"
 
 #include <functional>
 #include <string>
@@ -312,6 +313,25 @@ void AuthCases(std::vector<BadRequest>& out, const Tokens& tokens, const KnownJo
   }
 }
 
+// Campaign uploads that are zip bombs as a whole (issue 15: 250 members of 1 MiB each, each under the
+// per-member floor of the ratio rule, in a 638 KB zip): refused on the central directory.
+void UploadCases(std::vector<BadRequest>& out, const Tokens& tokens) {
+  for (size_t members : {size_t{101}, size_t{250}}) {
+    std::vector<server::zip_writer::ZipEntry> entries;
+    const std::string zeros = server::zip_writer::DeflatedZeros(1);
+    for (size_t i = 0; i < members; ++i) {
+      server::zip_writer::ZipEntry e("c/rec_" + std::to_string(i) + ".csv", "");
+      e.packed = zeros;
+      e.size = 1u << 20;
+      e.crc = 0xB0B0C0DE;  // never reached: refused before any member is inflated
+      entries.push_back(std::move(e));
+    }
+    out.push_back({"upload", std::to_string(members) + " members of 1 MiB zeros in one zip",
+                   MakeRequest("POST", "/v1/campaigns", Auth(tokens.submit), server::zip_writer::Zip(entries), "application/zip"),
+                   400, "bad_archive", "archive"});
+  }
+}
+
 // Worker endpoints with bodies that are not what a worker sends; each names the field.
 void WorkerCases(std::vector<BadRequest>& out, const Tokens& tokens) {
   const auto add = [&](const std::string& verb, const std::string& body, int status, const std::string& code,
@@ -344,6 +364,8 @@ void WorkerCases(std::vector<BadRequest>& out, const Tokens& tokens) {
     add("complete", R"({"job_id":1,"lease_token":"bogus","rows":[{"table":"points","values":{"x":)" + deep + "}}]}",
         400, "bad_json", "");
   }
+  // Issue 15: a spent work budget is reported as such ("budget": true), a boolean.
+  add("fail", R"({"job_id":1,"lease_token":"x","error":"spent","budget":"yes"})", 400, "bad_request", "/budget");
   for (const char* body : {"[]", "{\"worker\":5}", "{\"worker\":", "\"w\""})
     out.push_back({"worker", std::string("lease ") + body,
                    MakeRequest("POST", "/v1/tasks/lease", Auth(tokens.worker), body), 400, "", std::nullopt});
@@ -385,7 +407,16 @@ std::vector<BadRequest> GenerateBadRequests(const Tokens& tokens, const KnownJob
                 "/model/" + key);
     }
   }
+  // Issue 15: a job's own wall time beyond the server's cap (serve --max-job-seconds, 600 s by
+  // default; the schema allows 3600), refused before its campaign is looked for.
+  specs.Add("diagnose /options/max_seconds = 3600",
+            {{"kind", "diagnose"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"max_seconds", 3600}}}},
+            "invalid_job", "/options/max_seconds");
+  specs.Add("fit /options/max_refinement_seconds = 601",
+            {{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"max_refinement_seconds", 601}}}},
+            "invalid_job", "/options/max_refinement_seconds");
   BodyCases(out, tokens);
+  UploadCases(out, tokens);
   ContentTypeAndSizeCases(out, tokens);
   RouteCases(out, tokens, jobs);
   QueryCases(out, tokens, jobs);

@@ -19,7 +19,7 @@ struct Tokens {
 };
 
 struct BadRequest {
-  std::string group;  // "spec", "body", "content-type", "size", "route", "query", "auth", "worker"
+  std::string group;  // "spec", "body", "content-type", "size", "upload", "route", "query", "auth", "worker"
   std::string name;   // what is wrong, for failure messages
   httplib::Request request;
   int status = 0;                    // expected exactly; 0: any 4xx

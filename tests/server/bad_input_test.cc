@@ -79,6 +79,10 @@ std::string CheckReply(const BadRequest& b, const httplib::Result& result) {
     return "status " + std::to_string(status) + ", expected " + std::to_string(b.status) + ": " +
            result->body.substr(0, 300);
   if (result->get_header_value("Content-Type") != "application/json") return "not JSON: " + result->body.substr(0, 200);
+  // Every refusal carries the security headers, the gate's own (408, 414, 429, 431) too (issue 15).
+  for (const auto& [name, value] : {std::pair<const char*, const char*>{"X-Content-Type-Options", "nosniff"},
+                                    {"X-Frame-Options", "DENY"}, {"Referrer-Policy", "no-referrer"}})
+    if (result->get_header_value(name) != value) return std::string("no '") + name + ": " + value + "' header";
   json body;
   try {
     body = json::parse(result->body);

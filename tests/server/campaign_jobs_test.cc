@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <sys/inotify.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -329,9 +330,12 @@ TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
   fs::create_directories(root_ / "outside");
   fs::copy(campaign_dir(), root_ / "outside" / "campaign-b");
   fs::create_directory_symlink(root_ / "outside" / "campaign-b", root_ / "data" / "link-out");
+  // A file the manifest lists, leading out (an unlisted one is never opened: OnlyTheFilesTheManifestListsAreRead).
   const fs::path leaky = CopyCampaign("leaky");
-  fs::remove(leaky / "truth.json");
-  fs::create_symlink(root_ / "truth.json", leaky / "truth.json");
+  const std::string listed = ReadCampaign(leaky).records.front().name;
+  fs::copy_file(leaky / listed, root_ / "outside-record.csv", fs::copy_options::overwrite_existing);
+  fs::remove(leaky / listed);
+  fs::create_symlink(root_ / "outside-record.csv", leaky / listed);
   struct Case {
     json campaign;
     std::string field, message;
@@ -340,7 +344,7 @@ TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
       {{{"path", "../outside/campaign-b"}}, "/campaign/path", "'..'"},
       {{{"path", "campaign-a/../../outside/campaign-b"}}, "/campaign/path", "'..'"},
       {{{"path", "link-out"}}, "/campaign/path", "outside the data root"},
-      {{{"path", "leaky"}}, "/campaign/path", "'truth.json' is a symbolic link leading outside"},
+      {{{"path", "leaky"}}, "/campaign/path", "is a symbolic link leading outside"},
       {{{"path", "no-such-campaign"}}, "/campaign/path", "no campaign directory"},
       {{{"id", "../../outside/campaign-b"}}, "/campaign/id", "is not a campaign id"},
       {{{"id", "0123456789abcdef"}}, "/campaign/id", "no uploaded campaign"},
@@ -362,6 +366,7 @@ TEST_F(CampaignJobsTest, PathsOutOfTheDataRootAreRefused) {
   fs::remove_all(root_ / "outside");
   fs::remove(root_ / "data" / "link-out");
   fs::remove_all(leaky);
+  fs::remove(root_ / "outside-record.csv");
 }
 
 TEST_F(CampaignJobsTest, BadOptionsNameTheirField) {
@@ -473,6 +478,97 @@ TEST_F(CampaignJobsTest, AFitSurvivesARestartAndCanBeCancelled) {
   EXPECT_EQ(Get("/v1/jobs/" + std::to_string(cancelled))["status"], "cancelled");
   EXPECT_EQ(Error(Client().Get("/v1/jobs/" + std::to_string(cancelled) + "/result", Auth(kReadToken)), 409)["code"],
             "not_finished");
+}
+
+// Issue 15, item 6: cancelled diagnoses ran on to their end on threads of their own, so on
+// --workers 1 six ran at once. Now each ends when its job is cancelled: after three cancelled
+// diagnoses the process has the threads it had before them.
+TEST_F(CampaignJobsTest, CancelledDiagnosesDoNotRunBeyondTheWorkerCount) {
+  const auto threads = [] {
+    std::ifstream status("/proc/self/status");
+    for (std::string line; std::getline(status, line);)
+      if (line.rfind("Threads:", 0) == 0) return std::stoi(line.substr(8));
+    return -1;
+  };
+  Get("/v1/jobs");  // the HTTP threads start with the first request
+  const int before = threads();
+  for (int i = 0; i < 3; ++i) {
+    const int64_t job = Submit({{"kind", "diagnose"},
+                                {"campaign", {{"path", "campaign-a"}}},
+                                {"options", {{"max_seconds", 60}, {"min_heldout_gain", 10 + i}}}});
+    WaitFor(job, [](const json& j) { return j["status"] == "running"; }, 20);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    auto r = Client().Delete("/v1/jobs/" + std::to_string(job), Auth(kSubmitToken));
+    ASSERT_TRUE(r && r->status == 200) << (r ? r->body : "");
+  }
+  const auto cancelled = std::chrono::steady_clock::now();
+  int now = threads();
+  while (now > before && std::chrono::steady_clock::now() - cancelled < std::chrono::seconds(3)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    now = threads();
+  }
+  EXPECT_LE(now, before) << "threads still running 3 s after the last cancel (before the diagnoses: " << before << ")";
+}
+
+// Issue 15, item 6: a job naming a directory under the data root read and hashed every file in it
+// (1 GiB: 16 s, 2.1 GB RSS) before finding whether it was a campaign. Now the manifest is read
+// first and only the files it lists are opened: inotify sees no open of a large file beside them.
+TEST_F(CampaignJobsTest, OnlyTheFilesTheManifestListsAreRead) {
+  const fs::path copy = CopyCampaign("bigdir");
+  const fs::path junk = copy / "junk.bin";
+  std::ofstream(junk).put('x');
+  fs::resize_file(junk, 64u << 20);  // sparse: no disk used
+  const int watch = inotify_init1(IN_NONBLOCK);
+  ASSERT_GE(watch, 0);
+  ASSERT_GE(inotify_add_watch(watch, junk.c_str(), IN_OPEN | IN_ACCESS), 0);
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", "bigdir"}}}});
+  EXPECT_GT(job, 0);
+  char events[4096];
+  EXPECT_LT(::read(watch, events, sizeof events), 0) << "junk.bin, which the manifest does not list, was opened";
+  ::close(watch);
+  Client().Delete("/v1/jobs/" + std::to_string(job), Auth(kSubmitToken));
+  // The listed files count against --max-campaign-bytes before any is read.
+  options_.max_campaign_bytes = 100'000;
+  Restart();
+  const json error = Error(Post({{"kind", "fit"}, {"campaign", {{"path", "bigdir"}}}}), 400);
+  EXPECT_EQ(error["field"], "/campaign");
+  EXPECT_THAT(error["message"].get<std::string>(), HasSubstr("more than the server's limit of 100000 bytes"));
+}
+
+// Issue 15, item 6: uploads had no quota; 252 MB of one stayed on disk for good.
+TEST_F(CampaignJobsTest, UploadsAreHeldToTheirQuotas) {
+  const std::string tar = Tar(EntriesOf(campaign_dir(), "campaign-a/"));
+  uint64_t campaign_bytes = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(campaign_dir())) campaign_bytes += e.file_size();
+  options_.upload_quota_bytes = campaign_bytes - 1;  // per upload: one byte short
+  Restart();
+  EXPECT_THAT(Error(Upload(tar), 400)["message"].get<std::string>(), HasSubstr("the members hold more than"));
+  options_.upload_quota_bytes = campaign_bytes;
+  options_.uploads_total_quota_bytes = campaign_bytes * 3 / 2;  // all uploads: room for one
+  Restart();
+  UploadOk(tar);
+  const json error = Error(Upload(tar), 507);
+  EXPECT_EQ(error["code"], "storage_quota");
+  EXPECT_THAT(error["message"].get<std::string>(), HasSubstr("--uploads-total-quota-bytes"));
+  size_t kept = 0;
+  for (const fs::directory_entry& e : fs::directory_iterator(options_.db_path + ".campaigns")) kept += e.is_directory();
+  EXPECT_EQ(kept, 1u) << "the refused upload left a directory";
+}
+
+// Issue 15, item 6: max_seconds up to 3600 per job was accepted; the server caps it.
+TEST_F(CampaignJobsTest, AJobsSecondsAreHeldToTheServersCap) {
+  options_.max_job_seconds = 30;
+  Restart();
+  const json error =
+      Error(Post({{"kind", "diagnose"}, {"campaign", {{"path", "campaign-a"}}}, {"options", {{"max_seconds", 3600}}}}), 400);
+  EXPECT_EQ(error["field"], "/options/max_seconds");
+  EXPECT_THAT(error["message"].get<std::string>(), HasSubstr("at most 30"));
+  EXPECT_EQ(Error(Post({{"kind", "fit"}, {"campaign", {{"path", "campaign-a"}}},
+                        {"options", {{"max_refinement_seconds", 31}}}}), 400)["field"],
+            "/options/max_refinement_seconds");
+  const int64_t job = Submit({{"kind", "diagnose"}, {"campaign", {{"path", "campaign-a"}}}});
+  Client().Delete("/v1/jobs/" + std::to_string(job), Auth(kSubmitToken));
+  EXPECT_EQ(Get("/v1/jobs/" + std::to_string(job))["spec"]["options"]["max_seconds"], 30);
 }
 
 // Issue 16, point 5: a fit that did not converge showed as a plain "succeeded". The job succeeds as a

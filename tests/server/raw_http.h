@@ -15,8 +15,19 @@ namespace strokelab::testing {
 
 class RawConnection {
  public:
-  explicit RawConnection(int port) {
+  // `from`: the loopback address to connect from ("127.0.0.2"; default the kernel's choice), so that
+  // a test can play clients at several addresses.
+  explicit RawConnection(int port, const char* from = nullptr) {
     sock_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (from != nullptr && sock_ >= 0) {
+      sockaddr_in local{};
+      local.sin_family = AF_INET;
+      ::inet_pton(AF_INET, from, &local.sin_addr);
+      if (::bind(sock_, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0) {
+        ::close(sock_);
+        throw std::runtime_error(std::string("cannot bind ") + from);
+      }
+    }
     sockaddr_in address{};
     address.sin_family = AF_INET;
     address.sin_port = htons(static_cast<uint16_t>(port));

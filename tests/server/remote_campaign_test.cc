@@ -343,9 +343,14 @@ TEST(CampaignHash, BundleUnpacksToTheSameFilesAndRefusesBadNames) {
   const fs::path root = fs::path(::testing::TempDir()) / ("campaign_bundle_test_" + std::to_string(::getpid()));
   fs::remove_all(root);
   fs::create_directories(root / "in" / "sub");
-  std::ofstream(root / "in" / "manifest.json") << "{}";
+  std::ofstream(root / "in" / "manifest.json")
+      << R"({"format": "strokelab-recordings/1", "sample_rate_hz": 1000,
+             "records": [{"file": "sub/rec.csv", "drive_frequency_hz": 6, "drive_amplitude_v": 0.1}]})";
   std::ofstream(root / "in" / "sub" / "rec.csv", std::ios::binary) << std::string("t,v\n0,1\n\0\n", 11);
+  std::ofstream(root / "in" / "unlisted.bin") << "private";  // beside the campaign, not in its manifest
   const std::string bundle = jobs::CampaignBundle(root / "in");
+  EXPECT_EQ(bundle.find("unlisted.bin"), std::string::npos) << "a file the manifest does not list was bundled";
+  EXPECT_NE(bundle.find("sub/rec.csv"), std::string::npos);
   jobs::UnpackCampaignBundle(bundle, root / "out");
   EXPECT_EQ(jobs::CampaignSha256(root / "out"), jobs::Sha256Hex(bundle));
   EXPECT_EQ(jobs::CampaignBundle(root / "out"), bundle);

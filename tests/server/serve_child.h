@@ -62,7 +62,10 @@ class ServeChild {
   ServeChild(const fs::path& db, const fs::path& log, const std::vector<std::string>& extra,
              std::vector<std::string> env = {})
       : log_(log) {
-    std::vector<std::string> argv = {STROKELAB_BINARY, "serve", "--port", "0", "--db", db.string()};
+    // STROKELAB_TEST_SERVE_BINARY runs a test against another build (an older one, for a before and
+    // after figure); the default is this build's.
+    const char* binary = std::getenv("STROKELAB_TEST_SERVE_BINARY");
+    std::vector<std::string> argv = {binary ? binary : STROKELAB_BINARY, "serve", "--port", "0", "--db", db.string()};
     argv.insert(argv.end(), extra.begin(), extra.end());
     for (char** e = environ; *e; ++e) env.emplace_back(*e);
     std::vector<char*> args, envp;  // built before fork: the child may only exec

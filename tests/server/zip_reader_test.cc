@@ -190,5 +190,29 @@ TEST(ReadZip, ZipBombsAreRefusedWithoutAllocating) {
   EXPECT_LT(PeakRss(), peak_before + (64u << 20)) << "the bombs allocated what they claimed";
 }
 
+// Issue 15, item 6: 250 members of 1 MiB each (none over the per-member floor of the ratio rule)
+// passed in a 638 KB zip and unpacked to 262 MB. The ratio now holds for the archive as a whole.
+TEST(ReadZip, TheRatioRuleHoldsForTheWholeArchive) {
+  constexpr size_t kMembers = 250;
+  const std::string zeros = DeflatedZeros(1);  // 1 MiB of zeros, ~1 KB deflated
+  std::vector<ZipEntry> entries;
+  for (size_t i = 0; i < kMembers; ++i) {
+    ZipEntry e("c/rec_" + std::to_string(i) + ".csv", "");
+    e.packed = zeros;
+    e.size = 1u << 20;
+    e.crc = zip_writer::Crc(std::string(1u << 20, '\0'));
+    entries.push_back(std::move(e));
+  }
+  const std::string archive = Zip(entries);
+  const uint64_t peak_before = PeakRss();
+  EXPECT_THAT(Refusal(archive), HasSubstr("the members inflate to " + std::to_string(kMembers << 20) +
+                                          " bytes, over 100 times the archive's " + std::to_string(archive.size())));
+  EXPECT_LT(PeakRss(), peak_before + (64u << 20)) << "the members were inflated before the refusal";
+  // A campaign's CSVs deflate a few times at most: far inside the rule.
+  std::string csv;
+  for (int i = 0; i < 40000; ++i) csv += std::to_string(i * 1e-5) + "," + std::to_string(0.1 * (i % 97)) + "\n";
+  EXPECT_EQ(Refusal(Zip({{"c/manifest.json", "{}"}, {"c/rec.csv", csv}})), "");
+}
+
 }  // namespace
 }  // namespace strokelab::server

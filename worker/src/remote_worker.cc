@@ -37,23 +37,30 @@ void Pause(int ms, const std::atomic<bool>& stop) {
 
 // Renews a task's lease every period_ms while it lives (the task runs), so that a task longer than
 // the lease is not leased again by another worker. Its own client: httplib clients are not shared
-// between threads. A failed renewal is left to the completion (the server answers 409 if the lease
-// was lost, and nothing is stored twice).
+// between threads. A renewal answered 409 (the job was cancelled or the lease lost) or the worker's
+// stop raises cancel(), which the task polls (jobs::RunTask): it ends within a few ms. Other failed
+// renewals are left to the completion (the server answers 409 if the lease was lost).
 class LeaseKeeper {
  public:
   LeaseKeeper(const std::string& host, int port, httplib::Headers headers, std::string endpoint, std::string body,
-              int period_ms)
-      : thread_([=, this] {
+              int period_ms, const std::atomic<bool>& stop)
+      : thread_([=, this, &stop] {
           httplib::Client client(host, port);
           client.set_connection_timeout(5);
           client.set_read_timeout(10);
+          auto renewed = std::chrono::steady_clock::now();
           std::unique_lock<std::mutex> lock(mutex_);
-          while (!cv_.wait_for(lock, std::chrono::milliseconds(period_ms), [this] { return done_; })) {
+          while (!cv_.wait_for(lock, std::chrono::milliseconds(std::min(period_ms, 100)), [this] { return done_; })) {
+            if (stop) cancel_ = true;
+            if (std::chrono::steady_clock::now() - renewed < std::chrono::milliseconds(period_ms)) continue;
             lock.unlock();
-            client.Post(endpoint, headers, body, "application/json");
+            const auto reply = client.Post(endpoint, headers, body, "application/json");
+            if (reply && reply->status == 409) cancel_ = true;
+            renewed = std::chrono::steady_clock::now();
             lock.lock();
           }
         }) {}
+  const std::atomic<bool>& cancel() const { return cancel_; }
   ~LeaseKeeper() {
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -67,6 +74,7 @@ class LeaseKeeper {
   std::mutex mutex_;
   std::condition_variable cv_;
   bool done_ = false;
+  std::atomic<bool> cancel_{false};
   std::thread thread_;  // last: started once the members it uses exist
 };
 
@@ -119,6 +127,7 @@ fs::path FetchCampaign(httplib::Client& client, httplib::Headers headers, const 
     if (got == sha256) return StoreCampaign(cache, sha256, reply->body);
     why = "the download failed its hash check (SHA-256 " + got + ", expected " + sha256 + ")";
   }
+  if (stop) throw Cancelled();  // the worker stops: nothing to send, as for a running task
   throw std::runtime_error("campaign " + sha256 + ": " + why);
 }
 
@@ -210,16 +219,26 @@ int RunRemoteWorker(const RemoteWorkerOptions& options, const std::atomic<bool>&
         // Renewed at a quarter of the lease, so that one or two lost renewals do not lose it.
         const int64_t lease_ms = task.value("lease_ms", int64_t{120000});
         const LeaseKeeper keeper(host, port, headers, endpoint + "/renew", reply.dump(),
-                                 static_cast<int>(std::max<int64_t>(lease_ms / 4, 10)));
+                                 static_cast<int>(std::max<int64_t>(lease_ms / 4, 10)), stop);
         json spec = task.at("spec");
         if (jobs::IsCampaignKind(spec.at("type")))
           spec["campaign_dir"] =
               FetchCampaign(client, headers, options.campaign_cache_dir, spec.value("campaign_sha256", ""), task, stop).string();
         json rows = json::array();
-        for (const jobs::ResultRow& row : jobs::RunTaskForRemote(spec))
+        for (const jobs::ResultRow& row : jobs::RunTaskForRemote(spec, &keeper.cancel()))
           rows.push_back({{"table", row.table}, {"values", row.values}});
         reply["rows"] = std::move(rows);
         endpoint += "/complete";
+      } catch (const Cancelled&) {
+        // The job was cancelled (or the lease lost) or this worker stops: nothing to send; a lease
+        // still held expires and the task is leased again.
+        last_activity_ms = since_start_ms();
+        --busy_threads;
+        continue;
+      } catch (const WorkBudgetSpent& e) {  // the server retries such a task once (Store::FailTaskOnBudget)
+        reply["error"] = e.what();
+        reply["budget"] = true;
+        endpoint += "/fail";
       } catch (const std::exception& e) {
         reply["error"] = e.what();
         endpoint += "/fail";

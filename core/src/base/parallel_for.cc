@@ -6,6 +6,7 @@
 #include <thread>
 #include <vector>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/base/errors.h"
 
 namespace strokelab {
@@ -17,7 +18,10 @@ void ParallelFor(size_t n, const std::function<void(size_t)>& f, size_t max_thre
   std::vector<std::exception_ptr> errors(n);
   std::atomic<size_t> next{0};
   std::atomic<bool> failed{false};
+  // Without a flag of its own the loop stops on the caller's (cancel.h), which its threads inherit.
+  if (cancel == nullptr) cancel = CurrentCancelFlag();
   auto work = [&] {
+    CancelScope scope(cancel);
     for (size_t i; !failed.load() && (i = next++) < n;) {
       try {
         if (cancel && cancel->load()) throw Cancelled();

@@ -48,6 +48,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
 #include "contact_log.h"
@@ -81,7 +82,7 @@ constexpr int kMaxUnresolvedSteps = 10;
 // the paper model at 1e-10: the steps there are 0.5-2 ms by accuracy alone.)
 constexpr double kMaxStepFractionOfPeriod = 1.0 / 50.0;
 
-enum class Surface {
+enum class CvodeSurface {
   kLowerPenetration,   // g = d - x                          [m]
   kLowerForce,         // g = StopForceUnclamped(d - x, -v)  [N]
   kUpperPenetration,   // g = x - d_upper                    [m]
@@ -100,46 +101,46 @@ struct Problem {
   const SineDrive* drive = nullptr;
   double inverse_mass_per_kg = 0.0;
   ContactMode mode;               // the tracked contact mode: the RHS uses it, never the state
-  std::vector<Surface> surfaces;  // what each root function component is
+  std::vector<CvodeSurface> surfaces;  // what each root function component is
   size_t rhs_evaluations = 0;
   std::string last_solver_message;  // CVODE's own words for the last error it reported
 };
 
-std::vector<Surface> SwitchingSurfaces(const ActuatorModel& model, const SineDrive& drive) {
-  std::vector<Surface> surfaces;
+std::vector<CvodeSurface> SwitchingSurfaces(const ActuatorModel& model, const SineDrive& drive) {
+  std::vector<CvodeSurface> surfaces;
   if (model.HasLowerStop()) {
-    surfaces.push_back(Surface::kLowerPenetration);
-    surfaces.push_back(Surface::kLowerForce);
+    surfaces.push_back(CvodeSurface::kLowerPenetration);
+    surfaces.push_back(CvodeSurface::kLowerForce);
   }
   if (model.HasUpperStop()) {
-    surfaces.push_back(Surface::kUpperPenetration);
-    surfaces.push_back(Surface::kUpperForce);
+    surfaces.push_back(CvodeSurface::kUpperPenetration);
+    surfaces.push_back(CvodeSurface::kUpperForce);
   }
-  if (model.HasLowerStop() || model.HasUpperStop()) surfaces.push_back(Surface::kApex);
+  if (model.HasLowerStop() || model.HasUpperStop()) surfaces.push_back(CvodeSurface::kApex);
   // A drive that never reaches the limit is never clipped: no kinks to locate.
   if (model.HasAmplifierLimit() && drive.amplitude_v > model.amplifier_limit_v) {
-    surfaces.push_back(Surface::kDriveAtPlusLimit);
-    surfaces.push_back(Surface::kDriveAtMinusLimit);
+    surfaces.push_back(CvodeSurface::kDriveAtPlusLimit);
+    surfaces.push_back(CvodeSurface::kDriveAtMinusLimit);
   }
   return surfaces;
 }
 
-double SwitchingFunction(const Problem& problem, Surface surface, double t_s, double x_m, double v_m_per_s) {
+double SwitchingFunction(const Problem& problem, CvodeSurface surface, double t_s, double x_m, double v_m_per_s) {
   const ActuatorModel& model = *problem.model;
   switch (surface) {
-    case Surface::kLowerPenetration:
+    case CvodeSurface::kLowerPenetration:
       return LowerPenetrationM(model, x_m);
-    case Surface::kLowerForce:
+    case CvodeSurface::kLowerForce:
       return StopForceUnclamped(model, LowerPenetrationM(model, x_m), -v_m_per_s);
-    case Surface::kUpperPenetration:
+    case CvodeSurface::kUpperPenetration:
       return UpperPenetrationM(model, x_m);
-    case Surface::kUpperForce:
+    case CvodeSurface::kUpperForce:
       return StopForceUnclamped(model, UpperPenetrationM(model, x_m), v_m_per_s);
-    case Surface::kApex:
+    case CvodeSurface::kApex:
       return v_m_per_s;
-    case Surface::kDriveAtPlusLimit:
+    case CvodeSurface::kDriveAtPlusLimit:
       return problem.drive->Voltage(t_s) - model.amplifier_limit_v;
-    case Surface::kDriveAtMinusLimit:
+    case CvodeSurface::kDriveAtMinusLimit:
       return problem.drive->Voltage(t_s) + model.amplifier_limit_v;
   }
   return 1.0;
@@ -315,17 +316,18 @@ class CvodeRun {
     bool done = false;
     while (!done) {
       if (++steps > max_steps)
-        throw NumericalError("cvode engine: work budget spent: CVode took more than " + FormatNumber(max_steps) +
+        throw WorkBudgetSpent("cvode engine: work budget spent: CVode took more than " + FormatNumber(max_steps) +
                              " steps, stuck near t = " + FormatNumber(t_s) + " s under the drive " +
                              FormatNumber(drive_.frequency_hz) + " Hz, " + FormatNumber(drive_.amplitude_v) +
                              " V (chattering between contact modes?)");
+      if ((static_cast<uint64_t>(steps) & 1023) == 0) ThrowIfCancelled();  // cancel.h
       const int flag = CVode(sundials_.cvode, end_s_, sundials_.y, &t_s, CV_ONE_STEP);
       Check(flag, "CVode", problem_);
       CheckStepResolved(t_s, &unresolved_steps);
       polynomial_loaded_ = false;
       if (flag == CV_ROOT_RETURN) {
         Check(CVodeGetRootInfo(sundials_.cvode, root_directions_.data()), "CVodeGetRootInfo", problem_);
-        if (FoundRoot(Surface::kApex)) {
+        if (FoundRoot(CvodeSurface::kApex)) {
           if (const std::optional<bool> over = RecoverMissedEntry(t_s)) {
             done = *over;
             continue;
@@ -437,7 +439,7 @@ class CvodeRun {
     return state;
   }
 
-  bool FoundRoot(Surface surface) const {
+  bool FoundRoot(CvodeSurface surface) const {
     for (size_t i = 0; i < problem_.surfaces.size(); ++i)
       if (root_directions_[i] != 0 && problem_.surfaces[i] == surface) return true;
     return false;
@@ -449,23 +451,23 @@ class CvodeRun {
       const int direction = root_directions_[i];
       if (direction == 0) continue;
       switch (problem_.surfaces[i]) {
-        case Surface::kLowerPenetration:
+        case CvodeSurface::kLowerPenetration:
           if (direction > 0) mode.lower = true;  // entering the stop
           break;
-        case Surface::kUpperPenetration:
+        case CvodeSurface::kUpperPenetration:
           if (direction > 0) mode.upper = true;
           break;
-        case Surface::kLowerForce:
+        case CvodeSurface::kLowerForce:
           if (direction < 0) mode.lower = false;  // the stop would start pulling: it lets go
           if (direction > 0 && LowerPenetrationM(model_, x_m) > 0) mode.lower = true;  // pressed again
           break;
-        case Surface::kUpperForce:
+        case CvodeSurface::kUpperForce:
           if (direction < 0) mode.upper = false;
           if (direction > 0 && UpperPenetrationM(model_, x_m) > 0) mode.upper = true;
           break;
-        case Surface::kApex:              // handled by RecoverMissedEntry
-        case Surface::kDriveAtPlusLimit:  // a kink in time, not a mode
-        case Surface::kDriveAtMinusLimit:
+        case CvodeSurface::kApex:              // handled by RecoverMissedEntry
+        case CvodeSurface::kDriveAtPlusLimit:  // a kink in time, not a mode
+        case CvodeSurface::kDriveAtMinusLimit:
           break;
       }
     }
@@ -476,7 +478,7 @@ class CvodeRun {
   bool HandleRoots(double t_root_s) {
     last_root_s_ = t_root_s;
     const ContactMode new_mode = ModeAfterRoots(problem_.mode, NV_Ith_S(sundials_.y, 0));
-    const bool kink = FoundRoot(Surface::kDriveAtPlusLimit) || FoundRoot(Surface::kDriveAtMinusLimit);
+    const bool kink = FoundRoot(CvodeSurface::kDriveAtPlusLimit) || FoundRoot(CvodeSurface::kDriveAtMinusLimit);
     // No change (e.g. a damped stop that already let go is left behind): carry on with the step.
     if (new_mode == problem_.mode && !kink) return false;
     return SwitchAndRestart(t_root_s, new_mode);

@@ -8,6 +8,7 @@
 // with every switch located to 1e-14 s); the phase rotation is re-anchored every 1024 samples.
 #include <cmath>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/engines/pwl_system.h"
 #include "contact_log.h"
@@ -239,6 +240,7 @@ class ExactEngine final : public Engine {
     out->in_contact[0] = mode.contact.Any();
     size_t n = 1;
     while (n < count) {
+      ThrowIfCancelled();  // cancel.h; once per run of at most kReanchorEvery samples
       // A run ends at a sample that needs the slow path, or at a re-anchoring point.
       const size_t run_end = std::min(count, (n / kReanchorEvery + 1) * kReanchorEvery);
       size_t stop = RunFast4(fast_region(mode), guard, recurrence, rotations, n, run_end, x_out, v_out, f_out, &y);

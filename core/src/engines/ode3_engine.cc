@@ -18,6 +18,7 @@
 #include <optional>
 #include <string>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
 #include "contact_log.h"
@@ -97,6 +98,7 @@ class Ode3Run {
     double x_m = options_.initial.x_m;
     double v_m_per_s = options_.initial.v_m_per_s;
     for (size_t n = 0; n < sample_count_; ++n) {
+      if ((n & 4095) == 0) ThrowIfCancelled();  // cancel.h
       const StageDrive::Voltages drive_v = stage_drive_.AtStep(n);
       // The first stage doubles as the sample's force (no extra evaluation).
       const ContactMode mode = ModeFromState(model_, x_m, v_m_per_s);

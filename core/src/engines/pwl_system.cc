@@ -251,7 +251,7 @@ void PiecewiseLinearSystem::ThrowBudgetSpent(const char* what, double steps, dou
                 "are too short to resolve (check k_s, m_p and the damping against the model bounds)",
                 what, steps, t_start_s, time_s, t_end_s, y.x_m, y.v_m_per_s, drive_.frequency_hz,
                 drive_.amplitude_v);
-  throw NumericalError(message);
+  throw WorkBudgetSpent(message);
 }
 
 PwlMode PiecewiseLinearSystem::Apply(PwlMode mode, Surface::Kind kind) const {

@@ -11,6 +11,8 @@
 #include <thread>
 #include <utility>
 
+#include "strokelab/base/cancel.h"
+
 namespace strokelab::internal {
 
 class AfterSuccessfulStep : public ceres::IterationCallback {
@@ -24,6 +26,16 @@ class AfterSuccessfulStep : public ceres::IterationCallback {
 
  private:
   std::function<void()> action_;
+};
+
+// Ends a solve between iterations once the calling thread's cancel flag is raised (cancel.h): Ceres'
+// own threads see no flag, so the solve is stopped here rather than inside an evaluation. Callers
+// learn of it at their next poll (a ParallelFor, the engines, the task's end).
+class AbortWhenCancelled : public ceres::IterationCallback {
+ public:
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    return CancelRequested() ? ceres::SOLVER_ABORT : ceres::SOLVER_CONTINUE;
+  }
 };
 
 // Dense least squares on all cores, silent, with `callback` after each iteration and the state
@@ -43,6 +55,8 @@ inline ceres::Solver::Options RefinementSolverOptions(int max_iterations, ceres:
   solver.parameter_tolerance = 1e-9;
   solver.gradient_tolerance = 1e-12;
   solver.update_state_every_iteration = true;
+  static AbortWhenCancelled abort_when_cancelled;  // stateless: one for every solve
+  solver.callbacks.push_back(&abort_when_cancelled);  // first: a cancelled solve runs no other callback
   solver.callbacks.push_back(callback);
   return solver;
 }

@@ -2,6 +2,7 @@
 // grid points and the jump intervals; columns (one frequency, root-finding and continuation in
 // amplitude) give the saturation threshold. Rows and columns are independent units of work, run on
 // a pool of threads and written into slots by index, so results do not depend on the thread count.
+#include "strokelab/base/cancel.h"
 #include "strokelab/sweep/sweep.h"
 
 #include <algorithm>
@@ -138,6 +139,8 @@ std::optional<FieldError> AxisError(const GridAxis& axis, const std::string& nam
 // The steady states of one amplitude at every grid frequency, by continuation in frequency.
 SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
                         const std::atomic<bool>* cancel, const std::function<void(size_t points)>& passed) {
+  const CancelScope scope(cancel ? cancel : CurrentCancelFlag());  // the engines poll it too
+  cancel = CurrentCancelFlag();
   SweepRowResult row;
   ContinuationOptions continuation;
   size_t reached = 0;
@@ -190,6 +193,8 @@ SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const st
 // and the lowest amplitude down to which the contacting response stays a stable attractor
 // (continuation in amplitude from well above grazing, to a fold or to grazing).
 SaturationThreshold SweepColumn(const ActuatorModel& model, double f_hz, const std::atomic<bool>* cancel) {
+  const CancelScope scope(cancel ? cancel : CurrentCancelFlag());  // the engines poll it too
+  cancel = CurrentCancelFlag();
   SaturationThreshold t{f_hz, NAN, NAN};
   if (!model.HasLowerStop() && !model.HasUpperStop()) return t;
   const double v_probe = 1e-3;
@@ -283,6 +288,8 @@ const char* ToString(Branch branch) {
 SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const SweepProgress&)>& progress,
                      const std::atomic<bool>* cancel) {
   Validate(spec);
+  const CancelScope scope(cancel ? cancel : CurrentCancelFlag());
+  cancel = CurrentCancelFlag();
   const auto start = std::chrono::steady_clock::now();
   SweepResult result;
   result.frequency_hz = spec.frequency_hz.Values();

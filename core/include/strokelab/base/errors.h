@@ -45,6 +45,14 @@ class NumericalError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A computation spent its work budget (steps, switches, iterations) without finishing: the model's
+// time scales are beyond what the engine resolves. The service counts these per task (a task that
+// spent its budget twice is not leased again).
+class WorkBudgetSpent : public NumericalError {
+ public:
+  using NumericalError::NumericalError;
+};
+
 // Work stopped because its caller asked (a cancelled job, an interrupted command).
 struct Cancelled : std::exception {
   const char* what() const noexcept override { return "cancelled"; }

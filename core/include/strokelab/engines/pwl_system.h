@@ -9,12 +9,14 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 #include <array>
 #include <cmath>
 #include <optional>
 #include <utility>
 #include <vector>
 
+#include "strokelab/base/cancel.h"
 #include "strokelab/model/dynamics.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/engines/linear_region.h"
@@ -85,7 +87,7 @@ class PiecewiseLinearSystem {
 
   // Advances (t, y, mode) to t_end, locating every switch on the closed form; calls
   // on_switch(const SwitchEvent&) at each switch that changes the mode.
-  // Throws NumericalError naming the budget and the drive when one call takes more than
+  // Throws WorkBudgetSpent (errors.h) naming the budget and the drive when one call takes more than
   // StepBudget(t, t_end) substeps and switches (see kBudgetStepsPerSecond).
   template <class OnSwitch>
   void Advance(double* t, State* y, PwlMode* mode, double t_end, OnSwitch&& on_switch) const {
@@ -93,6 +95,7 @@ class PiecewiseLinearSystem {
     const double t_start = *t, budget = StepBudget(*t, t_end);
     double steps = 0;
     while (*t < t_end) {
+      if ((static_cast<uint64_t>(steps) & 16383) == 0) ThrowIfCancelled();  // cancel.h: a few ms apart
       if (++steps > budget) ThrowBudgetSpent("work budget spent", budget, t_start, t_end, *t, *y);
       const LinearRegion& region = Region(*mode);
       // Far from every surface, a bound on how fast the surfaces can be approached lets the step

@@ -111,8 +111,9 @@ SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const st
 SaturationThreshold SweepColumn(const ActuatorModel& model, double frequency_hz, const std::atomic<bool>* cancel = nullptr);
 
 // Runs the sweep on spec.threads threads. Results do not depend on the thread count. `progress` is
-// called from worker threads (serialise inside it if needed); `cancel` stops at the next unit of
-// work and the call throws Cancelled.
+// called from worker threads (serialise inside it if needed); `cancel` (without one, the calling
+// thread's CancelScope flag, base/cancel.h) stops the units and the engines' loops within a few ms,
+// and the call throws Cancelled. SweepRow and SweepColumn take the flag the same way.
 SweepResult RunSweep(const SweepSpec& spec, const std::function<void(const SweepProgress&)>& progress = {},
                      const std::atomic<bool>* cancel = nullptr);
 

@@ -48,6 +48,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/campaign.h"
@@ -71,6 +72,11 @@ double DefaultSensitivity(ResponseKind kind);
 // Reads and validates a campaign directory. Throws InputError (see above); never returns a partial
 // campaign. Records keep the manifest's order; Recording::name is the file name as the manifest gives it.
 Campaign ReadCampaign(const std::filesystem::path& dir);
+
+// The files a campaign's manifest lists, relative to `dir`: manifest.json, then each record's CSV in
+// manifest order. Only the manifest is read (a server hashes these before reading the campaign and
+// opens nothing else in `dir`). Throws InputError for the manifest as ReadCampaign does.
+std::vector<std::string> CampaignFiles(const std::filesystem::path& dir);
 
 struct WriteOptions {
   // Sensor volts per physical unit of the response [V/N, V/(m/s^2), V/(m/s), V/m]; 0: DefaultSensitivity.

@@ -2,9 +2,10 @@
 // diagnose task from the server (GET /v1/campaigns/{sha256}) and check it against the SHA-256 its
 // task carries (campaign_sha256, set when the job was planned).
 //
-// Format: the line "strokelab-campaign 1\n", then per regular file under the directory (symbolic
-// links followed, as CampaignDigest reads them), in name order: its relative name ('/' between
-// components), a NUL, its size in decimal digits, a newline, its bytes.
+// Format: the line "strokelab-campaign 1\n", then per file the manifest names (manifest.json and the
+// records' CSVs, data/recordings.h CampaignFiles; no other file in the directory is read), in name
+// order: its relative name ('/' between components), a NUL, its size in decimal digits, a newline,
+// its bytes.
 #pragma once
 
 #include <filesystem>
@@ -13,7 +14,7 @@
 
 namespace strokelab::jobs {
 
-// The bundle of `dir` (throws InputError("/campaign", ...) beyond 10,000 files, std::runtime_error
+// The bundle of `dir` (throws InputError for a bad manifest or beyond 10,000 files, std::runtime_error
 // when a file cannot be read).
 std::string CampaignBundle(const std::filesystem::path& dir);
 

@@ -7,6 +7,7 @@
 // 16 random hex digits.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -20,6 +21,7 @@ namespace strokelab::jobs {
 struct CampaignDirs {
   std::filesystem::path data_root;  // {"path": ...} is relative to it; empty: paths are refused
   std::filesystem::path uploads;    // {"id": ...} is a directory in it; empty: ids are refused
+  uint64_t max_campaign_bytes = UINT64_MAX;  // the files a manifest lists, in all [bytes]
 };
 
 // A campaign whose files were read but are not a valid campaign: the reader's InputError (field
@@ -39,11 +41,15 @@ std::string NewCampaignId();
 // above. Throws InputError naming /campaign, /campaign/path or /campaign/id.
 std::filesystem::path ResolveCampaign(const nlohmann::json& campaign, const CampaignDirs& dirs);
 
-// A content digest of the regular files under `dir` (names and bytes, in name order; 16 hex digits,
-// as ContentKey): a task carries the digest of the campaign it was planned for and checks it when
-// it runs. When `root` is not empty, every file must resolve inside it (else InputError at
-// /campaign/path). Throws InputError("/campaign", ...) for more than 10,000 files.
-std::string CampaignDigest(const std::filesystem::path& dir, const std::filesystem::path& root = {});
+// A content digest of the files the campaign's manifest lists (manifest.json and each record's CSV,
+// data/recordings.h CampaignFiles; names and bytes, 16 hex digits, as ContentKey): a task carries the
+// digest of the campaign it was planned for and checks it when it runs. Nothing else in `dir` is
+// read, and the listed files' sizes are added up before any is: more than `max_bytes` in all is an
+// InputError at /campaign. When `root` is not empty, every listed file must resolve inside it (else
+// InputError at /campaign/path). A manifest that cannot be read, or a listed file that is not a
+// regular file, is a CampaignError naming the file.
+std::string CampaignDigest(const std::filesystem::path& dir, const std::filesystem::path& root = {},
+                           uint64_t max_bytes = UINT64_MAX);
 
 // The whole content of a file; throws std::runtime_error naming it when it cannot be read.
 std::string ReadFileBytes(const std::filesystem::path& path);

@@ -32,6 +32,15 @@ struct ServiceOptions {
   std::string token_file;           // empty: no authentication (loopback use)
   size_t max_body_bytes = 1 << 20;  // larger request bodies get 413 (except campaign uploads)
   size_t max_campaign_bytes = size_t{256} << 20;  // larger campaign uploads (POST /v1/campaigns) get 413
+  // Storage quotas of uploads (issue 15): the unpacked bytes one upload may keep (an archive holding
+  // more is 400 bad_archive) and all uploads together (an upload that would pass it is 507
+  // storage_quota; uploads are never deleted by the server).
+  uint64_t upload_quota_bytes = uint64_t{256} << 20;
+  uint64_t uploads_total_quota_bytes = uint64_t{4} << 30;
+  // The longest wall time a job may ask for [s]: a diagnose job's max_seconds and a fit's
+  // max_refinement_seconds above it are 400 at that field; a job without one gets
+  // min(its default, this) (diagnose 600 s, fit 120 s) (issue 15: up to 3600 s per job were accepted).
+  double max_job_seconds = 600;
   // Fit and diagnose jobs may name {"campaign": {"path": P}} with P relative to this directory;
   // empty: they may only name uploads. Uploads are kept in DB_PATH.campaigns/ID/.
   std::string data_root;
@@ -44,7 +53,8 @@ struct ServiceOptions {
   int http_threads = 8;            // serve requests whose headers are in (plus 2 for health and leases)
 
   // Nothing, or the wrong field (port, workers, lease_ms, max_body_bytes, max_campaign_bytes,
-  // data_root, db_path, header_timeout_ms, max_pending_per_address, http_threads).
+  // upload_quota_bytes, uploads_total_quota_bytes, max_job_seconds, data_root, db_path,
+  // header_timeout_ms, max_pending_per_address, http_threads).
   std::optional<FieldError> IsValid() const;
 };
 

@@ -123,6 +123,12 @@ class Store {
   // Fails the task and its job with a message (a deterministic error: retrying would not help);
   // the job's other open tasks are cancelled. Does nothing if the lease was lost.
   virtual void FailTask(const TaskLease& lease, const std::string& error, int64_t now_ms) = 0;
+  // A task whose computation spent its work budget (strokelab::WorkBudgetSpent): the first time it
+  // goes back to the queue (lease cleared); the second (kMaxBudgetFailures) fails the task and its
+  // job as FailTask does, with "work budget spent twice: " + error. Returns true when the job failed.
+  // Does nothing (false) if the lease was lost.
+  static constexpr int kMaxBudgetFailures = 2;
+  virtual bool FailTaskOnBudget(const TaskLease& lease, const std::string& error, int64_t now_ms) = 0;
 
   // Result rows of a job from one table in (task, row) order, with keyset paging: rows after
   // `cursor` (0: from the start), at most `limit`; `next_cursor` is 0 at the end. Rows whose values
