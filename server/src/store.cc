@@ -63,9 +63,11 @@ void SqliteStore::OpenAndMigrate() {
     throw std::runtime_error("cannot open database " + writer_.path() + ": WAL mode is not available there (journal mode '" +
                              mode + "'; a network file system?)");
   }
-  // The writer's page cache: 64 MiB (SQLite's default is 2 MiB), so that the result tables' index
-  // pages stay in memory between completions instead of being read again from the file.
-  for (const char* pragma : {"PRAGMA synchronous = NORMAL", "PRAGMA foreign_keys = ON", "PRAGMA cache_size = -65536"}) {
+  // The writer's page cache: 16 MiB (SQLite's default is 2 MiB), so that the result tables' index
+  // pages stay in memory between completions instead of being read again from the file. Bounded
+  // well below the result data: at 64 MiB the cache kept growing with every sweep's pages and the
+  // server's RSS with it (HostileLoad: +34 % after the attack, against 20 % allowed).
+  for (const char* pragma : {"PRAGMA synchronous = NORMAL", "PRAGMA foreign_keys = ON", "PRAGMA cache_size = -16384"}) {
     if (sqlite3_exec(writer_.db(), pragma, nullptr, nullptr, nullptr) != SQLITE_OK)
       writer_.OpenFailed(sqlite3_extended_errcode(writer_.db()));
   }

@@ -120,14 +120,22 @@ TEST(ExtendedFitTest, AParameterPushedAgainstItsBoundIsHeldThereAndSaysSo) {
   ExtendedProblem problem = CubicProblem();
   problem.parameters.back().theta_max = 1.0 + 5.0;  // k3 <= 5e6 N/m^3
   const ExtendedFitResult r = internal::FitExtended(c.records, c.synthesis.campaign.response, problem, ExtendedFitOptions{});
-  EXPECT_TRUE(r.converged) << r.report;
-  EXPECT_NE(r.report.find("held at a bound of its range (the records push it beyond): k3"), std::string::npos) << r.report;
+  // The capped model cannot fit these records; whether its fit converges (k_s may be pushed to its own
+  // bound to make up for k3, and the sampling corrections may then keep moving) is not what is tested:
+  // every parameter held at a bound says so and has no standard error, every other one has one.
+  const size_t held = r.report.find("held at a bound of its range (the records push it beyond): ");
+  ASSERT_NE(held, std::string::npos) << r.report;
+  const std::string held_names = r.report.substr(held);
+  EXPECT_NE(held_names.find("k3"), std::string::npos) << r.report;
   for (const FitParameter& p : r.parameters) {
     SCOPED_TRACE(p.name);
-    if (p.name == "k3") {
-      EXPECT_NEAR(p.value, 5e6, 1.0);
+    if (p.name == "k3") EXPECT_NEAR(p.value, 5e6, 1.0);
+    const bool is_held = p.note.find("held at a bound") != std::string::npos;
+    if (p.name == "k3") EXPECT_TRUE(is_held);
+    if (is_held) {
       EXPECT_FALSE(p.identifiable);
       EXPECT_TRUE(std::isnan(p.standard_error));
+      EXPECT_NE(held_names.find(p.name), std::string::npos) << r.report;
     } else {
       EXPECT_TRUE(std::isfinite(p.standard_error)) << p.note;
     }
