@@ -65,23 +65,6 @@ json MatchesOut(const std::vector<RecordMatch>& matches) {
   return out;
 }
 
-json UnexplainedOut(const std::optional<Unexplained>& u) {
-  if (!u) return nullptr;
-  json places = json::array();
-  for (const Unexplained::Place& p : u->places)
-    places.push_back({{"record", p.record}, {"frequency_hz", JsonNumber(p.frequency_hz)},
-                      {"amplitude_v", JsonNumber(p.amplitude_v)}, {"heldout", p.heldout},
-                      {"chi2_per_residual", JsonNumber(p.chi2_per_residual)}, {"worst_harmonic", p.worst_harmonic},
-                      {"worst_harmonic_hz", JsonNumber(p.worst_harmonic_hz)},
-                      {"residual_peak_phase_deg", JsonNumber(p.residual_peak_phase_deg)},
-                      {"impact_phase_deg", JsonNumber(p.impact_phase_deg)}});
-  return {{"heldout_chi2", JsonNumber(u->heldout_chi2)}, {"heldout_residuals", u->heldout_residuals},
-          {"expected_chi2", JsonNumber(u->expected_chi2)}, {"threshold_chi2", JsonNumber(u->threshold_chi2)},
-          {"p_value", JsonNumber(u->p_value)}, {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
-          {"places", places}, {"harmonic_chi2_per_residual", NumbersOut(u->harmonic_chi2_per_residual)},
-          {"description", u->description}};
-}
-
 json SweepOut(const std::optional<SweepResult>& sweep) {
   if (!sweep) return nullptr;
   json points = json::array(), thresholds = json::array(), jumps = json::array();
@@ -377,7 +360,7 @@ json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
                     {"chosen", d.chosen},
                     {"model", ModelToJson(d.model)},
                     {"model_note", d.model_note},
-                    {"unexplained", UnexplainedOut(d.unexplained)},
+                    {"unexplained", UnexplainedToJson(d.unexplained)},
                     {"conclusion", d.conclusion},
                     {"seconds", JsonNumber(d.seconds)}};
   json map_json = {{"frequency_hz", AxisOut(maps.frequency_hz)}, {"amplitude_v", AxisOut(maps.amplitude_v)},

@@ -291,12 +291,6 @@ std::string Rejection(const CandidateFit& c, const FitFigures& from, size_t from
   return InsignificantParameter(c);
 }
 
-int FindSingle(const std::vector<CandidateFit>& candidates, Effect e) {
-  for (size_t i = 0; i < candidates.size(); ++i)
-    if (candidates[i].effects.size() == 1 && candidates[i].effects[0] == e) return static_cast<int>(i);
-  return -1;
-}
-
 // The candidate of exactly these effects (any order), or -1.
 int FindFit(const std::vector<CandidateFit>& candidates, std::vector<Effect> effects) {
   std::sort(effects.begin(), effects.end());
@@ -428,7 +422,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     c.decision = Rejection(c, d.fit_before, 0, options.min_heldout_gain);
     if (c.decision.empty()) accepted.push_back(c.effects[0]);
   }
-  if (!accepted.empty()) d.chosen = FindSingle(d.candidates, accepted[0]);
+  if (!accepted.empty()) d.chosen = FindFit(d.candidates, {accepted[0]});
 
   // Forward selection: add the accepted effect that lowers the held-out chi-square most beyond noise
   // over the current model, refit with every parameter free, repeat.

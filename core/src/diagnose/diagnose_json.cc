@@ -44,7 +44,9 @@ nlohmann::json Complexes(const std::vector<std::complex<double>>& values) {
   return out;
 }
 
-nlohmann::json UnexplainedJson(const std::optional<Unexplained>& u) {
+}  // namespace
+
+nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
   if (!u) return nullptr;
   nlohmann::json places = nlohmann::json::array();
   for (const Unexplained::Place& p : u->places)
@@ -70,8 +72,6 @@ nlohmann::json UnexplainedJson(const std::optional<Unexplained>& u) {
           {"description", u->description}};
 }
 
-}  // namespace
-
 nlohmann::json DiagnosisToJson(const Diagnosis& d) {
   nlohmann::json out;
   out["conclusion"] = d.conclusion;
@@ -96,7 +96,7 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
       out["missing_physics"].push_back(entry);
     }
   }
-  out["unexplained"] = UnexplainedJson(d.unexplained);
+  out["unexplained"] = UnexplainedToJson(d.unexplained);
   out["model"] = ModelToJson(d.model);
   out["model_note"] = d.model_note;
   out["fit_before"] = Figures(d.fit_before);

@@ -258,4 +258,8 @@ CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effe
 // .all_parameters) and as the model they make ("model", "base_model": model.h JSON names, no errors).
 nlohmann::json DiagnosisToJson(const Diagnosis& diagnosis);
 
+// The open-world test's result as DiagnosisToJson writes it under "unexplained": null, or its figures,
+// places and description (also the form a remote worker's diagnosis data carries).
+nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& unexplained);
+
 }  // namespace strokelab
