@@ -124,7 +124,7 @@ asan_build() {
 }
 asan_stage() {  # FUZZ_SECONDS
   asan_build
-  ctest --test-dir "$ASAN_DIR" --output-on-failure -j "$TEST_JOBS" -E "$ASAN_EXCLUDE"
+  ctest --test-dir "$ASAN_DIR" --output-on-failure -j "$TEST_JOBS" -LE slow -E "$ASAN_EXCLUDE"
   STROKELAB_FUZZ_DIR="$ASAN_DIR" tests/fuzz/run_fuzzers.sh "$1"
 }
 
@@ -138,7 +138,7 @@ tsan_stage() {
   for dir in "${TSAN_TEST_DIRS[@]}"; do targets+=("$dir/all"); done
   cmake --build build/tsan -j "$(nproc)" --target "${targets[@]}"
   for dir in "${TSAN_TEST_DIRS[@]}"; do
-    ctest --test-dir "build/tsan/$dir" --output-on-failure -j "$TEST_JOBS"
+    ctest --test-dir "build/tsan/$dir" --output-on-failure -j "$TEST_JOBS" -LE slow
   done
 }
 

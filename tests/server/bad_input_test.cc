@@ -30,22 +30,7 @@
 #include "serve_child.h"
 
 namespace strokelab::testing {
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define STROKELAB_SANITIZED_BUILD 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define STROKELAB_SANITIZED_BUILD 1
-#endif
-
 namespace {
-
-#ifdef STROKELAB_SANITIZED_BUILD
-constexpr bool kSanitizedBuild = true;
-#else
-constexpr bool kSanitizedBuild = false;
-#endif
 
 using nlohmann::json;
 

@@ -649,7 +649,9 @@ TEST_F(CampaignJobsTest, DiagnoseJobHasAResultAndAnHtmlReport) {
   // machine the base fit took it all and every candidate was skipped (a clean-clone run).
   bool fitted = false;
   for (const json& c : result.value("candidates", json::array())) fitted = fitted || c.value("fitted", false);
-  if (fitted) EXPECT_TRUE(candidate) << stages.back().dump();
+  if (fitted) {
+    EXPECT_TRUE(candidate) << stages.back().dump();
+  }
   EXPECT_TRUE(estimate) << stages.back().dump();
   EXPECT_TRUE(result.contains("missing_physics")) << result.dump().substr(0, 300);
   EXPECT_TRUE(result.contains("conclusion"));

@@ -41,12 +41,7 @@ using LoadClock = std::chrono::steady_clock;
 // Under AddressSanitizer (its quarantine) and ThreadSanitizer (its shadow) RSS grows by design and
 // everything runs several times slower: there the attack is shorter, RSS is not checked and a probe
 // may take 10 s; what they look for (races, leaks, overflows) is still attacked.
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr bool kLoadUnderSanitizer = true;
-#else
-constexpr bool kLoadUnderSanitizer = false;
-#endif
-constexpr double kHealthDeadlineS = kLoadUnderSanitizer ? 10.0 : 2.0;
+constexpr double kHealthDeadlineS = kSanitizedBuild ? 10.0 : 2.0;
 constexpr double kRssSlack = 0.20;
 
 // A sweep of 9,000 grid points (~13,000 points with the bistable branches): a few seconds on one
@@ -258,7 +253,7 @@ void RunHostileLoad(double attack_s) {
               rss_start_kib, rss_peak_kib, rss_end_kib);
   EXPECT_EQ(unanswered, 0) << failures;
   EXPECT_GT(latencies_s.size(), 5 * attack_s);
-  if (!kLoadUnderSanitizer) {
+  if (!kSanitizedBuild) {
     EXPECT_LE(rss_end_kib, static_cast<long>((1 + kRssSlack) * static_cast<double>(rss_start_kib)))
         << "RSS did not come back after the attack";
   }
@@ -267,7 +262,7 @@ void RunHostileLoad(double attack_s) {
 
 TEST(HostileLoad, TenSeconds) {
   const char* env = std::getenv("STROKELAB_HOSTILE_LOAD_S");
-  RunHostileLoad(env ? std::atof(env) : kLoadUnderSanitizer ? 6.0 : 10.0);
+  RunHostileLoad(env ? std::atof(env) : kSanitizedBuild ? 6.0 : 10.0);
 }
 
 TEST(HostileLoad, ThirtySeconds) { RunHostileLoad(30.0); }
