@@ -87,7 +87,11 @@ TEST_F(HostileCancelTest, ATaskThatSpentItsBudgetTwiceIsNotLeasedAgain) {
   EXPECT_EQ(none->status, 204) << "the task was leased a third time";
 }
 
-// SIGTERM printed "stopping" and the process lived on until the task in hand was done.
+// SIGTERM printed "stopping" and the process lived on until the task in hand was done (>10 s). The
+// stop takes ~0.2 s in Release; under ASan on a loaded machine 2.2 s was seen, so sanitizer builds
+// allow 6 s, still far short of the task's own run.
+constexpr double kStopDeadlineS = testing::kSanitizedBuild ? 6.0 : 2.0;
+
 TEST(ServeShutdown, SigtermEndsServeWithinTwoSecondsAndTheTaskIsLeasedAgainOnRestart) {
   testing::ScratchDirectory dir("serve_shutdown");
   const std::filesystem::path db = dir.path() / "jobs.db";
@@ -109,7 +113,7 @@ TEST(ServeShutdown, SigtermEndsServeWithinTwoSecondsAndTheTaskIsLeasedAgainOnRes
     ::kill(serve.pid(), SIGTERM);
     while (serve.Alive() && ElapsedS(term) < 10) std::this_thread::sleep_for(std::chrono::milliseconds(10));
     const double seconds = ElapsedS(term);
-    EXPECT_LT(seconds, 2.0) << "serve ran on for " << seconds << " s after SIGTERM";
+    EXPECT_LT(seconds, kStopDeadlineS) << "serve ran on for " << seconds << " s after SIGTERM";
     EXPECT_EQ(serve.Stop(), 0);
   }
   // The task went back to the queue, leased once so far.
@@ -125,7 +129,7 @@ TEST(ServeShutdown, SigtermEndsServeWithinTwoSecondsAndTheTaskIsLeasedAgainOnRes
   EXPECT_EQ(task, "leased 2") << "the task was not leased again after the restart";
   const CancelClock::time_point term = CancelClock::now();
   EXPECT_EQ(again.Stop(), 0);
-  EXPECT_LT(ElapsedS(term), 2.0);
+  EXPECT_LT(ElapsedS(term), kStopDeadlineS);
 }
 
 }  // namespace
