@@ -49,8 +49,12 @@ std::string ChannelColumn(const json& channel, const std::string& pointer) {
 
 }  // namespace
 
+[[noreturn]] void DocumentError(const char* document, const std::string& pointer, const std::string& message) {
+  throw InputError(std::string(document) + (pointer.empty() ? "" : ":" + pointer), message);
+}
+
 [[noreturn]] void ManifestError(const std::string& pointer, const std::string& message) {
-  throw InputError(std::string(kManifestName) + (pointer.empty() ? "" : ":" + pointer), message);
+  DocumentError(kManifestName, pointer, message);
 }
 
 const json* Find(const json& object, const char* key) {
@@ -58,10 +62,11 @@ const json* Find(const json& object, const char* key) {
   return it == object.end() ? nullptr : &*it;
 }
 
-double RequirePositiveRate(const json& value, const std::string& pointer) {
-  if (!value.is_number()) ManifestError(pointer, "expected a number [Hz], got " + TypeName(value));
+double RequirePositiveRate(const json& value, const std::string& pointer, const char* document) {
+  if (!value.is_number()) DocumentError(document, pointer, "expected a number [Hz], got " + TypeName(value));
   const double rate = value.get<double>();
-  if (!std::isfinite(rate) || rate <= 0) ManifestError(pointer, "must be a finite number > 0, got " + Num(rate));
+  if (!std::isfinite(rate) || rate <= 0)
+    DocumentError(document, pointer, "must be a finite number > 0, got " + Num(rate));
   return rate;
 }
 
@@ -132,6 +137,43 @@ void CheckFileName(const std::string& file, const std::string& pointer) {
   if (file.back() == '/') ManifestError(pointer, "'" + file + "' names a directory");
 }
 
+void ParseExcitation(const json& record, RecordSpec* out, const char* document) {
+  RecordSpec& spec = *out;
+  if (const json* excitation = Find(record, "excitation")) {
+    const std::string text = excitation->is_string() ? excitation->get<std::string>() : excitation->dump();
+    if (text == "broadband")
+      spec.broadband = true;
+    else if (text != "stepped-sine" && text != "stepped_sine" && text != "sine")
+      DocumentError(document, spec.pointer + "/excitation",
+                    "unknown excitation " + Quote(text) + " (known: stepped-sine, broadband)");
+  }
+  const json* frequency = Find(record, "drive_frequency_hz");
+  const json* amplitude = Find(record, "drive_amplitude_v");
+  if (spec.broadband) {
+    if (frequency)
+      DocumentError(document, spec.pointer + "/drive_frequency_hz", "a broadband record has no nominal drive frequency");
+  } else {
+    if (!frequency)
+      DocumentError(document, spec.pointer + "/drive_frequency_hz",
+                    "missing (a stepped-sine step; write \"excitation\": \"broadband\" for other drives)");
+    if (!frequency->is_number())
+      DocumentError(document, spec.pointer + "/drive_frequency_hz", "expected a number [Hz], got " + TypeName(*frequency));
+    spec.frequency_hz = frequency->get<double>();
+    if (!std::isfinite(spec.frequency_hz) || spec.frequency_hz <= 0)
+      DocumentError(document, spec.pointer + "/drive_frequency_hz",
+                    "must be a finite number > 0, got " + Num(spec.frequency_hz));
+    if (!amplitude) DocumentError(document, spec.pointer + "/drive_amplitude_v", "missing (a stepped-sine step)");
+  }
+  if (amplitude) {
+    if (!amplitude->is_number())
+      DocumentError(document, spec.pointer + "/drive_amplitude_v", "expected a number [V], got " + TypeName(*amplitude));
+    spec.amplitude_v = amplitude->get<double>();
+    if (!std::isfinite(spec.amplitude_v) || spec.amplitude_v < 0)
+      DocumentError(document, spec.pointer + "/drive_amplitude_v",
+                    "must be a finite number >= 0, got " + Num(spec.amplitude_v));
+  }
+}
+
 std::vector<RecordSpec> ParseRecords(const json& manifest, double sample_rate_hz) {
   const json* records = Find(manifest, "records");
   if (!records) ManifestError("/records", "missing: expected a list of records");
@@ -159,39 +201,7 @@ std::vector<RecordSpec> ParseRecords(const json& manifest, double sample_rate_hz
       spec.sample_rate_hz = RequirePositiveRate(*rate, spec.pointer + "/sample_rate_hz");
       spec.rate_from_record = true;
     }
-    if (const json* excitation = Find(record, "excitation")) {
-      const std::string text = excitation->is_string() ? excitation->get<std::string>() : excitation->dump();
-      if (text == "broadband")
-        spec.broadband = true;
-      else if (text != "stepped-sine" && text != "stepped_sine" && text != "sine")
-        ManifestError(spec.pointer + "/excitation",
-                      "unknown excitation " + Quote(text) + " (known: stepped-sine, broadband)");
-    }
-    const json* frequency = Find(record, "drive_frequency_hz");
-    const json* amplitude = Find(record, "drive_amplitude_v");
-    if (spec.broadband) {
-      if (frequency)
-        ManifestError(spec.pointer + "/drive_frequency_hz", "a broadband record has no nominal drive frequency");
-    } else {
-      if (!frequency)
-        ManifestError(spec.pointer + "/drive_frequency_hz",
-                      "missing (a stepped-sine step; write \"excitation\": \"broadband\" for other drives)");
-      if (!frequency->is_number())
-        ManifestError(spec.pointer + "/drive_frequency_hz", "expected a number [Hz], got " + TypeName(*frequency));
-      spec.frequency_hz = frequency->get<double>();
-      if (!std::isfinite(spec.frequency_hz) || spec.frequency_hz <= 0)
-        ManifestError(spec.pointer + "/drive_frequency_hz",
-                      "must be a finite number > 0, got " + Num(spec.frequency_hz));
-      if (!amplitude) ManifestError(spec.pointer + "/drive_amplitude_v", "missing (a stepped-sine step)");
-    }
-    if (amplitude) {
-      if (!amplitude->is_number())
-        ManifestError(spec.pointer + "/drive_amplitude_v", "expected a number [V], got " + TypeName(*amplitude));
-      spec.amplitude_v = amplitude->get<double>();
-      if (!std::isfinite(spec.amplitude_v) || spec.amplitude_v < 0)
-        ManifestError(spec.pointer + "/drive_amplitude_v",
-                      "must be a finite number >= 0, got " + Num(spec.amplitude_v));
-    }
+    ParseExcitation(record, &spec, kManifestName);
     out.push_back(std::move(spec));
   }
   return out;

@@ -36,15 +36,40 @@ struct RecordSpec {
 
 // ---- manifest.cc -------------------------------------------------------------------------------
 
-// Throws InputError with the field "manifest.json:POINTER" ("manifest.json" for an empty pointer).
+// Throws InputError with the field "DOCUMENT:POINTER" ("DOCUMENT" for an empty pointer).
+[[noreturn]] void DocumentError(const char* document, const std::string& pointer, const std::string& message);
+// DocumentError for manifest.json.
 [[noreturn]] void ManifestError(const std::string& pointer, const std::string& message);
 // The member `key` of a JSON object, or nullptr.
 const nlohmann::json* Find(const nlohmann::json& object, const char* key);
-double RequirePositiveRate(const nlohmann::json& value, const std::string& pointer);
+double RequirePositiveRate(const nlohmann::json& value, const std::string& pointer,
+                           const char* document = kManifestName);
 Channels ParseChannels(const nlohmann::json& manifest);
 // A relative path inside the campaign directory; else ManifestError at `pointer`.
 void CheckFileName(const std::string& file, const std::string& pointer);
 std::vector<RecordSpec> ParseRecords(const nlohmann::json& manifest, double sample_rate_hz);
+// A record's "excitation", "drive_frequency_hz" and "drive_amplitude_v" into `spec` (whose pointer
+// is set), errors at DOCUMENT:POINTER.
+void ParseExcitation(const nlohmann::json& record, RecordSpec* spec, const char* document);
+
+// ---- recordings.cc -----------------------------------------------------------------------------
+
+// A JSON file parsed; InputError "NAME:LINE" for a syntax error, "NAME" when unreadable.
+nlohmann::json ReadJsonDocument(const std::filesystem::path& path, const char* name);
+// A JSON object whose "format" is `format`; else DocumentError at NAME or NAME:/format.
+void CheckDocumentFormat(const nlohmann::json& document, const char* name, const char* format);
+
+// ---- recordings_writer.cc ----------------------------------------------------------------------
+
+// The file name of each record of `campaign` as a writer writes it (its own name, with `extension`
+// in place of its own when not empty, or rec_001EXT by position), every record checked as
+// WriteCampaign checks it (response values as multiplied by `sensitivity`). Throws InputError.
+std::vector<std::string> RecordFileNames(const Campaign& campaign, double sensitivity, bool rename_records,
+                                         const std::string& extension);
+// Writes `text` to `path`; std::runtime_error when the file system refuses.
+void WriteWholeFile(const std::filesystem::path& path, std::string_view text);
+// Integral values as JSON integers (51200, not 51200.0), as the rig writes them.
+nlohmann::json ManifestNumber(double value);
 
 // ---- record_csv.cc -----------------------------------------------------------------------------
 

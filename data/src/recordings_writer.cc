@@ -19,9 +19,76 @@
 #include "format_number.h"
 #include "recordings_internal.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/data/mapping.h"
 #include "strokelab/data/recordings.h"
 
 namespace strokelab {
+namespace data_internal {
+
+// Integral values as JSON integers (51200, not 51200.0), as the rig writes them.
+nlohmann::json ManifestNumber(double value) {
+  if (std::abs(value) < 1e15 && value == std::floor(value)) return nlohmann::json(static_cast<std::int64_t>(value));
+  return nlohmann::json(value);
+}
+
+void WriteWholeFile(const std::filesystem::path& path, std::string_view text) {
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  if (!file) throw std::runtime_error("cannot open '" + path.string() + "' for writing: " + std::strerror(errno));
+  const size_t written = std::fwrite(text.data(), 1, text.size(), file);
+  const int closed = std::fclose(file);
+  if (written != text.size() || closed != 0)
+    throw std::runtime_error("writing '" + path.string() + "' failed: " + std::strerror(errno));
+}
+
+std::vector<std::string> RecordFileNames(const Campaign& campaign, double sensitivity, bool rename_records,
+                                         const std::string& extension) {
+  if (campaign.records.empty()) throw InputError("records", "no records to write");
+  std::vector<std::string> files;
+  std::map<std::string, size_t> seen;
+  for (size_t i = 0; i < campaign.records.size(); ++i) {
+    const Recording& record = campaign.records[i];
+    const std::string field = "records/" + std::to_string(i);
+    std::string file = record.name;
+    if (file.empty() || rename_records) {
+      char name[32];
+      std::snprintf(name, sizeof name, "rec_%03zu", i + 1);
+      file = name + (extension.empty() ? std::string(".csv") : extension);
+    } else if (!extension.empty()) {
+      file = std::filesystem::path(file).replace_extension(extension).string();
+    }
+    try {
+      CheckFileName(file, "");
+    } catch (const InputError& e) {
+      throw InputError(field + "/name", e.bare_message());
+    }
+    if (const auto [it, fresh] = seen.emplace(std::filesystem::path(file).lexically_normal().string(), i); !fresh)
+      throw InputError(field + "/name",
+                       "file name '" + file + "' is also that of records/" + std::to_string(it->second));
+    if (file == kManifestName || file == kMappingName)
+      throw InputError(field + "/name", "a record cannot be called " + file);
+    if (!std::isfinite(record.sample_rate_hz) || record.sample_rate_hz <= 0)
+      throw InputError(field + "/sample_rate_hz", "must be a finite number > 0, got " + Num(record.sample_rate_hz));
+    if (record.voltage_v.size() != record.response.size())
+      throw InputError(field, "voltage and response have different lengths (" +
+                                  std::to_string(record.voltage_v.size()) + " and " +
+                                  std::to_string(record.response.size()) + ")");
+    if (record.voltage_v.size() < 2) throw InputError(field, "a record needs at least 2 samples");
+    for (size_t n = 0; n < record.size(); ++n) {
+      if (!std::isfinite(record.voltage_v[n]) || !std::isfinite(record.response[n] * sensitivity))
+        throw InputError(field, "non-finite sample " + std::to_string(n));
+    }
+    if (!record.broadband && (!std::isfinite(record.nominal_frequency_hz) || record.nominal_frequency_hz <= 0))
+      throw InputError(field + "/nominal_frequency_hz", "a stepped-sine record needs a frequency > 0");
+    if (!std::isfinite(record.nominal_amplitude_v) || record.nominal_amplitude_v < 0)
+      throw InputError(field + "/nominal_amplitude_v", "must be a finite number >= 0");
+    files.push_back(file);
+  }
+
+  return files;
+}
+
+}  // namespace data_internal
+
 namespace {
 
 using data_internal::CheckFileName;
@@ -31,25 +98,10 @@ using data_internal::Trim;
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// Integral values as JSON integers (51200, not 51200.0), as the rig writes them.
-json ManifestNumber(double value) {
-  if (std::abs(value) < 1e15 && value == std::floor(value)) return json(static_cast<std::int64_t>(value));
-  return json(value);
-}
-
 void AppendNumber(std::string* out, double value) {
   char buffer[32];
   const auto result = std::to_chars(buffer, buffer + sizeof buffer, value, std::chars_format::general, 10);
   out->append(buffer, result.ptr);
-}
-
-void WriteFile(const fs::path& path, std::string_view text) {
-  std::FILE* file = std::fopen(path.c_str(), "wb");
-  if (!file) throw std::runtime_error("cannot open '" + path.string() + "' for writing: " + std::strerror(errno));
-  const size_t written = std::fwrite(text.data(), 1, text.size(), file);
-  const int closed = std::fclose(file);
-  if (written != text.size() || closed != 0)
-    throw std::runtime_error("writing '" + path.string() + "' failed: " + std::strerror(errno));
 }
 
 std::optional<FieldError> ColumnNameError(const std::string& name, const char* field) {
@@ -83,44 +135,8 @@ void WriteCampaign(const Campaign& campaign, const fs::path& dir, const WriteOpt
   if (response_column == options.voltage_column) throw InputError("response_column", "is the voltage column too");
   if (campaign.records.empty()) throw InputError("records", "no records to write");
 
-  // File names and checks before anything is written.
-  std::vector<std::string> files;
-  std::map<std::string, size_t> seen;
-  for (size_t i = 0; i < campaign.records.size(); ++i) {
-    const Recording& record = campaign.records[i];
-    const std::string field = "records/" + std::to_string(i);
-    std::string file = record.name;
-    if (file.empty() || options.rename_records) {
-      char name[32];
-      std::snprintf(name, sizeof name, "rec_%03zu.csv", i + 1);
-      file = name;
-    }
-    try {
-      CheckFileName(file, "");
-    } catch (const InputError& e) {
-      throw InputError(field + "/name", e.bare_message());
-    }
-    if (const auto [it, fresh] = seen.emplace(fs::path(file).lexically_normal().string(), i); !fresh)
-      throw InputError(field + "/name",
-                       "file name '" + file + "' is also that of records/" + std::to_string(it->second));
-    if (file == kManifestName) throw InputError(field + "/name", "a record cannot be called manifest.json");
-    if (!std::isfinite(record.sample_rate_hz) || record.sample_rate_hz <= 0)
-      throw InputError(field + "/sample_rate_hz", "must be a finite number > 0, got " + Num(record.sample_rate_hz));
-    if (record.voltage_v.size() != record.response.size())
-      throw InputError(field, "voltage and response have different lengths (" +
-                                  std::to_string(record.voltage_v.size()) + " and " +
-                                  std::to_string(record.response.size()) + ")");
-    if (record.voltage_v.size() < 2) throw InputError(field, "a record needs at least 2 samples");
-    for (size_t n = 0; n < record.size(); ++n) {
-      if (!std::isfinite(record.voltage_v[n]) || !std::isfinite(record.response[n] * sensitivity))
-        throw InputError(field, "non-finite sample " + std::to_string(n));
-    }
-    if (!record.broadband && (!std::isfinite(record.nominal_frequency_hz) || record.nominal_frequency_hz <= 0))
-      throw InputError(field + "/nominal_frequency_hz", "a stepped-sine record needs a frequency > 0");
-    if (!std::isfinite(record.nominal_amplitude_v) || record.nominal_amplitude_v < 0)
-      throw InputError(field + "/nominal_amplitude_v", "must be a finite number >= 0");
-    files.push_back(file);
-  }
+  const std::vector<std::string> files =
+      data_internal::RecordFileNames(campaign, sensitivity, options.rename_records, "");
 
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -130,12 +146,12 @@ void WriteCampaign(const Campaign& campaign, const fs::path& dir, const WriteOpt
   nlohmann::ordered_json voltage = {
       {"column", options.voltage_column}, {"unit", "V"}, {"note", "drive voltage measured before the power amplifier"}};
   nlohmann::ordered_json response = {
-      {"column", response_column}, {"unit", "V"}, {SensitivityKey(campaign.response), ManifestNumber(sensitivity)}};
+      {"column", response_column}, {"unit", "V"}, {SensitivityKey(campaign.response), data_internal::ManifestNumber(sensitivity)}};
   if (!campaign.absolute_scale) response["nominal"] = true;
   std::string manifest = "{\n";
   manifest += "  \"format\": " + json(kRecordingsFormat).dump() + ",\n";
   manifest += "  \"actuator\": " + json(options.actuator.empty() ? campaign.actuator : options.actuator).dump() + ",\n";
-  manifest += "  \"sample_rate_hz\": " + ManifestNumber(sample_rate_hz).dump() + ",\n";
+  manifest += "  \"sample_rate_hz\": " + data_internal::ManifestNumber(sample_rate_hz).dump() + ",\n";
   manifest += "  \"channels\": {\n";
   manifest += "    \"voltage\": " + voltage.dump() + ",\n";
   manifest += "    " + json(ToString(campaign.response)).dump() + ": " + response.dump() + "\n";
@@ -145,12 +161,12 @@ void WriteCampaign(const Campaign& campaign, const fs::path& dir, const WriteOpt
     nlohmann::ordered_json entry = {{"file", files[i]}};
     if (record.broadband) {
       entry["excitation"] = "broadband";
-      if (record.nominal_amplitude_v > 0) entry["drive_amplitude_v"] = ManifestNumber(record.nominal_amplitude_v);
+      if (record.nominal_amplitude_v > 0) entry["drive_amplitude_v"] = data_internal::ManifestNumber(record.nominal_amplitude_v);
     } else {
-      entry["drive_frequency_hz"] = ManifestNumber(record.nominal_frequency_hz);
-      entry["drive_amplitude_v"] = ManifestNumber(record.nominal_amplitude_v);
+      entry["drive_frequency_hz"] = data_internal::ManifestNumber(record.nominal_frequency_hz);
+      entry["drive_amplitude_v"] = data_internal::ManifestNumber(record.nominal_amplitude_v);
     }
-    if (record.sample_rate_hz != sample_rate_hz) entry["sample_rate_hz"] = ManifestNumber(record.sample_rate_hz);
+    if (record.sample_rate_hz != sample_rate_hz) entry["sample_rate_hz"] = data_internal::ManifestNumber(record.sample_rate_hz);
     manifest += "    " + entry.dump() + (i + 1 < campaign.records.size() ? ",\n" : "\n");
   }
   manifest += "  ]\n}\n";
@@ -171,9 +187,9 @@ void WriteCampaign(const Campaign& campaign, const fs::path& dir, const WriteOpt
     }
     const fs::path path = dir / files[i];
     if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
-    WriteFile(path, text);
+    data_internal::WriteWholeFile(path, text);
   }
-  WriteFile(dir / kManifestName, manifest);
+  data_internal::WriteWholeFile(dir / kManifestName, manifest);
 }
 
 }  // namespace strokelab

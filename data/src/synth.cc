@@ -258,8 +258,16 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
 }
 
 void WriteSynthesis(const Synthesis& synthesis, const std::filesystem::path& dir,
-                    const std::filesystem::path& truth_path) {
-  WriteCampaign(synthesis.campaign, dir, synthesis.write);
+                    const std::filesystem::path& truth_path, CampaignFormat format, WavSampleFormat wav_format) {
+  if (format == CampaignFormat::kCsv) {
+    WriteCampaign(synthesis.campaign, dir, synthesis.write);
+  } else {
+    MappedWriteOptions mapped;
+    mapped.format = format;
+    mapped.wav_format = wav_format;
+    mapped.sensitivity = synthesis.write.sensitivity;
+    WriteMappedCampaign(synthesis.campaign, dir, mapped);
+  }
   const std::filesystem::path path = truth_path.empty() ? dir / "truth.json" : truth_path;
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
   std::ofstream out(path);

@@ -71,11 +71,14 @@ double DefaultSensitivity(ResponseKind kind);
 
 // Reads and validates a campaign directory. Throws InputError (see above); never returns a partial
 // campaign. Records keep the manifest's order; Recording::name is the file name as the manifest gives it.
+// A directory holding mapping.json instead of manifest.json is a campaign of UFF 58 or WAV files,
+// read by ReadMappedCampaign (mapping.h); one holding both is refused.
 Campaign ReadCampaign(const std::filesystem::path& dir);
 
 // The files a campaign's manifest lists, relative to `dir`: manifest.json, then each record's CSV in
-// manifest order. Only the manifest is read (a server hashes these before reading the campaign and
-// opens nothing else in `dir`). Throws InputError for the manifest as ReadCampaign does.
+// manifest order (for mapping.json: MappedCampaignFiles). Only the manifest is read (a server hashes
+// these before reading the campaign and opens nothing else in `dir`). Throws InputError for the
+// manifest as ReadCampaign does.
 std::vector<std::string> CampaignFiles(const std::filesystem::path& dir);
 
 struct WriteOptions {

@@ -28,6 +28,7 @@
 #include "strokelab/identify/campaign.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/model/model.h"
+#include "strokelab/data/mapping.h"
 #include "strokelab/data/recordings.h"
 
 namespace strokelab {
@@ -83,9 +84,11 @@ struct Synthesis {
 // Results depend on the options and the seed only, not on the thread count.
 Synthesis Synthesize(const ActuatorModel& model, const SynthOptions& options);
 
-// WriteCampaign(synthesis.campaign, dir, synthesis.write) and the truth as JSON at `truth_path`
-// (empty: dir / "truth.json").
+// WriteCampaign(synthesis.campaign, dir, synthesis.write) (format kCsv), or WriteMappedCampaign with
+// the written sensitivity (UFF 58 ASCII or binary, WAV of `wav_format`; mapping.h), and the truth as
+// JSON at `truth_path` (empty: dir / "truth.json").
 void WriteSynthesis(const Synthesis& synthesis, const std::filesystem::path& dir,
-                    const std::filesystem::path& truth_path = {});
+                    const std::filesystem::path& truth_path = {}, CampaignFormat format = CampaignFormat::kCsv,
+                    WavSampleFormat wav_format = WavSampleFormat::kFloat32);
 
 }  // namespace strokelab
