@@ -10,6 +10,7 @@
 #include "commands.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parse.h"
+#include "strokelab/data/mapping.h"
 #include "strokelab/data/synth.h"
 
 namespace strokelab::cli {
@@ -17,7 +18,8 @@ namespace {
 
 constexpr const char* kSynthHelp = R"(usage: strokelab synth --out DIR [options]
 
-Writes a stepped-sine campaign as the test rig exports it (manifest.json + rec_NNN.csv) from a model,
+Writes a stepped-sine campaign as the test rig exports it (manifest.json + rec_NNN.csv, or with --format
+UFF 58 or WAV files + mapping.json) from a model,
 and the truth (model used, perturbations, noise, seed) apart in truth.json, which the manifest does
 not mention. Each record is simulated from rest for settle + duration and the last duration kept.
 
@@ -45,6 +47,9 @@ not mention. Each record is simulated from rest for settle + duration and the la
   --method M               auto | exact | cvode | ode3           [auto: exact if piecewise linear, else cvode]
   --actuator TEXT          the manifest's actuator description
   --threads N              records simulated side by side; 0: one per core           [0]
+  --format F               csv | uff58 (UFF dataset 58, ASCII) | uff58b (binary) | wav; UFF and WAV
+                           files come with mapping.json (data/README.md)              [csv]
+  --wav-format W           WAV samples: int16 | int24 | int32 | float32                [float32]
 )";
 
 std::vector<double> NumberList(const std::string& text, const std::string& flag) {
@@ -102,7 +107,9 @@ int RunSynth(const std::vector<std::string>& argv) {
                    "--seed",
                    "--method",
                    "--actuator",
-                   "--threads"},
+                   "--threads",
+                   "--format",
+                   "--wav-format"},
                   {"--nominal", "--help"}, {"--set", "--perturb"});
   if (args.Has("--help")) {
     std::cout << kSynthHelp;
@@ -151,6 +158,10 @@ int RunSynth(const std::vector<std::string>& argv) {
   }
   if (const auto actuator = args.Get("--actuator")) options.actuator = *actuator;
   options.threads = args.Integer("--threads", 0);
+  const CampaignFormat format = ParseCampaignFormat(args.GetOr("--format", "csv"), "--format");
+  const WavSampleFormat wav_format = ParseWavSampleFormat(args.GetOr("--wav-format", "float32"), "--wav-format");
+  if (args.Has("--wav-format") && format != CampaignFormat::kWav)
+    throw InputError("--wav-format", "applies to --format wav only");
 
   Synthesis synthesis;
   try {
@@ -176,8 +187,10 @@ int RunSynth(const std::vector<std::string>& argv) {
   }
   const std::filesystem::path truth_path = args.Has("--truth") ? std::filesystem::path(*args.Get("--truth"))
                                                                : std::filesystem::path(*out_dir) / "truth.json";
-  WriteSynthesis(synthesis, *out_dir, truth_path);
-  std::cout << "wrote " << synthesis.campaign.records.size() << " records (" << ToString(synthesis.campaign.response)
+  WriteSynthesis(synthesis, *out_dir, truth_path, format, wav_format);
+  std::cout << "wrote " << synthesis.campaign.records.size() << " records ("
+            << (format == CampaignFormat::kCsv ? "" : std::string(ToString(format)) + ", ")
+            << ToString(synthesis.campaign.response)
             << ", method " << ToString(synthesis.method) << ") to " << *out_dir << "; truth in " << truth_path.string()
             << "\n";
   return 0;
