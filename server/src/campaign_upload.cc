@@ -6,6 +6,7 @@
 #include <system_error>
 #include <vector>
 
+#include "strokelab/data/mapping.h"
 #include "strokelab/data/recordings.h"
 #include "ustar.h"
 #include "zip_reader.h"
@@ -57,15 +58,20 @@ uint64_t BytesUnder(const fs::path& dir) {
   return bytes;
 }
 
-// The campaign directory of an unpacked archive: its top, or its single top-level directory.
+// The campaign directory of an unpacked archive: its top, or its single top-level directory; one
+// that holds manifest.json (CSV records) or mapping.json (UFF 58 or WAV files, data/mapping.h).
+bool HoldsCampaignDescription(const fs::path& dir) {
+  return fs::is_regular_file(fs::symlink_status(dir / kManifestName)) ||
+         fs::is_regular_file(fs::symlink_status(dir / kMappingName));
+}
+
 fs::path CampaignRoot(const fs::path& unpacked) {
-  if (fs::is_regular_file(fs::symlink_status(unpacked / kManifestName))) return unpacked;
+  if (HoldsCampaignDescription(unpacked)) return unpacked;
   std::vector<fs::path> entries;
   for (const fs::directory_entry& e : fs::directory_iterator(unpacked)) entries.push_back(e.path());
-  if (entries.size() == 1 && fs::is_directory(fs::symlink_status(entries[0])) &&
-      fs::is_regular_file(fs::symlink_status(entries[0] / kManifestName)))
+  if (entries.size() == 1 && fs::is_directory(fs::symlink_status(entries[0])) && HoldsCampaignDescription(entries[0]))
     return entries[0];
-  throw ArchiveError(std::string("no ") + kManifestName +
+  throw ArchiveError(std::string("no ") + kManifestName + " or " + kMappingName +
                      " at the archive's top or in its single top-level directory (not a campaign)");
 }
 

@@ -21,6 +21,7 @@
 
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/identify/fit.h"
+#include "strokelab/data/mapping.h"
 #include "strokelab/data/recordings.h"
 #include "strokelab/server/service.h"
 #include "strokelab/worker/remote_worker.h"
@@ -323,6 +324,21 @@ TEST_F(CampaignJobsTest, ZipUploadFitsAsTheTarUpload) {
   EXPECT_EQ(kept, 3u);  // the three good uploads, no scratch directory either
 }
 
+// Issue 14 point 4: a campaign of UFF 58b files with mapping.json (its records the CSV campaign's
+// very doubles) is taken by the upload, hashed by the files its mapping names, and fits as the CSV.
+TEST_F(CampaignJobsTest, AnUffCampaignUploadFitsAsItsCsvTwin) {
+  const fs::path uff = root_ / "uff58b";
+  MappedWriteOptions write;
+  write.format = CampaignFormat::kUff58Binary;
+  WriteMappedCampaign(ReadCampaign(campaign_dir()), uff, write);
+  const std::string id = UploadOk(Tar(EntriesOf(uff, "run/")));
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "jobs.db.campaigns" / id / "mapping.json"));
+  const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"id", id}}}});
+  const json status = WaitFinished(job);
+  ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  ExpectSameFit(Get("/v1/jobs/" + std::to_string(job) + "/result"), *direct_fit_);
+}
+
 TEST_F(CampaignJobsTest, CampaignAtTheArchiveTopAndUnderTheDataRoot) {
   const std::string id = UploadOk(Tar(EntriesOf(campaign_dir(), "")));
   EXPECT_TRUE(fs::is_regular_file(dir_ / "jobs.db.campaigns" / id / "manifest.json"));
@@ -409,7 +425,7 @@ TEST_F(CampaignJobsTest, BadArchivesAreRefusedNamingTheMember) {
       {"symbolic link", Tar(link), "symbolic link (only regular files"},
       {"twice the same name", Tar({{"a.csv", "1"}, {"a.csv", "2"}}), "appears twice"},
       {"not a tar", std::string(2048, 'x'), "no ustar magic"},
-      {"no campaign", Tar({{"notes.txt", "hello"}}), "no manifest.json"},
+      {"no campaign", Tar({{"notes.txt", "hello"}}), "no manifest.json or mapping.json"},
   };
   for (const Case& c : cases) {
     const json error = Error(Upload(c.body), 400);
