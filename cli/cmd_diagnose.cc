@@ -35,7 +35,7 @@ quadratic_stiffness, hertzian_contact, contact_damping, second_stop, dry_frictio
 amplifier_saturation) and names the one that improves the held-out records beyond noise, or says
 "nothing missing".
 
-  --data DIR               campaign directory                                         (required)
+  --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper | linear                                             [paper]
   --json                   one JSON object on stdout instead of the text report
   --out DIR                also write the report folder (below)

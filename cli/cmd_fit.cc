@@ -19,13 +19,14 @@ namespace {
 
 constexpr const char* kFitHelp = R"(usage: strokelab fit --data DIR [--model paper|linear] [--json] [options]
 
-Fits a model to a stepped-sine campaign (manifest.json + one CSV per record): the paper's procedure
-made robust. Per record the true drive from the voltage channel, offsets and mains hum removed, the
-response's harmonics; paper Eq. 3 on the records clear of the stop (m_p held at the data sheet's);
-k_s from contact times and d from where contact begins; then all parameters refined together against
-every record's harmonics, with standard errors. With a nominal sensitivity only ratios are reported.
+Fits a model to a stepped-sine campaign (manifest.json + one CSV per record, or mapping.json + UFF 58
+or WAV files; data/README.md): the paper's procedure made robust. Per record the true drive from the
+voltage channel, offsets and mains hum removed, the response's harmonics; paper Eq. 3 on the records
+clear of the stop (m_p held at the data sheet's); k_s from contact times and d from where contact
+begins; then all parameters refined together against every record's harmonics, with standard
+errors. With a nominal sensitivity only ratios are reported.
 
-  --data DIR               campaign directory                                         (required)
+  --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper (linear suspension, one linear end stop) | linear (no stop) [paper]
   --json                   one JSON object on stdout instead of the text report
   --harmonics N            response harmonics analysed and fitted                      [10]
