@@ -161,7 +161,10 @@ int RunBackup(const std::vector<std::string>& argv) {
     const std::string check = QueryOne(dest.get(), "PRAGMA integrity_check", partial);
     if (check != "ok") throw std::runtime_error("the copy " + partial.string() + " fails its integrity check: " + check);
     jobs = QueryOne(dest.get(), "SELECT count(*) FROM jobs", partial);
-    rows = QueryOne(dest.get(), "SELECT count(*) FROM results", partial);
+    // Schema 6 stores a task's rows of a table as one block (server/src/row_block.h).
+    rows = QueryOne(dest.get(),
+                    std::stoi(version) >= 6 ? "SELECT coalesce(sum(rows), 0) FROM result_blocks" : "SELECT count(*) FROM results",
+                    partial);
     pages = QueryOne(dest.get(), "PRAGMA page_count", partial);
   }
   Sync(partial, false);

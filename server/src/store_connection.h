@@ -44,6 +44,10 @@ class Stmt {
   Stmt& StaticText(int i, std::string_view v) {
     return Bound(sqlite3_bind_text64(stmt_, i, v.data(), v.size(), SQLITE_STATIC, SQLITE_UTF8));
   }
+  // Bytes that outlive the statement's next Step (not copied).
+  Stmt& StaticBlob(int i, std::string_view v) {
+    return Bound(sqlite3_bind_blob64(stmt_, i, v.data(), v.size(), SQLITE_STATIC));
+  }
   Stmt& Null(int i) { return Bound(sqlite3_bind_null(stmt_, i)); }
   Stmt& OptDouble(int i, const std::optional<double>& v) { return v ? Double(i, *v) : Null(i); }
   Stmt& OptStaticText(int i, const std::optional<std::string>& v) { return v ? StaticText(i, *v) : Null(i); }
@@ -63,6 +67,11 @@ class Stmt {
   std::string ColText(int c) {
     const auto* p = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, c));
     return p ? std::string(p, static_cast<size_t>(sqlite3_column_bytes(stmt_, c))) : std::string();
+  }
+  // Valid until the next Step or Reset.
+  std::string_view ColBlob(int c) {
+    const auto* p = static_cast<const char*>(sqlite3_column_blob(stmt_, c));
+    return p ? std::string_view(p, static_cast<size_t>(sqlite3_column_bytes(stmt_, c))) : std::string_view();
   }
 
  private:

@@ -24,18 +24,18 @@
 
 namespace strokelab::server::internal {
 
-// A task's rows as they are stored, encoded once (store_results.cc): each row's JSON text and its
-// filter columns, and the cache entry made of the same texts.
-struct EncodedRow {
-  const std::string* table = nullptr;  // the ResultRow's table name (the rows outlive this)
-  std::string json;                    // the values as JSON text
-  std::optional<double> frequency_hz, amplitude_v;
-  std::optional<std::string> branch;
+// A task's rows as they are stored (store_results.cc): one result block (row_block.h) per table,
+// with the ranges of the filter columns of its rows, so that a filtered read skips the blocks that
+// cannot match without decoding them.
+struct EncodedBlock {
+  std::string table;
+  int64_t rows = 0;
+  std::optional<double> frequency_min_hz, frequency_max_hz, amplitude_min_v, amplitude_max_v;
+  std::string bytes;
 };
 struct EncodedRows {
-  std::vector<EncodedRow> rows;
-  std::string cache_json;  // [{"table": ..., "values": ...}, ...] as the cache keeps them
-  int64_t points = 0;      // rows of the "points" table
+  std::vector<EncodedBlock> blocks;  // tables in the order of their first row
+  int64_t points = 0;                // rows of the "points" table
 };
 EncodedRows EncodeRows(const std::vector<ResultRow>& rows);
 
@@ -96,7 +96,6 @@ class SqliteStore final : public Store {
 
   struct HeldTask {
     int64_t job_id = 0, index = 0;
-    std::string key;
   };
 
   // store_jobs.cc
@@ -108,8 +107,12 @@ class SqliteStore final : public Store {
   std::optional<HeldTask> CheckLease(Connection& c, const TaskLease& lease, int64_t now_ms);
   std::string NewToken();
 
-  // store_results.cc: the rows of one task (in the open write transaction).
+  // store_results.cc, in the open write transaction: the rows of one task; a task's blocks stored
+  // again under another job's task (a result cache hit; returns its "points" rows); the rows of
+  // schema 5's per-row table moved into blocks (migration 006).
   void InsertResultRows(int64_t job_id, int64_t task_idx, const EncodedRows& rows);
+  int64_t CopyResultBlocks(int64_t from_job_id, int64_t from_task_idx, int64_t job_id, int64_t task_idx);
+  void MoveResultRowsIntoBlocks();
 
   // store.cc
   void OpenAndMigrate();

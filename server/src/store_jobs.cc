@@ -99,23 +99,21 @@ int64_t SqliteStore::SubmitJob(const std::string& kind, const json& spec, const 
   int64_t cached = 0, points = 0;
   for (size_t i = 0; i < tasks.size(); ++i) {
     const int64_t idx = static_cast<int64_t>(i);
-    std::optional<std::string> rows_json;
+    // A result cache hit: a finished task with the same key (the key hashes the work and the code
+    // version) gives its rows.
+    std::optional<std::pair<int64_t, int64_t>> done_twin;  // (job_id, idx)
     {
-      Stmt s = writer_.Prepare("SELECT rows_json FROM cache WHERE key = ?1");
-      if (s.Text(1, tasks[i].key).Step()) rows_json = s.ColText(0);
+      Stmt s = writer_.Prepare("SELECT job_id, idx FROM tasks WHERE key = ?1 AND status = 'done' ORDER BY id LIMIT 1");
+      if (s.Text(1, tasks[i].key).Step()) done_twin = {s.ColInt(0), s.ColInt(1)};
     }
     {
       Stmt s = writer_.Prepare(
           "INSERT INTO tasks (job_id, idx, key, spec_json, status, finished_ms) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
       s.Int(1, job_id).Int(2, idx).Text(3, tasks[i].key).StaticText(4, task_specs_json[i]);
-      s.Text(5, rows_json ? "done" : "queued").Int(6, rows_json ? now_ms : 0).Run();
+      s.Text(5, done_twin ? "done" : "queued").Int(6, done_twin ? now_ms : 0).Run();
     }
-    if (rows_json) {
-      std::vector<ResultRow> rows;
-      for (const json& r : ParseJson(*rows_json)) rows.push_back({r.at("table").get<std::string>(), r.at("values")});
-      const EncodedRows encoded = EncodeRows(rows);
-      InsertResultRows(job_id, idx, encoded);
-      points += encoded.points;
+    if (done_twin) {
+      points += CopyResultBlocks(done_twin->first, done_twin->second, job_id, idx);
       ++cached;
     }
   }

@@ -139,11 +139,6 @@ bool SqliteStore::CompleteTask(const TaskLease& lease, const std::vector<ResultR
   }
   if (finished)
     RecordEvent(held->job_id, JobStatus::kSucceeded, now_ms, "all " + std::to_string(tasks_done) + " tasks done");
-  {
-    Stmt s = writer_.Prepare(
-        "INSERT INTO cache (key, rows_json, created_ms) VALUES (?1, ?2, ?3) ON CONFLICT (key) DO NOTHING");
-    s.Text(1, held->key).StaticText(2, encoded.cache_json).Int(3, now_ms).Run();
-  }
   tx.Commit();
   return true;
 }
@@ -198,10 +193,10 @@ bool SqliteStore::FailTaskOnBudget(const TaskLease& lease, const std::string& er
 // The task row behind `lease` if the lease is still held: the task is leased with this token
 // (a new lease, a cancel or a completion changes or clears it) and the lease has not expired.
 std::optional<SqliteStore::HeldTask> SqliteStore::CheckLease(Connection& c, const TaskLease& lease, int64_t now_ms) {
-  Stmt s = c.Prepare("SELECT job_id, idx, key FROM tasks "
+  Stmt s = c.Prepare("SELECT job_id, idx FROM tasks "
                    "WHERE id = ?1 AND status = 'leased' AND lease_token = ?2 AND lease_expires_ms > ?3");
   if (!s.Int(1, lease.task_id).Text(2, lease.lease_token).Int(3, now_ms).Step()) return std::nullopt;
-  HeldTask held{s.ColInt(0), s.ColInt(1), s.ColText(2)};
+  HeldTask held{s.ColInt(0), s.ColInt(1)};
   if (held.job_id != lease.job_id) return std::nullopt;
   return held;
 }

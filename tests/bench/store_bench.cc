@@ -2,8 +2,7 @@
 // through LeaseTask + CompleteTask, each completion one task's rows in one transaction, as the
 // service's workers store them. The rows are real: one sweep row of the paper model (1000
 // frequencies, 5 .. 50 Hz, at 0.4 V; jobs::RunTask, ~1000-1100 "points" and "jumps" rows), computed
-// once and completed again and again under new task keys (so each completion also writes its cache
-// entry). Not a ctest test (timings are not pass/fail). Run a Release build:
+// once and completed again and again under new task keys (never a result cache hit). Not a ctest test (timings are not pass/fail). Run a Release build:
 //   store_bench                                      # ~20 s
 //   store_bench --benchmark_filter=Ingest/           # the writer alone
 // Counters:

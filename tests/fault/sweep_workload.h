@@ -64,18 +64,20 @@ class SweepWorkload {
     CheckFile(db);
   }
 
-  // In the file: every task of every job done, with its rows numbered 0..n-1 each once (row_idx
-  // counts a task's rows over all its tables; a second completion would show as rows beyond n or a
-  // failed insert); SQLite's integrity check passes.
+  // In the file: every task of every job done, with one block per table it has rows of (a second
+  // completion would fail the block's UNIQUE key), the points rows adding up to the job's points
+  // counter; SQLite's integrity check passes.
   void CheckFile(const fs::path& db) const {
     Db file(db);
     for (const Job& j : jobs_) {
       const std::string id = std::to_string(j.id);
       EXPECT_EQ(file.One("SELECT count(*) FROM tasks WHERE job_id = " + id + " AND status != 'done'"), "0");
-      const auto per_task =
-          file.Query("SELECT task_idx, count(*), max(row_idx) FROM results WHERE job_id = " + id + " GROUP BY task_idx");
-      for (const auto& t : per_task) EXPECT_EQ(std::stoll(t[1]), std::stoll(t[2]) + 1) << "job " << id << " task " << t[0];
+      const auto per_task = file.Query("SELECT task_idx, count(*), count(DISTINCT table_name) FROM result_blocks "
+                                       "WHERE job_id = " + id + " GROUP BY task_idx");
+      for (const auto& t : per_task) EXPECT_EQ(t[1], t[2]) << "job " << id << " task " << t[0];
       EXPECT_EQ(per_task.size(), size_t(j.tasks)) << "job " << id << ": tasks with rows";
+      EXPECT_EQ(file.One("SELECT sum(rows) FROM result_blocks WHERE table_name = 'points' AND job_id = " + id),
+                file.One("SELECT points FROM jobs WHERE id = " + id));
     }
     EXPECT_EQ(file.One("PRAGMA integrity_check"), "ok");
   }

@@ -21,7 +21,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr int kLatestSchema = 5;  // schema/migrations/005_task_budget_failures.sql
+constexpr int kLatestSchema = 6;  // schema/migrations/006_result_blocks.sql
 constexpr int kAmplitudes = 40;   // the sweep's amplitude points: one task each (thresholds off)
 
 struct CliRun {
@@ -40,12 +40,12 @@ CliRun RunCli(const std::string& args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128, output};
 }
 
-// The result rows of each task of `job`, as "task_idx -> rows (table|row|json, in order)".
+// The result blocks of each task of `job`, as "task_idx -> blocks (table|rows|bytes in hex, by table)".
 std::map<int64_t, std::vector<std::string>> RowsByTask(RawDb& db, int64_t job) {
   std::map<int64_t, std::vector<std::string>> out;
   for (const std::string& row :
-       db.Rows("SELECT task_idx, table_name || '|' || row_idx || '|' || json FROM results WHERE job_id = " +
-               std::to_string(job) + " ORDER BY task_idx, table_name, row_idx")) {
+       db.Rows("SELECT task_idx, table_name || '|' || rows || '|' || hex(block) FROM result_blocks WHERE job_id = " +
+               std::to_string(job) + " ORDER BY task_idx, table_name")) {
     const size_t bar = row.find('|');
     out[std::stoll(row.substr(0, bar))].push_back(row.substr(bar + 1));
   }

@@ -238,7 +238,7 @@ void RunHostileLoad(double attack_s) {
   const double sweep_s = json::parse(client->Get("/v1/jobs/" + std::to_string(job), read)->body).value("elapsed_s", 0.0);
   RawDb raw(db.string(), SQLITE_OPEN_READONLY);
   const std::string stored =
-      raw.Text("SELECT count(*) FROM results WHERE table_name = 'points' AND job_id = " + std::to_string(job));
+      raw.Text("SELECT sum(rows) FROM result_blocks WHERE table_name = 'points' AND job_id = " + std::to_string(job));
   const SweepResult reference = RunSweep(jobs::SweepSpecFromJob(kLoadSweep));
   EXPECT_EQ(stored, std::to_string(reference.points.size())) << "the sweep's points, against the same sweep in process";
 

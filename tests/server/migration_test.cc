@@ -6,6 +6,7 @@
 // a migration that fails half-way leaves the file at its old version.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -24,19 +25,54 @@ using strokelab::testing::ScratchDirectory;
 
 int Latest() { return internal::Migrations().back().version; }
 
-// The tables every version has (version 1 created them) with version 1's columns, as text, for
-// before/after comparisons (later versions add columns: jobs.points in 4, tasks.budget_failures in 5).
-std::vector<std::string> DumpVersion1Tables(const std::string& path) {
+// Jobs and tasks with version 1's columns, as text, for before/after comparisons (later versions
+// add columns: jobs.points in 4, tasks.budget_failures in 5).
+std::vector<std::string> DumpJobsAndTasks(const std::string& path) {
   RawDb db(path);
   std::vector<std::string> all;
   const std::pair<const char*, const char*> tables[] = {
       {"jobs", "id, kind, status, spec_json, tasks_total, tasks_done, created_ms, started_ms, finished_ms, error"},
-      {"tasks", "id, job_id, idx, key, spec_json, status, lease_token, lease_owner, lease_expires_ms, attempts, finished_ms"},
-      {"results", "*"},
-      {"cache", "*"}};
+      {"tasks", "id, job_id, idx, key, spec_json, status, lease_token, lease_owner, lease_expires_ms, attempts, finished_ms"}};
   for (const auto& [table, columns] : tables) {
     for (std::string& row : db.Rows(std::string("SELECT ") + columns + " FROM " + table + " ORDER BY rowid"))
       all.push_back(std::string(table) + ": " + row);
+  }
+  return all;
+}
+
+// Every row of every table, as text (blobs as hex), for a file a migration must leave alone.
+std::vector<std::string> DumpAllTables(const std::string& path) {
+  RawDb db(path);
+  std::vector<std::string> all;
+  for (const std::string& table : db.Rows("SELECT name FROM sqlite_schema WHERE type = 'table' ORDER BY name")) {
+    const std::string select = table == "result_blocks" ? "SELECT *, hex(block)" : "SELECT *";
+    for (std::string& row : db.Rows(select + " FROM " + table + " ORDER BY rowid")) all.push_back(table + ": " + row);
+  }
+  return all;
+}
+
+// The result rows as "job|table|row" in paging order: of schema 1-5's per-row table, and through the
+// store (schema 6 keeps them in blocks).
+const char* const kResultTables[] = {"points", "thresholds"};
+std::vector<std::string> ResultRowsInSql(const std::string& path) {
+  std::vector<std::string> all;
+  for (const std::string& row : RawDb(path).Rows(
+           "SELECT job_id || '|' || table_name || '|' || json FROM results ORDER BY job_id, table_name, task_idx, row_idx")) {
+    const size_t bar = row.rfind('|', row.find('{'));
+    all.push_back(row.substr(0, bar + 1) + json::parse(row.substr(bar + 1)).dump());
+  }
+  return all;
+}
+std::vector<std::string> ResultRowsInStore(Store& store) {
+  std::vector<int64_t> jobs;
+  for (const JobRecord& job : store.ListJobs(100, 0)) jobs.push_back(job.id);
+  std::sort(jobs.begin(), jobs.end());
+  std::vector<std::string> all;
+  for (const int64_t job : jobs) {
+    for (const char* table : kResultTables) {  // in name order, as the SQL above
+      for (const json& row : store.Results(job, table, {}, 0, 1000).rows)
+        all.push_back(std::to_string(job) + "|" + table + "|" + row.dump());
+    }
   }
   return all;
 }
@@ -98,7 +134,7 @@ TEST(Migration, EmptyFileReachesTheLatestVersion) {
   EXPECT_EQ(db.Int("PRAGMA user_version"), Latest());
   EXPECT_EQ(db.Text("SELECT group_concat(name, ',') FROM (SELECT name FROM sqlite_schema WHERE type = 'table' "
                     "ORDER BY name)"),
-            "cache,job_events,jobs,results,tasks");
+            "job_events,jobs,result_blocks,tasks");
   EXPECT_EQ(db.Int("SELECT count(*) FROM sqlite_schema WHERE type = 'index' AND name = 'job_events_by_job'"), 1);
   EXPECT_EQ(db.Int("SELECT count(*) FROM job_events"), 0) << "nothing to backfill in an empty file";
 }
@@ -110,12 +146,16 @@ TEST(Migration, EveryEarlierVersionReachesTheLatestWithItsDataIntact) {
     ScratchDirectory dir("strokelab-migrate");
     const std::string path = (dir.path() / "jobs.db").string();
     BuildAtVersion(path, version);
-    const std::vector<std::string> before = DumpVersion1Tables(path);
-    ASSERT_EQ(before.size(), 5u + 7u + 8u + 2u);
+    const std::vector<std::string> before = DumpJobsAndTasks(path);
+    ASSERT_EQ(before.size(), 5u + 7u);
+    const std::vector<std::string> rows_before = ResultRowsInSql(path);
+    ASSERT_EQ(rows_before.size(), 8u);
 
     auto store = Store::Open(path);
     EXPECT_EQ(store->SchemaVersion(), Latest());
-    EXPECT_EQ(DumpVersion1Tables(path), before) << "a migration changed stored rows";
+    EXPECT_EQ(DumpJobsAndTasks(path), before) << "a migration changed stored jobs or tasks";
+    EXPECT_EQ(ResultRowsInStore(*store), rows_before) << "a migration changed stored result rows";
+    EXPECT_EQ(RawDb(path).Int("SELECT count(*) FROM sqlite_schema WHERE name IN ('results', 'cache')"), 0);
 
     // Through the Store's own reads: statuses, counters, result pages and filters.
     ASSERT_TRUE(store->GetJob(4));
@@ -126,6 +166,13 @@ TEST(Migration, EveryEarlierVersionReachesTheLatestWithItsDataIntact) {
     Store::Filter up;
     up.branch = "up";
     EXPECT_EQ(store->Results(1, "points", up, 0, 100).rows.size(), 4u);
+    // The result cache of schema 1-5 ('k1a', 'k2a') is gone; a finished task's key still hits.
+    const int64_t again = store->SubmitJob("sweep", json::object(), {{"k1b", json::object()}}, 2400);
+    EXPECT_EQ(store->GetJob(again)->status, JobStatus::kSucceeded);
+    Store::Filter at_0_2_v;  // job 1's task 1, key 'k1b'
+    at_0_2_v.amplitude_v = 0.2;
+    EXPECT_EQ(store->Results(again, "points", {}, 0, 100).rows, store->Results(1, "points", at_0_2_v, 0, 100).rows);
+    EXPECT_EQ(store->CountResults(again, "points"), 3);
 
     // The history backfilled from the jobs table (version 1 had none).
     if (version < 2) {
@@ -212,10 +259,11 @@ TEST(Migration, JobsCountTheirStoredPoints) {
 TEST(Migration, NewerVersionIsRefusedAndLeftUntouched) {
   ScratchDirectory dir("strokelab-migrate");
   const std::string path = (dir.path() / "jobs.db").string();
-  BuildAtVersion(path, Latest());
+  BuildAtVersion(path, 5);
+  Store::Open(path);  // to the latest version
   const int newer = Latest() + 1;
   RawDb(path).Exec("PRAGMA user_version = " + std::to_string(newer));
-  const std::vector<std::string> before = DumpVersion1Tables(path);
+  const std::vector<std::string> before = DumpAllTables(path);
   try {
     Store::Open(path);
     FAIL() << "opened a file of schema version " << newer;
@@ -225,7 +273,7 @@ TEST(Migration, NewerVersionIsRefusedAndLeftUntouched) {
                                          std::to_string(Latest()) + "); use a newer strokelab, or another database file");
   }
   EXPECT_EQ(RawDb(path).Int("PRAGMA user_version"), newer);
-  EXPECT_EQ(DumpVersion1Tables(path), before);
+  EXPECT_EQ(DumpAllTables(path), before);
 }
 
 TEST(Migration, AFailingMigrationRollsBackToTheOldVersion) {
@@ -234,7 +282,7 @@ TEST(Migration, AFailingMigrationRollsBackToTheOldVersion) {
   BuildAtVersion(path, 1);
   // Someone made an index under the name 002 uses: its CREATE TABLE succeeds, its CREATE INDEX fails.
   RawDb(path).Exec("CREATE INDEX job_events_by_job ON jobs (kind)");
-  const std::vector<std::string> before = DumpVersion1Tables(path);
+  const std::vector<std::string> before = DumpAllTables(path);
   try {
     Store::Open(path);
     FAIL() << "migrated over a clashing index";
@@ -250,7 +298,7 @@ TEST(Migration, AFailingMigrationRollsBackToTheOldVersion) {
     EXPECT_EQ(db.Text("PRAGMA integrity_check"), "ok");
     db.Exec("DROP INDEX job_events_by_job");
   }
-  EXPECT_EQ(DumpVersion1Tables(path), before);
+  EXPECT_EQ(DumpAllTables(path), before);
   // With the clash gone, the same file migrates.
   EXPECT_EQ(Store::Open(path)->SchemaVersion(), Latest());
   EXPECT_EQ(RawDb(path).Int("SELECT count(*) FROM job_events"), 11);

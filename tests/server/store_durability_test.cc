@@ -284,7 +284,7 @@ TEST_F(StoreTest, FreshDatabaseHasTheLatestSchema) {
   EXPECT_EQ(store_->SchemaVersion(), latest);
   EXPECT_EQ(QueryInt(path_, "PRAGMA user_version"), latest);
   EXPECT_EQ(QueryInt(path_, "SELECT count(*) FROM sqlite_schema WHERE type = 'table' AND name IN "
-                            "('jobs', 'tasks', 'results', 'cache')"),
+                            "('jobs', 'tasks', 'job_events', 'result_blocks')"),
             4);
   // Migrations are numbered 1, 2, ... without gaps (the CMake embedding checks it too).
   for (size_t i = 0; i < internal::Migrations().size(); ++i) EXPECT_EQ(internal::Migrations()[i].version, int(i) + 1);

@@ -69,12 +69,13 @@ inline int64_t QueryInt(const std::string& path, const std::string& sql) {
   return text.empty() ? -1 : std::stoll(text);
 }
 
-// Per task of `job`: (status, number of result rows), over a raw connection.
+// Per task of `job`: (status, number of result rows in its blocks), over a raw connection.
 inline std::map<int, std::pair<std::string, int64_t>> TaskRowCounts(const std::string& path, int64_t job) {
   sqlite3* db = nullptr;
   EXPECT_EQ(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr), SQLITE_OK);
   const std::string sql =
-      "SELECT t.idx, t.status, (SELECT count(*) FROM results r WHERE r.job_id = t.job_id AND r.task_idx = t.idx) "
+      "SELECT t.idx, t.status, "
+      "(SELECT coalesce(sum(rows), 0) FROM result_blocks r WHERE r.job_id = t.job_id AND r.task_idx = t.idx) "
       "FROM tasks t WHERE t.job_id = " +
       std::to_string(job);
   sqlite3_stmt* stmt = nullptr;

@@ -286,10 +286,13 @@ class Soak:
     def report(self, elapsed, rss_kb, metrics):
         con = sqlite3.connect(f"file:{self.db}?mode=ro", uri=True)
         jobs = dict(con.execute("SELECT status, count(*) FROM jobs GROUP BY status").fetchall())
-        points = con.execute("SELECT count(*) FROM results WHERE table_name = 'points'").fetchone()[0]
-        bad_tasks = con.execute(
-            "SELECT count(*) FROM (SELECT job_id, task_idx, count(*) AS n, max(row_idx) AS m FROM results "
-            "GROUP BY job_id, task_idx) WHERE n != m + 1").fetchone()[0]
+        points = con.execute(
+            "SELECT coalesce(sum(rows), 0) FROM result_blocks WHERE table_name = 'points'").fetchone()[0]
+        # A job's points counter against its stored blocks (a task's rows of a table are one block,
+        # stored once: a second completion would fail the block's UNIQUE key).
+        bad_jobs = con.execute(
+            "SELECT count(*) FROM jobs j WHERE points != (SELECT coalesce(sum(rows), 0) FROM result_blocks r "
+            "WHERE r.job_id = j.id AND r.table_name = 'points')").fetchone()[0]
         short_jobs = con.execute(
             "SELECT count(*) FROM jobs j WHERE status = 'succeeded' AND tasks_done != tasks_total").fetchone()[0]
         integrity = con.execute("PRAGMA integrity_check").fetchone()[0]
@@ -312,7 +315,7 @@ class Soak:
                                          if l.startswith("strokelab_result_rows_written_total")), None),
             "worker_restarts": {f"{sig} -> exit {code}": n for (sig, code), n in self.worker_exits.items()},
             "server_rss_kb": rss_kb,
-            "checks": {"integrity": integrity, "tasks_with_rows_not_once": bad_tasks,
+            "checks": {"integrity": integrity, "jobs_whose_points_disagree_with_their_rows": bad_jobs,
                        "succeeded_jobs_missing_tasks": short_jobs},
             "dir": self.dir,
         }

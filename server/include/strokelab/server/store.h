@@ -5,8 +5,8 @@
 // result rows and marks it done in one transaction, and only if the caller still holds the lease,
 // so that a task is never stored twice and a crash at any moment loses at most the work of the
 // leases in flight. Every task has a key (a hash of its spec, the model, the method and the code
-// version); the result of a finished task is kept by key, and a task whose key is known is done at
-// submission from that cache, without recomputation.
+// version); a task whose key equals a finished task's is done at submission with a copy of that
+// task's rows (the result cache), without recomputation.
 #pragma once
 
 #include <cstdint>
@@ -116,7 +116,7 @@ class Store {
   // the lease was lost. A completion is checked against it before its rows are read.
   virtual std::optional<nlohmann::json> LeasedTaskSpec(const TaskLease& lease, int64_t now_ms) = 0;
   // Writes the rows and marks the task done in one transaction, if the lease is still held (same
-  // token, not expired, job not cancelled); caches the rows under the task key; finishes the job
+  // token, not expired, job not cancelled), where later tasks of the same key find them; finishes the job
   // when its last task is done. False if the lease was lost (nothing is written). An expired lease
   // is lost even before another worker takes the task: renew in time.
   virtual bool CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) = 0;
