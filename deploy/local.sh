@@ -3,11 +3,12 @@
 #   deploy/local.sh run    build and run the main job: the service with a demo sweep
 #   deploy/local.sh demo   build and write the demo sweep and the paper's figures as files
 #   deploy/local.sh test   build and run the tests (what .ci/run calls): the Release build and its
-#                          tests, then ASan+UBSan on the service, campaign files and fuzz harnesses
+#                          tests, the Slurm array on a real single-node Slurm (tests/slurm/run.sh),
+#                          then ASan+UBSan on the service, campaign files and fuzz harnesses
 #   deploy/local.sh test-release    the Release build and its tests only (the quick loop)
 #   deploy/local.sh test-slow       the Release build and the tests labelled "slow" (long diagnosis cases)
 #   deploy/local.sh test-slurm      the Release build, then the Slurm array of deploy/slurm/ on a real
-#                                   single-node Slurm started here (root; tests/slurm/run.sh)
+#                                   single-node Slurm started here (root; tests/slurm/run.sh) alone
 #   deploy/local.sh build  build only
 #   deploy/local.sh sanitize        both whole sanitizer stages (every ASan test, TSan; ~28 min)
 #   deploy/local.sh fuzz [SECONDS]  build the libFuzzer harnesses and run each for SECONDS (default 600)
@@ -16,11 +17,12 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(build-essential cmake ninja-build ccache pkg-config libeigen3-dev libsundials-dev libceres-dev nlohmann-json3-dev
           libcpp-httplib-dev libsqlite3-dev libgtest-dev libgmock-dev libbenchmark-dev python3-scipy python3-numpy chromium
-          clang libclang-rt-14-dev util-linux tar zlib1g-dev python3-yaml docker-compose)
+          clang libclang-rt-14-dev util-linux tar zlib1g-dev python3-yaml docker-compose slurm-wlm munge)
 # clang (+ clang-rt, libFuzzer): the sanitizer and fuzzing builds; util-linux (prlimit) and tar: the
 # full-disk and tar-upload tests (both Essential in Debian, listed so the dependency is written down);
 # zlib: deflated members of zip campaign uploads. python3-yaml and docker-compose (1.29): the deploy
-# files' checks (tests/deploy; `docker-compose config` on deploy/compose.yaml).
+# files' checks (tests/deploy; `docker-compose config` on deploy/compose.yaml). slurm-wlm and munge:
+# the Slurm array test (tests/slurm/run.sh starts its own single-node cluster in a temporary directory).
 
 install_missing() {
   local missing=()
@@ -218,6 +220,7 @@ case "${1:-}" in
   test)
     install_missing
     release_stages
+    stage "slurm array" tests/slurm/run.sh "$BUILD_DIR/strokelab"
     ci_sanitizer_stage
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;

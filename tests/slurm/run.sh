@@ -11,9 +11,9 @@
 #   tests/slurm/run.sh [BINARY]     (default build/release/strokelab; run as root)
 #
 # It needs root (slurmd runs jobs as their user) and the packages slurm-wlm and munge; as root it
-# installs missing ones with apt-get. When the cluster cannot start it fails saying why: it never
-# passes silently. Not part of `deploy/local.sh test` (it starts daemons and takes ~1 minute):
-# `deploy/local.sh test-slurm` runs it.
+# installs missing ones with apt-get (`deploy/local.sh` installs them with its other packages). When
+# the cluster cannot start it fails saying why: it never passes silently. `deploy/local.sh test` runs
+# it after the Release tests (~15 s here); `deploy/local.sh test-slurm` runs it alone.
 set -euo pipefail
 
 repo=$(cd "$(dirname "$0")/../.." && pwd)
