@@ -54,12 +54,20 @@ json StageProgressJson(const ProgressReport& r) {
 void Service::Impl::AddCampaignStatus(const JobRecord& job, json* j) {
   if (!jobs::IsCampaignKind(job.kind)) return;
   if (job.status == JobStatus::kRunning) {
+    // The job's newest computation. One that has ended while the job still runs is having its
+    // result stored: its last stage is shown as that, not dropped (the page would show "0 / 1
+    // tasks" for that moment).
     json live;
     {
       std::lock_guard<std::mutex> lock(computations_mutex);
       for (auto it = computations.rbegin(); it != computations.rend() && live.is_null(); ++it) {
         std::lock_guard<std::mutex> progress_lock(it->second->mutex);
-        if (it->second->job_id == job.id && !it->second->done) live = it->second->progress;
+        if (it->second->job_id != job.id || !it->second->progress.is_object()) continue;
+        live = it->second->progress;
+        if (it->second->done) {
+          live["stage_name"] = "storing the result";
+          live["eta_s"] = 0.0;
+        }
       }
     }
     if (live.is_object()) (*j)["progress"].update(live);

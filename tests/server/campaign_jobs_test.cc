@@ -213,6 +213,8 @@ class CampaignJobsTest : public ::testing::Test {
   }
   // Waits as WaitFinished, polling every 10 ms, and keeps the progress of each poll that saw the job
   // running in a stage.
+  // Once a running job has shown a stage, every later running status shows one (between the
+  // computation's end and its stored result the status once fell back to {done: 0, total: 1}).
   json WaitFinishedWatchingStages(int64_t id, std::vector<json>* stages) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     json job;
@@ -220,6 +222,7 @@ class CampaignJobsTest : public ::testing::Test {
       job = Get("/v1/jobs/" + std::to_string(id));
       if (job["status"] != "queued" && job["status"] != "running") return job;
       if (job["progress"].contains("stage")) stages->push_back(job["progress"]);
+      else if (!stages->empty()) ADD_FAILURE() << "a running job's status lost its stage: " << job.dump();
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     ADD_FAILURE() << "job " << id << " did not finish: " << job.dump();
