@@ -7,6 +7,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <optional>
 #include <string>
@@ -53,7 +54,16 @@ std::optional<double> UffReal(std::string_view text) {
   if (begin < buffer + n && (*begin == '+' || *begin == '-') && begin > buffer) return std::nullopt;
   double value = 0.0;
   const auto [ptr, ec] = std::from_chars(begin, buffer + n, value);
-  if (ec != std::errc() || ptr != buffer + n || !std::isfinite(value)) return std::nullopt;
+  if (ptr != buffer + n) return std::nullopt;
+  if (ec == std::errc::result_out_of_range) {
+    // from_chars refuses values below the normal range; they are numbers (a subnormal, or 0 beyond
+    // it), as the CSV reader's strtod takes them. Above the range is inf, refused below.
+    buffer[n] = '\0';
+    value = std::strtod(begin, nullptr);
+  } else if (ec != std::errc()) {
+    return std::nullopt;
+  }
+  if (!std::isfinite(value)) return std::nullopt;
   return value;
 }
 

@@ -179,6 +179,10 @@ TEST(MalformedUff, AsciiDefectsNameTheFileDatasetAndLine) {
       [](const fs::path& dir) { EditLine(dir, "rec_001.uff", 17, [](std::string& l) { Replace(l, 20, 20, "   1.0E+00x1.0E+00 "); }); },
       "rec_001.uff:17", "dataset 1 (58): '1.0E+00x1.0E+00' is not a finite number");
   check(
+      "beyond the double range",
+      [](const fs::path& dir) { EditLine(dir, "rec_001.uff", 17, [](std::string& l) { Replace(l, 20, 20, "          1.0E+400"); }); },
+      "rec_001.uff:17", "dataset 1 (58): '1.0E+400' is not a finite number");
+  check(
       "voltage in newtons",
       [](const fs::path& dir) { EditLine(dir, "rec_001.uff", kRecord9(1), [](std::string& l) { Replace(l, 47, 1, "N"); }); },
       "rec_001.uff:11", "dataset 1 (58): the voltage's units are 'N'; the drive must be in volts (V)");
@@ -190,6 +194,17 @@ TEST(MalformedUff, AsciiDefectsNameTheFileDatasetAndLine) {
       "unknown unit",
       [](const fs::path& dir) { EditLine(dir, "rec_002.uff", kRecord9(kDataset2), [](std::string& l) { Replace(l, 47, 1, "W"); }); },
       "rec_002.uff:35", "dataset 2 (58): units 'W' are not known for a force response (V, mV, N, kN, mN, lbf)");
+}
+
+// Below the normal range is still a number: a subnormal is read as one (std::from_chars alone
+// refuses it as out of range), as the CSV reader reads it.
+TEST(MalformedUff, ASubnormalValueIsANumber) {
+  const fs::path dir = WriteValid("uff_subnormal", CampaignFormat::kUff58);
+  EditLine(dir, "rec_001.uff", 17, [](std::string& l) { Replace(l, 20, 20, "         1.0E-320"); });
+  const Campaign read = ReadCampaign(dir);
+  bool found = false;
+  for (const double v : read.records[0].voltage_v) found = found || (v > 0 && v < 1e-300);
+  EXPECT_TRUE(found) << "no subnormal sample in rec_001's voltage";
 }
 
 TEST(MalformedUff, BinaryDefectsNameTheHeaderLineOrTheByteOffset) {
