@@ -120,6 +120,10 @@ std::vector<SmoothCase> ForceTermCases() {
   friction.friction_force_n = 0.01;
   friction.friction_velocity_m_per_s = 2e-3;
   add("dry_friction", friction, 8.0, 0.5, {&M::friction_force_n, &M::friction_velocity_m_per_s});
+  // c2 v|v|: its second derivative jumps where v = 0 (each apex), as friction's does not.
+  ActuatorModel quadratic_damping = PaperModel();
+  quadratic_damping.quadratic_damping_n_s2_per_m2 = 2.0;
+  add("quadratic_damping", quadratic_damping, 8.0, 0.5, {&M::quadratic_damping_n_s2_per_m2});
   ActuatorModel damped = PaperModel();
   damped.contact_damping_n_s_per_m = 15.0;
   damped.cubic_stiffness_n_per_m3 = 2e7;

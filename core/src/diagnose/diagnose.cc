@@ -110,6 +110,9 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
       const PeriodMap map(m, a.drive.frequency_hz, a.drive.amplitude_v);
       const SteadyState s = SolveAttractor(map, map.ClippedLinearStart());
       c.max_displacement_m = std::max(c.max_displacement_m, s.figures.max_displacement_m);
+      c.max_velocity_m_per_s =
+          std::max(c.max_velocity_m_per_s, std::numbers::pi * a.drive.frequency_hz *
+                                               (s.figures.max_displacement_m - s.figures.min_displacement_m));
       if (m.HasLowerStop() && s.figures.min_displacement_m < m.lower_stop_m)
         penetrations.push_back(m.lower_stop_m - s.figures.min_displacement_m);
     } catch (const std::exception&) {
@@ -258,7 +261,7 @@ double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
 // limit from infinity; the held-out gain alone decides for them).
 bool NullIsZero(Effect e) {
   return e == Effect::kCubicStiffness || e == Effect::kQuadraticStiffness || e == Effect::kContactDamping ||
-         e == Effect::kDryFriction;
+         e == Effect::kDryFriction || e == Effect::kQuadraticDamping;
 }
 
 // Why a zero-null effect parameter is not significant (within kMinSignificance standard errors of

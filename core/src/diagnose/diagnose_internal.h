@@ -28,6 +28,7 @@ inline std::string FormatFigure(double value, int digits = 3) {
 struct EffectContext {
   double stop_distance_m = 1e-3;  // |d| (or the model's length scale without a stop)
   double max_displacement_m = 0;  // largest x of the base model's orbits over the fit records
+  double max_velocity_m_per_s = 0;  // largest pi f (x_max - x_min) of those orbits: their peak velocity scale
   double penetration_m = 0;       // typical (median) stop penetration of the contacting orbits
   double min_amplitude_v = 0, max_amplitude_v = 0;  // drive amplitudes of the campaign
   bool contacts = false;          // some record reaches the stop

@@ -65,7 +65,8 @@ Evidence HarmonicResidual(int h, std::span<const RecordAnalysis> analyses, const
   std::vector<Effect> points;
   if (rms > kSignificant) {
     points = even ? std::vector<Effect>{Effect::kQuadraticStiffness}
-                  : std::vector<Effect>{Effect::kCubicStiffness, Effect::kDryFriction, Effect::kAmplifierSaturation};
+                  : std::vector<Effect>{Effect::kCubicStiffness, Effect::kDryFriction, Effect::kAmplifierSaturation,
+                                        Effect::kQuadraticDamping};
   }
   // Noise alone gives an RMS near 1 with a standard error ~ 1 / sqrt(2 n).
   const double se = n > 0 ? 1.0 / std::sqrt(2.0 * static_cast<double>(n)) : kNaN;
@@ -199,7 +200,7 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
   }
 
   // The first harmonic at the largest against the smallest drive amplitude: clipping makes the model
-  // overshoot at the top at every frequency.
+  // overshoot at the top at every frequency (a damping that grows with velocity, most near resonance).
   if (levels.size() >= 2) {
     auto mean_error = [&](const std::vector<size_t>& members, double* se) {
       std::vector<double> e;
@@ -217,7 +218,7 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
     const double bottom = mean_error(levels.begin()->second, &se_bottom);
     const double value = top - bottom, se = std::hypot(se_top, se_bottom);
     std::vector<Effect> points;
-    if (value > kSignificant * se) points = {Effect::kAmplifierSaturation};
+    if (value > kSignificant * se) points = {Effect::kAmplifierSaturation, Effect::kQuadraticDamping};
     s.evidence.push_back(Make("first_harmonic_vs_amplitude",
                               "the base model's |C_1| is off by " + FormatFigure(100 * top) + " % at " +
                                   FormatFigure(levels.rbegin()->first) + " V and " + FormatFigure(100 * bottom) + " % at " +

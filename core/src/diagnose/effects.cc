@@ -33,6 +33,10 @@ const std::vector<EffectInfo>& EffectLibrary() {
        "odd harmonics and a first harmonic that falls short in proportion at the largest drive amplitudes "
        "at every frequency, clear of the stop or not: the drive is clipped before the coil (the voltage "
        "channel, measured before the amplifier, stays sinusoidal)"},
+      {Effect::kQuadraticDamping, "quadratic_damping", "c2",
+       "odd harmonics (mostly the 3rd) and a resonance peak that falls short in proportion as the "
+       "velocity grows, clear of the stop or not: a mechanical resistance c2 v|v| damps fast motion "
+       "more than slow (Klippel's R(v)); dry friction does the opposite, most at the smallest amplitudes"},
   };
   return library;
 }
@@ -184,6 +188,15 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         const double scale = 0.1 * std::abs(start.gain_n_per_v) * context.min_amplitude_v;
         const double f0 = start.friction_force_n;
         p.push_back(LinearParameter("friction_n", "N", &ActuatorModel::friction_force_n, f0, scale, -f0 / scale, 20.0));
+        break;
+      }
+      case Effect::kQuadraticDamping: {
+        // Scale: a tenth of the c2 whose force at the campaign's largest velocity v equals the
+        // linear damping's, c2 v^2 = c_p v; c2 >= 0.
+        const double scale = 0.1 * start.damping_n_s_per_m / std::max(context.max_velocity_m_per_s, 1e-6);
+        const double c0 = start.quadratic_damping_n_s2_per_m2;
+        p.push_back(LinearParameter("c2", "N s^2/m^2", &ActuatorModel::quadratic_damping_n_s2_per_m2, c0, scale,
+                                    -c0 / scale, 20.0));
         break;
       }
       case Effect::kSecondStop: {

@@ -64,6 +64,7 @@ double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, do
   if (m.quadratic_stiffness_n_per_m2 != 0) force -= m.quadratic_stiffness_n_per_m2 * x * x;
   if (m.cubic_stiffness_n_per_m3 != 0) force -= m.cubic_stiffness_n_per_m3 * x * x * x;
   if (m.friction_force_n != 0) force -= m.friction_force_n * std::tanh(v / m.friction_velocity_m_per_s);
+  if (m.quadratic_damping_n_s2_per_m2 != 0) force -= m.quadratic_damping_n_s2_per_m2 * v * std::abs(v);
   // In a pushing mode the stop force is used unclamped: the mode switch at its zero is the clamp.
   if (mode.lower) force += StopForceUnclamped(m, m.lower_stop_m - x, -v);
   if (mode.upper) force -= StopForceUnclamped(m, x - m.upper_stop_m, v);
@@ -80,6 +81,7 @@ ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_
     const double th = std::tanh(v / m.friction_velocity_m_per_s);
     j.d_dv_n_s_per_m -= m.friction_force_n / m.friction_velocity_m_per_s * (1.0 - th * th);
   }
+  j.d_dv_n_s_per_m -= 2.0 * m.quadratic_damping_n_s2_per_m2 * std::abs(v);  // d(v|v|)/dv = 2|v|
   // Both stops oppose the displacement into them: d/dx and d/dv of the stop term are negative.
   if (mode.lower) {
     j.d_dx_n_per_m -= StopStiffnessNPerM(m, m.lower_stop_m - x);
@@ -103,6 +105,7 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
   if (parameter == &M::cubic_stiffness_n_per_m3) return -x * x * x;
   if (parameter == &M::gain_n_per_v) return ClippedVoltage(m, drive_voltage_v);
   if (parameter == &M::friction_force_n) return -std::tanh(v / m.friction_velocity_m_per_s);
+  if (parameter == &M::quadratic_damping_n_s2_per_m2) return -v * std::abs(v);
   if (parameter == &M::friction_velocity_m_per_s) {
     const double vs = m.friction_velocity_m_per_s, th = std::tanh(v / vs);
     return m.friction_force_n * (1.0 - th * th) * v / (vs * vs);

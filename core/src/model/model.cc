@@ -93,6 +93,7 @@ std::string ActuatorModel::NonlinearTerms() const {
   if (cubic_stiffness_n_per_m3 != 0) add("k3 (cubic stiffness)");
   if (contact_law == ContactLaw::kHertzian && (HasLowerStop() || HasUpperStop())) add("Hertzian contact");
   if (friction_force_n != 0) add("friction_n (dry friction)");
+  if (quadratic_damping_n_s2_per_m2 != 0) add("c2 (quadratic damping)");
   return terms;
 }
 
@@ -140,6 +141,7 @@ std::optional<FieldError> ActuatorModel::IsValid() const {
   if (auto error = NonNegative(contact_damping_n_s_per_m, "c_s")) return error;
   if (auto error = NonNegative(friction_force_n, "friction_n")) return error;
   if (auto error = Positive(friction_velocity_m_per_s, "friction_velocity")) return error;
+  if (auto error = NonNegative(quadratic_damping_n_s2_per_m2, "c2")) return error;
   if (std::isnan(amplifier_limit_v) || amplifier_limit_v <= 0)
     return FieldError{"amplifier_limit_v", "must be > 0 or +inf (no limit), got " + FormatDouble(amplifier_limit_v)};
   return PhysicalBoundsError(*this);
@@ -163,6 +165,8 @@ const std::vector<ParameterInfo>& Parameters() {
       {"friction_n", "friction_force_n", "N", "dry friction level", &ActuatorModel::friction_force_n},
       {"friction_velocity", "friction_velocity_m_per_s", "m/s", "friction smoothing velocity",
        &ActuatorModel::friction_velocity_m_per_s},
+      {"c2", "quadratic_damping_n_s2_per_m2", "N s^2/m^2", "quadratic damping, force c2 v|v|",
+       &ActuatorModel::quadratic_damping_n_s2_per_m2},
       {"amplifier_limit_v", "amplifier_limit_v", "V", "drive clipping level (+inf: none)",
        &ActuatorModel::amplifier_limit_v},
   };

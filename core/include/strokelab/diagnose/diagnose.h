@@ -52,6 +52,7 @@ enum class Effect {
   kSecondStop,           // an upper end stop
   kDryFriction,          // F_c tanh(x' / v_s)
   kAmplifierSaturation,  // the drive clipped at +-limit before the gain
+  kQuadraticDamping,     // c2 x'|x'|: a mechanical resistance growing with velocity
 };
 
 struct EffectInfo {

@@ -47,6 +47,10 @@ struct ActuatorModel {
   ContactLaw contact_law = ContactLaw::kLinear;
   double friction_force_n = 0.0;                // F_c [N], Coulomb level
   double friction_velocity_m_per_s = 1e-3;      // v_s [m/s], tanh smoothing width
+  double quadratic_damping_n_s2_per_m2 = 0.0;   // c2 [N s^2/m^2], force c2 v|v|: a mechanical resistance
+                                                // growing with velocity, the R_ms(v) of W. Klippel, "Tutorial:
+                                                // Loudspeaker nonlinearities - causes, parameters, symptoms",
+                                                // J. Audio Eng. Soc. 54(10), 907-939 (2006), to first order
   double amplifier_limit_v = kNoLimit;          // [V] on the drive before the gain; +inf: none
 
   static constexpr double kNoLimit = std::numeric_limits<double>::infinity();
