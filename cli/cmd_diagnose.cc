@@ -32,7 +32,7 @@ Fits the base model (as strokelab fit) to all but every n-th record, measures wh
 record and harmonic, harmonic balance below the stop, resonance against amplitude, contact times,
 the residual around impacts), fits the base model extended by each candidate effect (cubic_stiffness,
 quadratic_stiffness, hertzian_contact, contact_damping, second_stop, dry_friction,
-amplifier_saturation, quadratic_damping) and names the one that improves the held-out records beyond noise, or says
+amplifier_saturation, quadratic_damping, force_factor) and names the one that improves the held-out records beyond noise, or says
 "nothing missing".
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)

@@ -124,6 +124,12 @@ std::vector<SmoothCase> ForceTermCases() {
   ActuatorModel quadratic_damping = PaperModel();
   quadratic_damping.quadratic_damping_n_s2_per_m2 = 2.0;
   add("quadratic_damping", quadratic_damping, 8.0, 0.5, {&M::quadratic_damping_n_s2_per_m2});
+  ActuatorModel force_factor = PaperModel();  // -20 % at 1 mm, an offset, and its back-EMF
+  force_factor.force_factor_b1_per_m = 40.0;
+  force_factor.force_factor_b2_per_m2 = -2e5;
+  force_factor.back_emf_damping_n_s_per_m = 0.8;
+  add("force_factor", force_factor, 8.0, 0.5,
+      {&M::force_factor_b1_per_m, &M::force_factor_b2_per_m2, &M::back_emf_damping_n_s_per_m});
   ActuatorModel damped = PaperModel();
   damped.contact_damping_n_s_per_m = 15.0;
   damped.cubic_stiffness_n_per_m3 = 2e7;

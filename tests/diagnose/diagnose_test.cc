@@ -108,7 +108,7 @@ TEST_P(DiagnoseTest, NamesTheConcealedEffect) {
   if (d.unexplained) std::printf("%s: also unexplained: %s\n", c.name.c_str(), d.unexplained->description.c_str());
   ASSERT_GE(d.chosen, 0);
   const CandidateFit& chosen = d.candidates[d.chosen];
-  const std::string key = Info(d.missing_physics.front()).parameter;
+  const std::string key = c.parameter;  // the case's own, one of the effect's parameters
   bool found = false;
   for (const FitParameter& p : chosen.effect_parameters) {
     if (p.name != key) continue;

@@ -261,19 +261,25 @@ double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
 // limit from infinity; the held-out gain alone decides for them).
 bool NullIsZero(Effect e) {
   return e == Effect::kCubicStiffness || e == Effect::kQuadraticStiffness || e == Effect::kContactDamping ||
-         e == Effect::kDryFriction || e == Effect::kQuadraticDamping;
+         e == Effect::kDryFriction || e == Effect::kQuadraticDamping || e == Effect::kForceFactor;
 }
 
-// Why a zero-null effect parameter is not significant (within kMinSignificance standard errors of
-// zero, or without a standard error: held at a bound or not identifiable); empty when all are.
+// Why a zero-null effect is not significant: none of its parameters lies beyond kMinSignificance
+// standard errors of zero (within them, or without a standard error: held at a bound or not
+// identifiable); empty when every effect has one that does.
 std::string InsignificantParameter(const CandidateFit& c) {
   for (Effect e : c.effects) {
     if (!NullIsZero(e)) continue;
-    for (const FitParameter& p : c.effect_parameters)
-      if (p.name == Info(e).parameter &&
-          !(std::isfinite(p.standard_error) && std::abs(p.value) > kMinSignificance * p.standard_error))
-        return p.name + " = " + Format(p.value) + " +- " + Format(p.standard_error) + " is within " +
-               Format(kMinSignificance) + " standard errors of zero";
+    std::string why;
+    bool significant = false;
+    for (const char* key : Info(e).parameters)
+      for (const FitParameter& p : c.effect_parameters) {
+        if (p.name != key) continue;
+        if (std::isfinite(p.standard_error) && std::abs(p.value) > kMinSignificance * p.standard_error) significant = true;
+        why += (why.empty() ? "" : ", ") + p.name + " = " + Format(p.value) + " +- " + Format(p.standard_error);
+      }
+    if (!significant) return why + (Info(e).parameters.size() > 1 ? " are" : " is") + " within " +
+                             Format(kMinSignificance) + " standard errors of zero";
   }
   return "";
 }

@@ -83,7 +83,8 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
       entry["effect"] = Info(effect).id;
       std::vector<FitParameter> own;
       for (const FitParameter& p : c.effect_parameters)
-        if (p.name == Info(effect).parameter) own.push_back(p);
+        for (const char* key : Info(effect).parameters)
+          if (p.name == key) own.push_back(p);
       entry["parameters"] = Parameters(own);
       entry["signature"] = Info(effect).signature;
       entry["evidence"] = nlohmann::json::array();

@@ -64,7 +64,7 @@ Evidence HarmonicResidual(int h, std::span<const RecordAnalysis> analyses, const
   const bool even = h % 2 == 0;
   std::vector<Effect> points;
   if (rms > kSignificant) {
-    points = even ? std::vector<Effect>{Effect::kQuadraticStiffness}
+    points = even ? std::vector<Effect>{Effect::kQuadraticStiffness, Effect::kForceFactor}
                   : std::vector<Effect>{Effect::kCubicStiffness, Effect::kDryFriction, Effect::kAmplifierSaturation,
                                         Effect::kQuadraticDamping};
   }
@@ -200,7 +200,8 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
   }
 
   // The first harmonic at the largest against the smallest drive amplitude: clipping makes the model
-  // overshoot at the top at every frequency (a damping that grows with velocity, most near resonance).
+  // overshoot at the top at every frequency (a damping that grows with velocity, most near resonance;
+  // a force factor that falls off over the stroke).
   if (levels.size() >= 2) {
     auto mean_error = [&](const std::vector<size_t>& members, double* se) {
       std::vector<double> e;
@@ -218,7 +219,7 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
     const double bottom = mean_error(levels.begin()->second, &se_bottom);
     const double value = top - bottom, se = std::hypot(se_top, se_bottom);
     std::vector<Effect> points;
-    if (value > kSignificant * se) points = {Effect::kAmplifierSaturation, Effect::kQuadraticDamping};
+    if (value > kSignificant * se) points = {Effect::kAmplifierSaturation, Effect::kQuadraticDamping, Effect::kForceFactor};
     s.evidence.push_back(Make("first_harmonic_vs_amplitude",
                               "the base model's |C_1| is off by " + FormatFigure(100 * top) + " % at " +
                                   FormatFigure(levels.rbegin()->first) + " V and " + FormatFigure(100 * bottom) + " % at " +

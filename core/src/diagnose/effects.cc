@@ -10,33 +10,38 @@ namespace strokelab {
 
 const std::vector<EffectInfo>& EffectLibrary() {
   static const std::vector<EffectInfo> library = {
-      {Effect::kCubicStiffness, "cubic_stiffness", "k3",
+      {Effect::kCubicStiffness, "cubic_stiffness", {"k3"},
        "odd harmonics (mostly the 3rd) in records clear of the stop, growing with the displacement "
        "amplitude, and a resonance that moves with amplitude (up: hardening, down: softening): a "
        "restoring force k3 x^3 stiffens or softens the suspension as the stroke grows"},
-      {Effect::kQuadraticStiffness, "quadratic_stiffness", "k2",
+      {Effect::kQuadraticStiffness, "quadratic_stiffness", {"k2"},
        "even harmonics (mostly the 2nd) and a DC shift in records clear of the stop: k2 x^2 pushes the "
        "same way on both half-strokes, so the response is no longer symmetric"},
-      {Effect::kHertzianContact, "hertzian_contact", "k_s",
+      {Effect::kHertzianContact, "hertzian_contact", {"k_s"},
        "contact times that shorten as impacts get harder (k_s p^(3/2): the stop stiffens with "
        "penetration, dT ~ v^(-1/5)); a linear stop gives one contact time at every amplitude (paper Eq. 5)"},
-      {Effect::kContactDamping, "contact_damping", "c_s",
+      {Effect::kContactDamping, "contact_damping", {"c_s"},
        "mismatch concentrated in the time windows around impacts and in the high harmonics of contacting "
        "records, weaker rebounds (restitution below one) and skewed spikes: c_s p' dissipates while in contact"},
-      {Effect::kSecondStop, "second_stop", "d_upper",
+      {Effect::kSecondStop, "second_stop", {"d_upper"},
        "impact spikes of the opposite sign at the largest strokes, and a mismatch only in the records "
        "whose other half-stroke is long: the mass reaches a stop on the other side"},
-      {Effect::kDryFriction, "dry_friction", "friction_n",
+      {Effect::kDryFriction, "dry_friction", {"friction_n"},
        "extra damping and odd harmonics that are largest, relative to the response, at the smallest "
        "amplitudes: a Coulomb force F_c tanh(x' / v_s) does not grow with the stroke"},
-      {Effect::kAmplifierSaturation, "amplifier_saturation", "amplifier_limit_v",
+      {Effect::kAmplifierSaturation, "amplifier_saturation", {"amplifier_limit_v"},
        "odd harmonics and a first harmonic that falls short in proportion at the largest drive amplitudes "
        "at every frequency, clear of the stop or not: the drive is clipped before the coil (the voltage "
        "channel, measured before the amplifier, stays sinusoidal)"},
-      {Effect::kQuadraticDamping, "quadratic_damping", "c2",
+      {Effect::kQuadraticDamping, "quadratic_damping", {"c2"},
        "odd harmonics (mostly the 3rd) and a resonance peak that falls short in proportion as the "
        "velocity grows, clear of the stop or not: a mechanical resistance c2 v|v| damps fast motion "
        "more than slow (Klippel's R(v)); dry friction does the opposite, most at the smallest amplitudes"},
+      {Effect::kForceFactor, "force_factor", {"b1", "b2"},
+       "a drive force that falls short at the largest strokes (b2 < 0) or differs between the half-strokes "
+       "(b1: even harmonics and a DC shift that follow the drive), clear of the stop or not: the coil "
+       "leaves its gap's field, Bl(x) = Bl(0) (1 + b1 x + b2 x^2) (Klippel's Bl(x)), in the drive force and in "
+       "the back-EMF damping alike"},
   };
   return library;
 }
@@ -199,6 +204,22 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
                                     -c0 / scale, 20.0));
         break;
       }
+      case Effect::kForceFactor: {
+        // Scales: a tenth of the b1 and b2 that change the force factor by 100 % at the largest
+        // stroke X (b1 X = 1, b2 X^2 = 1); either sign.
+        const double x = std::max(context.max_displacement_m, 0.1 * d);
+        p.push_back(LinearParameter("b1", "1/m", &ActuatorModel::force_factor_b1_per_m, start.force_factor_b1_per_m,
+                                    0.1 / x, -10.0, 10.0));
+        p.push_back(LinearParameter("b2", "1/m^2", &ActuatorModel::force_factor_b2_per_m2, start.force_factor_b2_per_m2,
+                                    0.1 / (x * x), -10.0, 10.0));
+        // The back-EMF part of c_p, which the force factor scales too (model.h): from half of c_p,
+        // within 0 .. c_p. Not the effect's own parameter (its zero is not the effect's absence).
+        const double c_p = start.damping_n_s_per_m;
+        const double c0 = start.back_emf_damping_n_s_per_m > 0 ? start.back_emf_damping_n_s_per_m : 0.5 * c_p;
+        p.push_back(LinearParameter("c_emf", "N s/m", &ActuatorModel::back_emf_damping_n_s_per_m, c0, 0.1 * c_p,
+                                    -c0 / (0.1 * c_p), (c_p - c0) / (0.1 * c_p)));
+        break;
+      }
       case Effect::kSecondStop: {
         const double u0 = start.HasUpperStop() ? start.upper_stop_m
                                                : kStopStarts[variant % std::size(kStopStarts)] * context.max_displacement_m;
@@ -221,11 +242,10 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
 
 std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all) {
   std::vector<FitParameter> out;
-  for (Effect e : effects) {
-    const std::string key = Info(e).parameter;
-    for (const FitParameter& p : all)
-      if (p.name == key) out.push_back(p);
-  }
+  for (Effect e : effects)
+    for (const char* key : Info(e).parameters)
+      for (const FitParameter& p : all)
+        if (p.name == key) out.push_back(p);
   return out;
 }
 

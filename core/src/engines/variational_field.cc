@@ -72,7 +72,7 @@ double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y
         // d/dV = g sin(wt + phi), d/df = g V 2 pi t cos(wt + phi).
         if (std::abs(voltage_v) <= model_.amplifier_limit_v) {
           const double cos_drive = cos_wt * cos_phase_ - sin_wt * sin_phase_;
-          acceleration += model_.gain_n_per_v * m *
+          acceleration += model_.gain_n_per_v * ForceFactorShape(model_, x) * m *
                           (c == l.amplitude_column ? sin_drive
                                                    : drive_.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive);
         }

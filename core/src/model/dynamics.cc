@@ -58,9 +58,17 @@ ContactMode StartingMode(const ActuatorModel& model, double x, double v) {
   return mode;
 }
 
+double ForceFactorShape(const ActuatorModel& m, double x) {
+  return 1.0 + (m.force_factor_b1_per_m + m.force_factor_b2_per_m2 * x) * x;
+}
+
 double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, double v, ContactMode mode) {
-  double force = m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - m.stiffness_n_per_m * x -
+  // The coil's force g phi u - c_emf phi^2 v, written as the rest's g u - c_emf v (the latter inside
+  // c_p v) plus what the force factor changes (model.h).
+  const double phi = ForceFactorShape(m, x);
+  double force = m.gain_n_per_v * phi * ClippedVoltage(m, drive_voltage_v) - m.stiffness_n_per_m * x -
                  m.damping_n_s_per_m * v;
+  if (m.back_emf_damping_n_s_per_m != 0) force -= m.back_emf_damping_n_s_per_m * (phi * phi - 1.0) * v;
   if (m.quadratic_stiffness_n_per_m2 != 0) force -= m.quadratic_stiffness_n_per_m2 * x * x;
   if (m.cubic_stiffness_n_per_m3 != 0) force -= m.cubic_stiffness_n_per_m3 * x * x * x;
   if (m.friction_force_n != 0) force -= m.friction_force_n * std::tanh(v / m.friction_velocity_m_per_s);
@@ -75,8 +83,11 @@ ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_
                                    ContactMode mode) {
   ForceJacobian j;
   j.force_n = BlockedForce(m, drive_voltage_v, x, v, mode);
-  j.d_dx_n_per_m = -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x - 3.0 * m.cubic_stiffness_n_per_m3 * x * x;
-  j.d_dv_n_s_per_m = -m.damping_n_s_per_m;
+  const double phi = ForceFactorShape(m, x);
+  const double dphi_dx = m.force_factor_b1_per_m + 2.0 * m.force_factor_b2_per_m2 * x;
+  j.d_dx_n_per_m = -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x - 3.0 * m.cubic_stiffness_n_per_m3 * x * x +
+                   (m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - 2.0 * m.back_emf_damping_n_s_per_m * phi * v) * dphi_dx;
+  j.d_dv_n_s_per_m = -m.damping_n_s_per_m - m.back_emf_damping_n_s_per_m * (phi * phi - 1.0);
   if (m.friction_force_n != 0) {
     const double th = std::tanh(v / m.friction_velocity_m_per_s);
     j.d_dv_n_s_per_m -= m.friction_force_n / m.friction_velocity_m_per_s * (1.0 - th * th);
@@ -103,7 +114,15 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
   if (parameter == &M::stiffness_n_per_m) return -x;
   if (parameter == &M::quadratic_stiffness_n_per_m2) return -x * x;
   if (parameter == &M::cubic_stiffness_n_per_m3) return -x * x * x;
-  if (parameter == &M::gain_n_per_v) return ClippedVoltage(m, drive_voltage_v);
+  if (parameter == &M::gain_n_per_v) return ForceFactorShape(m, x) * ClippedVoltage(m, drive_voltage_v);
+  if (parameter == &M::force_factor_b1_per_m || parameter == &M::force_factor_b2_per_m2) {
+    const double dphi = parameter == &M::force_factor_b1_per_m ? x : x * x;  // d phi / d b
+    return (m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - 2.0 * m.back_emf_damping_n_s_per_m * ForceFactorShape(m, x) * v) * dphi;
+  }
+  if (parameter == &M::back_emf_damping_n_s_per_m) {
+    const double phi = ForceFactorShape(m, x);
+    return -(phi * phi - 1.0) * v;
+  }
   if (parameter == &M::friction_force_n) return -std::tanh(v / m.friction_velocity_m_per_s);
   if (parameter == &M::quadratic_damping_n_s2_per_m2) return -v * std::abs(v);
   if (parameter == &M::friction_velocity_m_per_s) {
@@ -111,8 +130,8 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
     return m.friction_force_n * (1.0 - th * th) * v / (vs * vs);
   }
   if (parameter == &M::amplifier_limit_v) {
-    if (drive_voltage_v > m.amplifier_limit_v) return m.gain_n_per_v;
-    if (drive_voltage_v < -m.amplifier_limit_v) return -m.gain_n_per_v;
+    if (drive_voltage_v > m.amplifier_limit_v) return m.gain_n_per_v * ForceFactorShape(m, x);
+    if (drive_voltage_v < -m.amplifier_limit_v) return -m.gain_n_per_v * ForceFactorShape(m, x);
     return 0.0;
   }
   if (parameter == &M::lower_stop_m) return mode.lower ? StopStiffnessNPerM(m, p_lower) : 0.0;

@@ -94,6 +94,7 @@ std::string ActuatorModel::NonlinearTerms() const {
   if (contact_law == ContactLaw::kHertzian && (HasLowerStop() || HasUpperStop())) add("Hertzian contact");
   if (friction_force_n != 0) add("friction_n (dry friction)");
   if (quadratic_damping_n_s2_per_m2 != 0) add("c2 (quadratic damping)");
+  if (force_factor_b1_per_m != 0 || force_factor_b2_per_m2 != 0) add("b1, b2 (force factor over the stroke)");
   return terms;
 }
 
@@ -124,6 +125,9 @@ std::optional<FieldError> ActuatorModel::IsValid() const {
   if (auto error = Finite(quadratic_stiffness_n_per_m2, "k2")) return error;
   if (auto error = Finite(cubic_stiffness_n_per_m3, "k3")) return error;
   if (auto error = Finite(gain_n_per_v, "g")) return error;
+  if (auto error = Finite(force_factor_b1_per_m, "b1")) return error;
+  if (auto error = Finite(force_factor_b2_per_m2, "b2")) return error;
+  if (auto error = NonNegative(back_emf_damping_n_s_per_m, "c_emf")) return error;
   if (std::isnan(lower_stop_m) || lower_stop_m == ActuatorModel::kNoLimit)
     return FieldError{"d", "must be a finite position <= 0 or -inf (no stop), got " + FormatDouble(lower_stop_m)};
   if (lower_stop_m > 0)
@@ -157,6 +161,12 @@ const std::vector<ParameterInfo>& Parameters() {
       {"k3", "cubic_stiffness_n_per_m3", "N/m^3", "cubic suspension stiffness (>0 hardening)",
        &ActuatorModel::cubic_stiffness_n_per_m3},
       {"g", "gain_n_per_v", "N/V", "force per drive volt (amplifier x coil)", &ActuatorModel::gain_n_per_v},
+      {"b1", "force_factor_b1_per_m", "1/m", "force factor's slope over the stroke, g(x) = g (1 + b1 x + b2 x^2)",
+       &ActuatorModel::force_factor_b1_per_m},
+      {"b2", "force_factor_b2_per_m2", "1/m^2", "force factor's curvature (< 0: falls off both ways)",
+       &ActuatorModel::force_factor_b2_per_m2},
+      {"c_emf", "back_emf_damping_n_s_per_m", "N s/m", "the back-EMF part of c_p, following the force factor squared",
+       &ActuatorModel::back_emf_damping_n_s_per_m},
       {"d", "lower_stop_m", "m", "lower end stop position (-inf: none)", &ActuatorModel::lower_stop_m},
       {"d_upper", "upper_stop_m", "m", "upper end stop position (+inf: none)", &ActuatorModel::upper_stop_m},
       {"k_s", "contact_stiffness", "N/m or N/m^1.5", "end-stop contact stiffness", &ActuatorModel::contact_stiffness},

@@ -53,12 +53,13 @@ enum class Effect {
   kDryFriction,          // F_c tanh(x' / v_s)
   kAmplifierSaturation,  // the drive clipped at +-limit before the gain
   kQuadraticDamping,     // c2 x'|x'|: a mechanical resistance growing with velocity
+  kForceFactor,          // g (1 + b1 x + b2 x^2): the coil's force factor over the stroke
 };
 
 struct EffectInfo {
   Effect effect;
   const char* id;         // "cubic_stiffness", ... (the JSON ids)
-  const char* parameter;  // the model parameter it adds (model.h key)
+  std::vector<const char*> parameters;  // the model parameters it adds (model.h keys)
   const char* signature;  // the signature it leaves in a campaign, and why
 };
 const std::vector<EffectInfo>& EffectLibrary();

@@ -46,6 +46,9 @@ ContactMode ModeFromState(const ActuatorModel& model, double x_m, double v_m_per
 // and a switching function that is exactly zero at the start shows no crossing).
 ContactMode StartingMode(const ActuatorModel& model, double x_m, double v_m_per_s);
 
+// 1 + b1 x + b2 x^2: the coil's force factor at x over its value at rest (model.h).
+double ForceFactorShape(const ActuatorModel& model, double x_m);
+
 // m_p x'' [N]: the blocked force f (model.h) for a given contact mode and drive voltage.
 double BlockedForce(const ActuatorModel& model, double drive_voltage_v, double x_m, double v_m_per_s,
                     ContactMode mode);

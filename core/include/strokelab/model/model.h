@@ -40,6 +40,14 @@ struct ActuatorModel {
   double quadratic_stiffness_n_per_m2 = 0.0;    // k2 [N/m^2], asymmetric suspension
   double cubic_stiffness_n_per_m3 = 0.0;        // k3 [N/m^3], > 0 hardening, < 0 softening
   double gain_n_per_v = 0.3;                    // g [N/V], amplifier x coil
+  // The coil's force factor over the stroke, Bl(x) = Bl(0) phi(x), phi = 1 + b1 x + b2 x^2: b1 [1/m]
+  // an offset of the coil in its gap, b2 [1/m^2] < 0 a symmetric fall-off (Klippel's Bl(x), 2006, to
+  // second order). Under voltage drive the coil's force is Bl i with i = (u - Bl v) / R: the drive
+  // force g u and the back-EMF damping c_emf v (c_emf = Bl(0)^2 / R, the part of c_p that is the
+  // coil's) both follow it, g phi u - c_emf phi^2 v (dynamics.cc).
+  double force_factor_b1_per_m = 0.0;
+  double force_factor_b2_per_m2 = 0.0;
+  double back_emf_damping_n_s_per_m = 0.0;  // c_emf [N s/m] >= 0, physically at most c_p; acts only with phi != 1
   double lower_stop_m = -1e-3;                  // d [m]; -inf: no lower stop
   double upper_stop_m = kNoUpperStop;           // [m]; +inf: no upper stop
   double contact_stiffness = 1.3e6;             // k_s [N/m] (linear) or [N/m^1.5] (Hertzian)
