@@ -29,7 +29,7 @@ json WaitForDegradedHealth(httplib::Client& client, const Child& server, double 
 TEST(FullDisk, TmpfsFillsUpThenGrows) {
   const auto test_start = Clock::now();
   ScratchDir dir("strokelab-fault-tmpfs");
-  SmallTmpfs tmpfs(dir.path() / "mnt", 256 * 1024);  // room for the schema (5 migrations) and a job
+  SmallTmpfs tmpfs(dir.path() / "mnt", 256 * 1024);  // room for the schema (6 migrations) and a job
   // Mounting needs unprivileged user namespaces (unshare -rm), which a CI container may forbid:
   // then this test skips, saying why, and FullDisk.WritesFailClearlyAndNothingIsLost (a file-size
   // limit, no privileges) still drives the same server path to a full disk and back.

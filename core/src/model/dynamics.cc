@@ -62,6 +62,13 @@ double ForceFactorShape(const ActuatorModel& m, double x) {
   return 1.0 + (m.force_factor_b1_per_m + m.force_factor_b2_per_m2 * x) * x;
 }
 
+namespace {
+// dF/dphi [N]: how the coil's force g phi u - c_emf phi^2 v changes with the force factor's shape.
+double ForcePerForceFactorShape(const ActuatorModel& m, double drive_voltage_v, double x, double v) {
+  return m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - 2.0 * m.back_emf_damping_n_s_per_m * ForceFactorShape(m, x) * v;
+}
+}  // namespace
+
 double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, double v, ContactMode mode) {
   // The coil's force g phi u - c_emf phi^2 v, written as the rest's g u - c_emf v (the latter inside
   // c_p v) plus what the force factor changes (model.h).
@@ -86,7 +93,7 @@ ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_
   const double phi = ForceFactorShape(m, x);
   const double dphi_dx = m.force_factor_b1_per_m + 2.0 * m.force_factor_b2_per_m2 * x;
   j.d_dx_n_per_m = -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x - 3.0 * m.cubic_stiffness_n_per_m3 * x * x +
-                   (m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - 2.0 * m.back_emf_damping_n_s_per_m * phi * v) * dphi_dx;
+                   ForcePerForceFactorShape(m, drive_voltage_v, x, v) * dphi_dx;
   j.d_dv_n_s_per_m = -m.damping_n_s_per_m - m.back_emf_damping_n_s_per_m * (phi * phi - 1.0);
   if (m.friction_force_n != 0) {
     const double th = std::tanh(v / m.friction_velocity_m_per_s);
@@ -117,7 +124,7 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
   if (parameter == &M::gain_n_per_v) return ForceFactorShape(m, x) * ClippedVoltage(m, drive_voltage_v);
   if (parameter == &M::force_factor_b1_per_m || parameter == &M::force_factor_b2_per_m2) {
     const double dphi = parameter == &M::force_factor_b1_per_m ? x : x * x;  // d phi / d b
-    return (m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - 2.0 * m.back_emf_damping_n_s_per_m * ForceFactorShape(m, x) * v) * dphi;
+    return ForcePerForceFactorShape(m, drive_voltage_v, x, v) * dphi;
   }
   if (parameter == &M::back_emf_damping_n_s_per_m) {
     const double phi = ForceFactorShape(m, x);
