@@ -158,7 +158,7 @@ JobFile LoadJobFile(const std::string& path, const fs::path& baseline_dir, bool 
 json RunJob(const JobFile& file) {
   json tables = json::object();
   for (const jobs::TaskSpec& task : file.tasks)
-    for (jobs::ResultRow& row : jobs::RunTask(task.spec)) tables[row.table].push_back(std::move(row.values));
+    for (jobs::ResultRow& row : jobs::RunTask(task.spec).AllRows()) tables[row.table].push_back(std::move(row.values));
   return regression::Normalized(tables);
 }
 

@@ -165,22 +165,34 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
 
 namespace {
 
+// A sweep table's rows as flat records (task.h), if there are any.
+template <class Row>
+void AddRecords(const std::string& table, const std::vector<Row>& rows, TaskResult& result) {
+  if (rows.empty()) return;
+  ResultRecords& records = result.records.emplace_back();
+  records.table = table;
+  records.columns = report::ColumnNames<Row>();
+  records.cells.reserve(rows.size() * records.columns.size());
+  for (const Row& row : rows) report::AppendCells(row, records.cells);
+}
+
 // One task's rows; its loops poll the thread's cancel flag (RunTask sets it). `as_data`: a diagnose
 // task's result as data (RunTaskForRemote) instead of the rendered report.
-std::vector<ResultRow> RunTaskRows(const nlohmann::json& task, bool as_data, const TaskProgressHook& progress) {
+TaskResult RunTaskRows(const nlohmann::json& task, bool as_data, const TaskProgressHook& progress) {
   const std::string type = task.at("type");
   if (IsCampaignKind(type)) return RunCampaignTask(task, as_data, progress);
   const ActuatorModel model = ModelFromJson(task.at("model"), "/model");
-  std::vector<ResultRow> rows;
+  TaskResult result;
+  std::vector<ResultRow>& rows = result.rows;
   if (type == "sweep_row") {
     const SweepRowResult row =
         SweepRow(model, task.at("amplitude_v").get<double>(), task.at("frequencies_hz").get<std::vector<double>>());
-    for (const SweepPoint& p : row.points) rows.push_back({"points", report::RowToJson(p)});
-    for (const JumpInterval& j : row.jumps) rows.push_back({"jumps", report::RowToJson(j)});
+    AddRecords("points", row.points, result);
+    AddRecords("jumps", row.jumps, result);
   } else if (type == "sweep_columns") {
-    for (double f : task.at("frequencies_hz").get<std::vector<double>>()) {
-      rows.push_back({"thresholds", report::RowToJson(SweepColumn(model, f))});
-    }
+    std::vector<SaturationThreshold> thresholds;
+    for (double f : task.at("frequencies_hz").get<std::vector<double>>()) thresholds.push_back(SweepColumn(model, f));
+    AddRecords("thresholds", thresholds, result);
   } else if (type == "simulate") {
     const SineDrive drive{task.at("amplitude_v").get<double>(), task.at("frequency_hz").get<double>(), 0.0};
     SimulationOptions options;
@@ -204,30 +216,29 @@ std::vector<ResultRow> RunTaskRows(const nlohmann::json& task, bool as_data, con
   } else {
     throw InputError("type", "unknown task type '" + type + "'");
   }
-  return rows;
+  return result;
 }
 
 // Runs the task's rows under `cancel`: every loop of the task polls it (base/cancel.h): engines,
 // sweeps, ParallelFor, Ceres solves.
-std::vector<ResultRow> RunRowsUnder(const nlohmann::json& task, const std::atomic<bool>* cancel, bool as_data,
-                                    const TaskProgressHook& progress) {
+TaskResult RunRowsUnder(const nlohmann::json& task, const std::atomic<bool>* cancel, bool as_data,
+                        const TaskProgressHook& progress) {
   const CancelScope scope(cancel);
-  std::vector<ResultRow> rows = RunTaskRows(task, as_data, progress);
+  TaskResult result = RunTaskRows(task, as_data, progress);
   // A solve the flag aborted returns what it had: rows computed while it was raised are dropped.
   ThrowIfCancelled();
-  return rows;
+  return result;
 }
 
 }  // namespace
 
-std::vector<ResultRow> RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel,
-                               const TaskProgressHook& progress) {
+TaskResult RunTask(const nlohmann::json& task, const std::atomic<bool>* cancel, const TaskProgressHook& progress) {
   return RunRowsUnder(task, cancel, false, progress);
 }
 
 std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task, const std::atomic<bool>* cancel,
                                         const TaskProgressHook& progress) {
-  return RunRowsUnder(task, cancel, true, progress);
+  return RunRowsUnder(task, cancel, true, progress).AllRows();
 }
 
 }  // namespace strokelab::jobs

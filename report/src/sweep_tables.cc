@@ -118,6 +118,18 @@ json RowToJson(const Row& row) {
 }
 
 template <class Row>
+std::vector<std::string> ColumnNames() {
+  std::vector<std::string> names;
+  for (const Column<Row>& column : Columns<Row>()) names.emplace_back(column.name);
+  return names;
+}
+
+template <class Row>
+void AppendCells(const Row& row, std::vector<json>& cells) {
+  for (const Column<Row>& column : Columns<Row>()) cells.push_back(Written(column, row));
+}
+
+template <class Row>
 Row RowFromJson(const json& in) {
   if (!in.is_object()) throw InputError("row", "expected a JSON object");
   Row row;
@@ -171,6 +183,8 @@ std::string CsvLine(const Row& row) {
 
 #define STROKELAB_TABLE(Row)                                    \
   template json RowToJson<Row>(const Row&);                     \
+  template std::vector<std::string> ColumnNames<Row>();         \
+  template void AppendCells<Row>(const Row&, std::vector<json>&); \
   template Row RowFromJson<Row>(const json&);                   \
   template std::string CsvHeader<Row>();                        \
   template std::string CsvLine<Row>(const Row&);

@@ -36,8 +36,8 @@ std::optional<TaskLease> Service::Impl::TakeHandoff(bool with_campaign_hash) {
 // minutes). Gives up, returning nullopt, when the service stops (Stop returns the task to the queue),
 // the job is cancelled or the lease is lost; the flag is then raised, so the computation ends within
 // a few ms (a Ceres iteration at most) and its result is dropped.
-std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease& lease,
-                                                                 const std::shared_ptr<std::atomic<bool>>& cancel) {
+std::optional<TaskResult> Service::Impl::RunHeldTask(const TaskLease& lease,
+                                                     const std::shared_ptr<std::atomic<bool>>& cancel) {
   auto computation = std::make_shared<Computation>();
   computation->job_id = lease.job_id;
   {
@@ -49,10 +49,10 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
       return true;
     });
     computations.emplace_back(std::thread([computation, cancel, spec = lease.spec] {
-                                std::vector<ResultRow> rows;
+                                TaskResult result;
                                 std::exception_ptr error;
                                 try {
-                                  rows = jobs::RunTask(spec, cancel.get(), [&computation](const ProgressReport& r) {
+                                  result = jobs::RunTask(spec, cancel.get(), [&computation](const ProgressReport& r) {
                                     json progress = StageProgressJson(r);
                                     std::lock_guard<std::mutex> progress_lock(computation->mutex);
                                     computation->progress = std::move(progress);
@@ -61,7 +61,7 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
                                   error = std::current_exception();
                                 }
                                 std::lock_guard<std::mutex> done_lock(computation->mutex);
-                                computation->rows = std::move(rows);
+                                computation->result = std::move(result);
                                 computation->error = error;
                                 computation->done = true;
                                 computation->done_cv.notify_all();
@@ -72,7 +72,7 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
   std::unique_lock<std::mutex> lock(computation->mutex);
   // Raises the flag and waits (a second at most) for the computation to end, so that a worker
   // never has two running.
-  const auto give_up = [&]() -> std::optional<std::vector<ResultRow>> {
+  const auto give_up = [&]() -> std::optional<TaskResult> {
     *cancel = true;
     computation->done_cv.wait_for(lock, std::chrono::seconds(1), [&] { return computation->done; });
     return std::nullopt;
@@ -90,13 +90,13 @@ std::optional<std::vector<ResultRow>> Service::Impl::RunHeldTask(const TaskLease
     }
   }
   if (computation->error) std::rethrow_exception(computation->error);
-  return std::move(computation->rows);
+  return std::move(computation->result);
 }
 
-bool Service::Impl::StoreCompletion(const TaskLease& lease, const std::vector<ResultRow>& rows, const std::string& worker) {
+bool Service::Impl::StoreCompletion(const TaskLease& lease, const TaskResult& result, const std::string& worker) {
   for (;;) {
     try {
-      const bool stored = store->CompleteTask(lease, rows, NowMs());
+      const bool stored = store->CompleteTask(lease, result, NowMs());
       storage.WriteSucceeded();
       return stored;
     } catch (const StoreError& e) {
@@ -131,8 +131,8 @@ void Service::Impl::WorkLoop(int index) {
     }
     if (stopping) *cancel = true;  // Stop raised the flags it found before this one was listed
     try {
-      const std::optional<std::vector<ResultRow>> rows = RunHeldTask(*lease, cancel);
-      if (rows && StoreCompletion(*lease, *rows, name)) metrics.TaskDone(rows->size());
+      const std::optional<TaskResult> result = RunHeldTask(*lease, cancel);
+      if (result && StoreCompletion(*lease, *result, name)) metrics.TaskDone(result->RowCount());
     } catch (const Cancelled&) {
       // The job was cancelled (its lease is void and nothing is written) or the service stops (Stop
       // returns the task to the queue).

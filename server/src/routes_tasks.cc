@@ -95,9 +95,10 @@ void Service::Impl::AddTaskRoutes() {
               } catch (const InputError& e) {
                 throw HttpError{400, "invalid_rows", e.bare_message(), e.field()};
               }
-              if (!store->CompleteTask(lease, rows, NowMs()))
+              const size_t row_count = rows.size();
+              if (!store->CompleteTask(lease, std::move(rows), NowMs()))
                 throw HttpError{409, "lease_lost", "the lease expired or the job was cancelled; nothing written", ""};
-              metrics.TaskDone(rows.size());
+              metrics.TaskDone(row_count);
               SendJson(res, {{"accepted", true}});
             }));
   On("POST", R"(/v1/tasks/(\d+)/fail)", Route(Role::kWorker, [this](const httplib::Request& req, httplib::Response& res) {

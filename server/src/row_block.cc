@@ -8,6 +8,7 @@
 //              | 6 string (length, bytes) | 7 array (count, values) | 8 object (count, (key, value)...)
 #include "row_block.h"
 
+#include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <cstring>
@@ -174,6 +175,26 @@ size_t RowBlockWriter::KeyListOf(const json& object) {
   std::vector<std::string>& keys = key_lists_.emplace_back();
   for (const auto& [key, value] : object.items()) keys.push_back(key);
   return last_key_list_ = key_lists_.size();
+}
+
+size_t RowBlockWriter::KeyListOf(const std::vector<std::string>& keys) {
+  const auto it = std::find(key_lists_.begin(), key_lists_.end(), keys);
+  if (it != key_lists_.end()) return last_key_list_ = static_cast<size_t>(it - key_lists_.begin()) + 1;
+  key_lists_.push_back(keys);
+  return last_key_list_ = key_lists_.size();
+}
+
+void RowBlockWriter::AddRecords(const std::vector<std::string>& columns, const std::vector<json>& cells) {
+  if (columns.empty() || cells.size() % columns.size() != 0)
+    throw StoreError("job store: a table of records whose cells do not fill its rows");
+  const size_t rows = cells.size() / columns.size();
+  const size_t key_list = KeyListOf(columns);
+  body_.reserve(body_.size() + rows + cells.size() * (1 + sizeof(double)));  // numbers: tag and 8 bytes
+  for (size_t r = 0; r < rows; ++r) {
+    PutVarint(body_, key_list);
+    for (size_t c = 0; c < columns.size(); ++c) PutValue(body_, cells[r * columns.size() + c]);
+  }
+  rows_ += static_cast<int64_t>(rows);
 }
 
 void RowBlockWriter::Add(const json& row) {

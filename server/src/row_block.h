@@ -17,12 +17,16 @@ namespace strokelab::server::internal {
 class RowBlockWriter {
  public:
   void Add(const nlohmann::json& row);
+  // Rows given as cells in the order of `columns` (jobs::ResultRecords), each encoded as Add encodes
+  // the object {column: cell, ...} it stands for, without building it.
+  void AddRecords(const std::vector<std::string>& columns, const std::vector<nlohmann::json>& cells);
   int64_t rows() const { return rows_; }
   // The block: header (its key lists), then the rows.
   std::string Finish() const;
 
  private:
   size_t KeyListOf(const nlohmann::json& object);  // 1-based index into key_lists_, added if new
+  size_t KeyListOf(const std::vector<std::string>& keys);
   std::vector<std::vector<std::string>> key_lists_;
   size_t last_key_list_ = 0;
   std::string body_;

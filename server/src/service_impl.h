@@ -72,7 +72,7 @@ struct Service::Impl {
     std::condition_variable done_cv;
     nlohmann::json progress;  // the latest StageProgressJson (null before the first stage)
     bool done = false;
-    std::vector<ResultRow> rows;
+    TaskResult result;
     std::exception_ptr error;
   };
   std::mutex computations_mutex;
@@ -144,14 +144,14 @@ struct Service::Impl {
   // Remote and in-process workers (routes_tasks.cc, local_workers.cc).
   std::optional<TaskLease> LeaseForRemote(const std::string& worker, bool fetches_campaigns);
   std::optional<TaskLease> TakeHandoff(bool with_campaign_hash);
-  std::optional<std::vector<ResultRow>> RunHeldTask(const TaskLease& lease,
-                                                    const std::shared_ptr<std::atomic<bool>>& cancel);
+  std::optional<TaskResult> RunHeldTask(const TaskLease& lease,
+                                        const std::shared_ptr<std::atomic<bool>>& cancel);
   void WorkLoop(int index);
 
   // Stores a task's rows. A storage error (disk full, I/O) is not the task's fault: the rows are
   // kept and the write retried every second until it succeeds, the lease is lost (false), or the
   // service stops (false; the lease is released at the next start), instead of failing the job.
-  bool StoreCompletion(const TaskLease& lease, const std::vector<ResultRow>& rows, const std::string& worker);
+  bool StoreCompletion(const TaskLease& lease, const TaskResult& result, const std::string& worker);
 };
 
 }  // namespace strokelab::server

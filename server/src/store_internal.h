@@ -37,7 +37,7 @@ struct EncodedRows {
   std::vector<EncodedBlock> blocks;  // tables in the order of their first row
   int64_t points = 0;                // rows of the "points" table
 };
-EncodedRows EncodeRows(const std::vector<ResultRow>& rows);
+EncodedRows EncodeRows(const TaskResult& result);
 
 class SqliteStore final : public Store {
  public:
@@ -60,7 +60,7 @@ class SqliteStore final : public Store {
   int ReleaseLeases(const std::string& owner_prefix) override;
   bool RenewLease(const TaskLease& lease, int64_t now_ms, int64_t lease_ms) override;
   std::optional<nlohmann::json> LeasedTaskSpec(const TaskLease& lease, int64_t now_ms) override;
-  bool CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) override;
+  bool CompleteTask(const TaskLease& lease, const TaskResult& result, int64_t now_ms) override;
   void FailTask(const TaskLease& lease, const std::string& error, int64_t now_ms) override;
   bool FailTaskOnBudget(const TaskLease& lease, const std::string& error, int64_t now_ms) override;
 

@@ -2,6 +2,7 @@
 // (row_block.h) with the ranges of their filter columns, and come back in pages with keyset cursors.
 // One SQL row per block rather than per result row: a completion of a 2,000-row sweep task writes
 // one B-tree entry of ~260 KB per table instead of 2,000 rows of JSON text in three B-trees.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <mutex>
@@ -36,14 +37,17 @@ struct FilterColumns {
   std::optional<double> frequency_hz, amplitude_v;
   std::optional<std::string> branch;
 };
+std::optional<double> FiniteNumber(const json& value) {
+  if (!value.is_number()) return std::nullopt;
+  const double v = value.get<double>();
+  return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
+}
 FilterColumns ExtractFilterColumns(const json& values) {
   FilterColumns c;
   if (!values.is_object()) return c;
   auto number = [&](const char* name) -> std::optional<double> {
     auto it = values.find(name);
-    if (it == values.end() || !it->is_number()) return std::nullopt;
-    const double v = it->get<double>();
-    return std::isfinite(v) ? std::optional<double>(v) : std::nullopt;
+    return it == values.end() ? std::nullopt : FiniteNumber(*it);
   };
   c.frequency_hz = number("frequency_hz");
   c.amplitude_v = number("amplitude_v");
@@ -72,17 +76,26 @@ void Extend(std::optional<double>& lo, std::optional<double>& hi, const std::opt
 class BlockBuilder {
  public:
   void Add(const std::string& table, const json& values) {
-    Part* part = nullptr;
-    for (Part& p : parts_)
-      if (p.block.table == table) part = &p;
-    if (!part) {
-      part = &parts_.emplace_back();
-      part->block.table = table;
-    }
+    Part& part = PartOf(table);
     const FilterColumns c = ExtractFilterColumns(values);
-    Extend(part->block.frequency_min_hz, part->block.frequency_max_hz, c.frequency_hz);
-    Extend(part->block.amplitude_min_v, part->block.amplitude_max_v, c.amplitude_v);
-    part->writer.Add(values);
+    Extend(part.block.frequency_min_hz, part.block.frequency_max_hz, c.frequency_hz);
+    Extend(part.block.amplitude_min_v, part.block.amplitude_max_v, c.amplitude_v);
+    part.writer.Add(values);
+  }
+  void Add(const jobs::ResultRecords& records) {
+    if (records.size() == 0) return;
+    Part& part = PartOf(records.table);
+    const auto column = [&](const char* name) {
+      return std::find(records.columns.begin(), records.columns.end(), name) - records.columns.begin();
+    };
+    const size_t width = records.columns.size(), frequency = column("frequency_hz"), amplitude = column("amplitude_v");
+    for (size_t first = 0; first < records.cells.size(); first += width) {
+      if (frequency < width)
+        Extend(part.block.frequency_min_hz, part.block.frequency_max_hz, FiniteNumber(records.cells[first + frequency]));
+      if (amplitude < width)
+        Extend(part.block.amplitude_min_v, part.block.amplitude_max_v, FiniteNumber(records.cells[first + amplitude]));
+    }
+    part.writer.AddRecords(records.columns, records.cells);
   }
   EncodedRows Finish() {
     EncodedRows out;
@@ -100,6 +113,13 @@ class BlockBuilder {
     EncodedBlock block;
     RowBlockWriter writer;
   };
+  Part& PartOf(const std::string& table) {
+    for (Part& p : parts_)
+      if (p.block.table == table) return p;
+    Part& part = parts_.emplace_back();
+    part.block.table = table;
+    return part;
+  }
   std::vector<Part> parts_;
 };
 
@@ -154,10 +174,11 @@ int64_t SqliteStore::CountResults(int64_t job_id, const std::string& table) {
   return s.ColInt(0);
 }
 
-EncodedRows EncodeRows(const std::vector<ResultRow>& rows) {
-  if (static_cast<int64_t>(rows.size()) >= kRowsPerTaskLimit) throw std::length_error("job store: too many rows");
+EncodedRows EncodeRows(const TaskResult& result) {
+  if (static_cast<int64_t>(result.RowCount()) >= kRowsPerTaskLimit) throw std::length_error("job store: too many rows");
   BlockBuilder builder;
-  for (const ResultRow& r : rows) builder.Add(r.table, r.values);
+  for (const ResultRow& r : result.rows) builder.Add(r.table, r.values);
+  for (const jobs::ResultRecords& records : result.records) builder.Add(records);
   return builder.Finish();
 }
 

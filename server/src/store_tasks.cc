@@ -112,8 +112,8 @@ std::optional<json> SqliteStore::LeasedTaskSpec(const TaskLease& lease, int64_t 
   return ParseJson(spec_json);
 }
 
-bool SqliteStore::CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) {
-  const EncodedRows encoded = EncodeRows(rows);  // before the write lock: other writers go on meanwhile
+bool SqliteStore::CompleteTask(const TaskLease& lease, const TaskResult& result, int64_t now_ms) {
+  const EncodedRows encoded = EncodeRows(result);  // before the write lock: other writers go on meanwhile
   std::lock_guard lock(write_mu_);
   Transaction tx(*this);
   const std::optional<HeldTask> held = CheckLease(writer_, lease, now_ms);

@@ -98,7 +98,7 @@ struct RowsTemplate {
 RowsTemplate MakeRowsTemplate(const Options& o) {
   const json task = strokelab::jobs::PlanTasks(SweepJob(o, 0)).at(0).spec;
   json rows = json::array();
-  for (const strokelab::jobs::ResultRow& r : strokelab::jobs::RunTask(task))
+  for (const strokelab::jobs::ResultRow& r : strokelab::jobs::RunTask(task).AllRows())
     rows.push_back({{"table", r.table}, {"values", r.values}});
   const std::string text = rows.dump();
   const std::string key = "\"amplitude_v\":", value = task.at("amplitude_v").dump();

@@ -45,8 +45,8 @@ constexpr int kTasksPerJob = 200;        // tasks submitted at a time; a new job
 constexpr int64_t kLeaseMs = 3600 * 1000;  // never expires during a run
 
 // The rows of one sweep row of the paper model, as an in-process worker completes them.
-const std::vector<ResultRow>& SweepRowRows() {
-  static const std::vector<ResultRow> rows = [] {
+const TaskResult& SweepRowRows() {
+  static const TaskResult rows = [] {
     const json job = {{"kind", "sweep"},
                       {"model", "paper"},
                       {"thresholds", false},
@@ -112,7 +112,7 @@ void ReportRows(benchmark::State& state, size_t rows_per_task, double cpu_s) {
 
 // One completion per iteration: lease a task, store the sweep row's rows.
 void BM_Ingest(benchmark::State& state) {
-  const std::vector<ResultRow>& rows = SweepRowRows();
+  const TaskResult& rows = SweepRowRows();
   ScratchStore store;
   int64_t job_id = 0;
   const double cpu0 = ThreadCpuSeconds();
@@ -120,14 +120,14 @@ void BM_Ingest(benchmark::State& state) {
     const TaskLease lease = store.NextLease(job_id);
     if (!store->CompleteTask(lease, rows, store.Now())) throw std::runtime_error("store_bench: lease lost");
   }
-  ReportRows(state, rows.size(), ThreadCpuSeconds() - cpu0);
+  ReportRows(state, rows.RowCount(), ThreadCpuSeconds() - cpu0);
 }
 BENCHMARK(BM_Ingest)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3.0);
 
 // The same while two threads read the job's status in a loop (as pollers of GET /v1/jobs/{id} do):
 // how long a status read waits while completions are stored.
 void BM_IngestWithStatusReads(benchmark::State& state) {
-  const std::vector<ResultRow>& rows = SweepRowRows();
+  const TaskResult& rows = SweepRowRows();
   ScratchStore store;
   int64_t job_id = 0;
   store.NextLease(job_id);  // the first job exists before the readers start
@@ -157,7 +157,7 @@ void BM_IngestWithStatusReads(benchmark::State& state) {
   for (std::thread& t : readers) t.join();
   std::vector<double> all;
   for (const auto& l : latencies_us) all.insert(all.end(), l.begin(), l.end());
-  ReportRows(state, rows.size(), cpu_s);
+  ReportRows(state, rows.RowCount(), cpu_s);
   state.counters["status_reads"] = static_cast<double>(all.size());
   state.counters["status_p50_us"] = bench::Percentile(all, 0.50);
   state.counters["status_p99_us"] = bench::Percentile(all, 0.99);

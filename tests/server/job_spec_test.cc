@@ -16,6 +16,7 @@
 #include "strokelab/model/model_json.h"
 #include "strokelab/jobs/jobs.h"
 #include "strokelab/jobs/json_schema.h"
+#include "strokelab/report/sweep_tables.h"
 #include "strokelab/signal/signal.h"
 #include "test_util.h"
 
@@ -480,13 +481,46 @@ TEST(SweepSpecFromJobTest, NullStopsAndLimitMeanAbsent) {
   EXPECT_EQ(limited.model.upper_stop_m, 2e-3);
 }
 
+// A sweep's tasks return their rows as flat records (task.h) that stand for the objects RowToJson
+// writes, value for value, in the order SweepRow and SweepColumn give them.
+TEST(SweepTaskTest, RecordsStandForTheRowsRowToJsonWrites) {
+  const json job = {{"kind", "sweep"}, {"model", "paper"},
+                    {"grid", {{"frequency_hz", {{"from", 10}, {"to", 30}, {"points", 41}}},
+                              {"amplitude_v", {{"from", 0.5}, {"to", 0.5}, {"points", 1}}}}}};
+  const std::vector<TaskSpec> tasks = PlanTasks(job);
+  ASSERT_GE(tasks.size(), 2u);  // the row, then the thresholds of its 41 columns in chunks
+  const ActuatorModel model = ModelFromJson("paper");
+  const std::vector<double> frequencies = tasks[0].spec.at("frequencies_hz").get<std::vector<double>>();
+  const SweepRowResult row = SweepRow(model, 0.5, frequencies);
+  std::vector<json> expected;
+  for (const SweepPoint& p : row.points) expected.push_back(report::RowToJson(p));
+  for (const JumpInterval& j : row.jumps) expected.push_back(report::RowToJson(j));
+  ASSERT_FALSE(row.jumps.empty()) << "the row should cross the jump interval";
+  const TaskResult result = RunTask(tasks[0].spec);
+  EXPECT_TRUE(result.rows.empty());
+  ASSERT_EQ(result.records.size(), 2u);
+  EXPECT_EQ(result.records[0].table, "points");
+  EXPECT_EQ(result.records[1].table, "jumps");
+  const std::vector<ResultRow> all = result.AllRows();
+  ASSERT_EQ(all.size(), expected.size());
+  EXPECT_EQ(result.RowCount(), expected.size());
+  for (size_t i = 0; i < all.size(); ++i) EXPECT_EQ(all[i].values.dump(), expected[i].dump()) << i;
+
+  const std::vector<double> chunk = tasks[1].spec.at("frequencies_hz").get<std::vector<double>>();
+  const TaskResult thresholds = RunTask(tasks[1].spec);
+  ASSERT_EQ(thresholds.records.size(), 1u);
+  ASSERT_EQ(thresholds.records[0].size(), chunk.size());
+  const size_t last = chunk.size() - 1;
+  EXPECT_EQ(thresholds.records[0].RowAt(last).dump(), report::RowToJson(SweepColumn(model, chunk[last])).dump());
+}
+
 // A simulate job without a method runs the engine its model allows, and its record says which and
 // why; a named method is written as named.
 TEST(SimulateJobTest, TheDefaultMethodFollowsTheModel) {
   const auto method_of = [](const json& job) {
     const std::vector<TaskSpec> tasks = PlanTasks(job);
     EXPECT_EQ(tasks.size(), 1u);
-    const std::vector<ResultRow> rows = RunTask(tasks.at(0).spec);
+    const std::vector<ResultRow> rows = RunTask(tasks.at(0).spec).AllRows();
     EXPECT_EQ(rows.size(), 1u);
     return rows.at(0).values.at("method").get<std::string>();
   };

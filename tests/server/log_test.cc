@@ -60,7 +60,7 @@ TEST(StructuredLog, RequestsAndJobStateChangesAreJsonLinesWithoutTokens) {
   {  // the task's own rows: made-up ones are refused (jobs/task_rows.h)
     const json task = lease();
     json rows = json::array();
-    for (const jobs::ResultRow& row : jobs::RunTask(task.at("spec")))
+    for (const jobs::ResultRow& row : jobs::RunTask(task.at("spec")).AllRows())
       rows.push_back({{"table", row.table}, {"values", row.values}});
     report(task, "complete", {{"rows", rows}});
   }

@@ -104,6 +104,34 @@ TEST(RowBlock, RowsOfOneShareTheirKeysOnce) {
   EXPECT_EQ(DecodeRowBlock(block), rows);
 }
 
+TEST(RowBlock, RecordsDecodeAsTheObjectsTheyStandFor) {
+  // Cells in column order (jobs::ResultRecords, as sweep tasks return them), beside object rows in
+  // the same block: each record comes back as the object {column: cell}, numbers bit for bit.
+  const std::vector<std::string> columns = {"frequency_hz", "amplitude_v", "branch", "period", "max_multiplier"};
+  const std::vector<json> cells = {5.0, 0.4, "up", 1, nullptr,  //
+                                   5.1, 0.4, "unstable", "aperiodic", -0.0,
+                                   1.0 / 3.0, 0.4, "down", 2, 1e-300};
+  RowBlockWriter writer;
+  writer.Add({{"name", "k3"}, {"value", -1.5e5}});
+  writer.AddRecords(columns, cells);
+  writer.AddRecords(columns, {});  // no rows
+  writer.Add({{"frequency_hz", 9.0}, {"amplitude_v", 0.4}, {"branch", "up"}, {"period", 1}, {"max_multiplier", 0.5}});
+  EXPECT_EQ(writer.rows(), 5);
+  const std::vector<json> back = DecodeRowBlock(writer.Finish());
+  ASSERT_EQ(back.size(), 5u);
+  EXPECT_EQ(back[0], json({{"name", "k3"}, {"value", -1.5e5}}));
+  for (size_t r = 0; r < 3; ++r) {
+    json expected = json::object();
+    for (size_t c = 0; c < columns.size(); ++c) expected[columns[c]] = cells[r * columns.size() + c];
+    EXPECT_EQ(back[1 + r].dump(), expected.dump()) << r;
+  }
+  EXPECT_EQ(DoubleBits(back[2].at("max_multiplier").get<double>()), DoubleBits(-0.0));
+  EXPECT_EQ(back[4].at("max_multiplier"), 0.5);
+  // Cells that do not fill whole rows are refused.
+  EXPECT_THROW(writer.AddRecords(columns, {1.0, 2.0}), StoreError);
+  EXPECT_THROW(writer.AddRecords({}, {1.0}), StoreError);
+}
+
 TEST(RowBlock, ADamagedBlockIsRefusedNotReadPastItsEnd) {
   RowBlockWriter writer;
   for (const json& r : MixedBlockRows()) writer.Add(r);

@@ -49,13 +49,13 @@ using TaskProgressHook = std::function<void(const ProgressReport&)>;
 // the engines' steps, the fit's and diagnosis's items and Ceres iterations) polls it, and the task
 // ends with strokelab::Cancelled within a few ms of it being raised (a Ceres iteration at worst).
 // `progress` (may be empty) hears a fit or diagnose task's stages.
-std::vector<ResultRow> RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
-                               const TaskProgressHook& progress = {});
+TaskResult RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
+                   const TaskProgressHook& progress = {});
 
-// What a remote worker runs: RunTask (under `cancel` the same way), except that a diagnose task's
-// result is one row of table "diagnosis_data" (report/diagnosis_data.h: the diagnosis and its maps as
-// data) instead of the rendered report, which the server renders itself. The task's campaign_dir must
-// name the campaign.
+// What a remote worker runs: RunTask (under `cancel` the same way) with every row as JSON (AllRows),
+// except that a diagnose task's result is one row of table "diagnosis_data" (report/diagnosis_data.h:
+// the diagnosis and its maps as data) instead of the rendered report, which the server renders itself.
+// The task's campaign_dir must name the campaign.
 std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
                                         const TaskProgressHook& progress = {});
 

@@ -29,6 +29,12 @@ const std::vector<Column<Row>>& Columns();
 
 template <class Row>
 nlohmann::json RowToJson(const Row& row);
+// The same values without an object per row: the column names in table order, and a row's values
+// as RowToJson writes them, appended to `cells` in that order (jobs' ResultRecords).
+template <class Row>
+std::vector<std::string> ColumnNames();
+template <class Row>
+void AppendCells(const Row& row, std::vector<nlohmann::json>& cells);
 // A row from its JSON (a stored result row); throws InputError naming the column when one is missing
 // or of another kind.
 template <class Row>

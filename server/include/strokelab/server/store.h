@@ -23,6 +23,7 @@
 namespace strokelab::server {
 
 using jobs::ResultRow;
+using jobs::TaskResult;
 using jobs::TaskSpec;
 
 enum class JobStatus { kQueued, kRunning, kSucceeded, kFailed, kCancelled };
@@ -119,7 +120,7 @@ class Store {
   // token, not expired, job not cancelled), where later tasks of the same key find them; finishes the job
   // when its last task is done. False if the lease was lost (nothing is written). An expired lease
   // is lost even before another worker takes the task: renew in time.
-  virtual bool CompleteTask(const TaskLease& lease, const std::vector<ResultRow>& rows, int64_t now_ms) = 0;
+  virtual bool CompleteTask(const TaskLease& lease, const TaskResult& result, int64_t now_ms) = 0;
   // Fails the task and its job with a message (a deterministic error: retrying would not help);
   // the job's other open tasks are cancelled. Does nothing if the lease was lost.
   virtual void FailTask(const TaskLease& lease, const std::string& error, int64_t now_ms) = 0;
