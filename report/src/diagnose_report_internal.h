@@ -61,6 +61,9 @@ std::vector<Figure> DiagnosisFigures(const Diagnosis& diagnosis);
 // (not computed: said on the page).
 std::string MapsSection(const Diagnosis& diagnosis, const DiagnosisMaps* maps);
 
+// The named effects' characteristics with their bands (diagnose_report_curves.cc).
+Figure CurvesFigure(const Diagnosis& diagnosis);
+
 // The figures against drive amplitude, per Signatures::Level (diagnose_report_levels.cc).
 Figure ResonanceFigure(const Diagnosis& diagnosis);
 Figure ContactFigure(const Diagnosis& diagnosis, const char* unit);

@@ -324,7 +324,7 @@ Figure ResidualFigure(const Diagnosis& d) {
 
 std::vector<Figure> DiagnosisFigures(const Diagnosis& d) {
   const char* unit = ResponseUnit(d.base.response);
-  return {HarmonicsFigure(d, unit), FrfFigure(d, unit), ResidualFigure(d), ResonanceFigure(d),
+  return {HarmonicsFigure(d, unit), FrfFigure(d, unit), CurvesFigure(d), ResidualFigure(d), ResonanceFigure(d),
           ContactFigure(d, unit), RatiosFigure(d)};
 }
 

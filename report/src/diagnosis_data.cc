@@ -136,13 +136,18 @@ std::vector<std::string> Texts(const json& object, const char* key, const std::s
   return out;
 }
 
-std::vector<double> Numbers(const json& object, const char* key, const std::string& at) {
+// Finite numbers; with `null_is_nan`, nulls too (read as NaN).
+std::vector<double> Numbers(const json& object, const char* key, const std::string& at, bool null_is_nan = false) {
   std::string p;
   std::vector<double> out;
   const json& items = Array(object, key, at, &p);
   for (size_t i = 0; i < items.size(); ++i) {
+    if (null_is_nan && items[i].is_null()) {
+      out.push_back(NAN);
+      continue;
+    }
     if (!items[i].is_number() || !std::isfinite(items[i].get<double>()))
-      throw InputError(p + "/" + std::to_string(i), "must be a finite number");
+      throw InputError(p + "/" + std::to_string(i), null_is_nan ? "must be a finite number or null" : "must be a finite number");
     out.push_back(items[i].get<double>());
   }
   return out;
@@ -274,6 +279,35 @@ GridAxis AxisIn(const json& object, const char* key, const std::string& at) {
   return axis;
 }
 
+std::vector<EffectCurve> CurvesIn(const json& object, const char* key, const std::string& at) {
+  std::string p;
+  std::vector<EffectCurve> out;
+  const json& items = Array(object, key, at, &p);
+  for (size_t i = 0; i < items.size(); ++i) {
+    const std::string q = p + "/" + std::to_string(i);
+    const json& v = items[i];
+    EffectCurve c;
+    try {
+      c.effect = ParseEffect(Text(v, "effect", q));
+    } catch (const InputError& e) {
+      throw InputError(q + "/effect", e.bare_message());
+    }
+    c.id = Text(v, "id", q);
+    c.title = Text(v, "title", q);
+    c.x_label = Text(v, "x_label", q);
+    c.y_label = Text(v, "y_label", q);
+    c.x = Numbers(v, "x", q);
+    c.y = Numbers(v, "y", q, true);
+    c.y_se = Numbers(v, "y_se", q, true);
+    c.base_y = Numbers(v, "base_y", q, true);
+    c.range = Text(v, "range", q);
+    if (c.y.size() != c.x.size() || c.y_se.size() != c.x.size() || c.base_y.size() != c.x.size())
+      throw InputError(q, "x, y, y_se and base_y must have the same length");
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
 std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, const std::string& at) {
   const json& v = Member(object, key, at);
   if (v.is_null()) return std::nullopt;
@@ -361,6 +395,7 @@ json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
                     {"model", ModelToJson(d.model)},
                     {"model_note", d.model_note},
                     {"unexplained", UnexplainedToJson(d.unexplained)},
+                    {"curves", CurvesToJson(d.curves)},
                     {"conclusion", d.conclusion},
                     {"seconds", JsonNumber(d.seconds)}};
   json map_json = {{"frequency_hz", AxisOut(maps.frequency_hz)}, {"amplitude_v", AxisOut(maps.amplitude_v)},
@@ -469,6 +504,7 @@ DiagnosisData DiagnosisDataFromJson(const json& in) {
   d.model = ModelIn(dj, "model", at);
   d.model_note = Text(dj, "model_note", at);
   d.unexplained = UnexplainedIn(dj, "unexplained", at);
+  d.curves = CurvesIn(dj, "curves", at);
   d.conclusion = Text(dj, "conclusion", at);
   d.seconds = Number(dj, "seconds", at);
 

@@ -2,6 +2,7 @@
 // so that the page is checked without fitting or sweeping anything: a named effect, "nothing
 // missing", an empty diagnosis, and the maps of the base and the diagnosed model.
 #include "strokelab/report/diagnose_report.h"
+#include "strokelab/diagnose/effect_curves.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -116,6 +117,11 @@ Diagnosis Named() {
   cubic.parameters.push_back(cubic.effect_parameters[0]);
   cubic.passes = 3;
   cubic.seconds = 12.5;
+  cubic.model = d.base.model;
+  cubic.model.cubic_stiffness_n_per_m3 = 2.3456e6;
+  cubic.covariance.assign(16, 0.0);  // k_p, c_p, m_p (fixed), k3
+  for (size_t i = 0; i < 4; ++i) cubic.covariance[i * 4 + i] = std::pow(cubic.parameters[i].standard_error, 2);
+  d.curves = EffectCurves(cubic, d.base.model, {-1e-3, 1e-3, 0.1, 0.0, 1.0, "test ranges"});
   const CandidateFit quadratic = Candidate(Effect::kQuadraticStiffness, "quadratic_stiffness",
                                            Figures(0.0801, 0.0925, 1490, 600, 9.3), 1.25, 3.5,
                                            {Parameter("k2", "N/m^2", 150, 400)});
@@ -154,6 +160,7 @@ Diagnosis NothingMissing() {
   d.fit_after = d.fit_before;
   d.chosen = -1;
   d.missing_physics.clear();
+  d.curves.clear();
   d.candidates.erase(d.candidates.begin());
   d.conclusion = "Nothing missing.";
   d.model = d.base.model;
@@ -239,10 +246,10 @@ TEST(DiagnoseReportTest, NamedEffectPageHasConclusionNumbersAndFigures) {
   EXPECT_EQ(Count(html, "<tr class=\"chosen\">"), 1u);
   EXPECT_THAT(html, Not(HasSubstr(kOddName)));
   for (const char* bad : {">nan", ">inf", "-nan", "nan<", "[deg]"}) EXPECT_THAT(html, Not(HasSubstr(bad))) << bad;
-  // One SVG per plot: 3 worst records x (magnitude, phase), FRF, 2 residual maps, resonance,
+  // One SVG per plot: 3 worst records x (magnitude, phase), FRF, K(x), 2 residual maps, resonance,
   // contact times, harmonic ratios.
-  EXPECT_EQ(Count(html, "<svg"), 12u);
-  for (const char* id : {"harmonics", "frf", "residual", "resonance", "contact", "ratios"})
+  EXPECT_EQ(Count(html, "<svg"), 13u);
+  for (const char* id : {"harmonics", "frf", "curves", "residual", "resonance", "contact", "ratios"})
     EXPECT_THAT(html, HasSubstr(std::string("<section id=\"") + id + "\">")) << id;
   // The one sentence in place of data: no maps were given.
   EXPECT_EQ(Count(html, "class=\"skipped\""), 1u);
@@ -341,7 +348,8 @@ TEST(DiagnoseReportTest, NothingMissingSaysSoAndSkipsPlotsWithoutData) {
   EXPECT_THAT(html, HasSubstr("Nothing was added to the model, so there is no second map."));
   // 3 worst records x 2, FRF, one residual map, harmonic ratios.
   EXPECT_EQ(Count(html, "<svg"), 9u);
-  EXPECT_EQ(Count(html, "class=\"skipped\""), 3u);  // and the maps, not given
+  EXPECT_EQ(Count(html, "class=\"skipped\""), 4u);  // and the curves and the maps, not given
+  EXPECT_THAT(html, HasSubstr("Nothing was named, so there is no characteristic to draw."));
 }
 
 TEST(DiagnoseReportTest, EmptyDiagnosisSkipsEveryFigure) {
@@ -406,7 +414,7 @@ TEST(DiagnoseReportMapsTest, BothMapsOnOneScaleWithTheThresholdShift) {
   const std::string html = ReadFile(dir / "index.html");
   EXPECT_EQ(CheckMarkup(html), "");
   EXPECT_EQ(Count(html, "class=\"skipped\""), 0u);
-  EXPECT_EQ(Count(html, "<svg"), 14u);  // the 12 figures and two maps
+  EXPECT_EQ(Count(html, "<svg"), 15u);  // the 13 figures and two maps
   for (const char* expected : {
            "<h2 id=\"maps\">What the missing physics changes for the control loop</h2>",
            "Diagnosed model: the base model extended by cubic_stiffness.",
@@ -491,7 +499,7 @@ TEST(DiagnoseReportMapsTest, MissingMapsAreSaidWhyAndLeaveEmptyTables) {
   WriteDiagnosisReport(Named(), dir, &failed);
   std::string html = ReadFile(dir / "index.html");
   EXPECT_EQ(CheckMarkup(html), "");
-  EXPECT_EQ(Count(html, "<svg"), 13u);
+  EXPECT_EQ(Count(html, "<svg"), 14u);
   EXPECT_THAT(html, HasSubstr("Diagnosed model (+ cubic_stiffness): stroke saturation, up-sweep branch: no map, the "
                               "sweep failed: &lt;CVode&gt; gave up"));
   EXPECT_THAT(html, Not(HasSubstr("threshold-shift")));
@@ -513,7 +521,7 @@ TEST(DiagnoseReportMapsTest, MissingMapsAreSaidWhyAndLeaveEmptyTables) {
   WriteDiagnosisReport(Named(), dir, &off);
   html = ReadFile(dir / "index.html");
   EXPECT_THAT(html, HasSubstr("Saturation maps not computed (map_frequency_points or map_amplitude_points is 0)."));
-  EXPECT_EQ(Count(html, "<svg"), 12u);
+  EXPECT_EQ(Count(html, "<svg"), 13u);
 }
 
 // ---- A diagnosis as data (what a remote worker sends) --------------------------------------------
@@ -598,6 +606,10 @@ TEST(DiagnosisDataTest, BadDataIsRefusedNamingTheMember) {
   EXPECT_EQ(field_of([](json& j) { j["maps"]["base"]["points"][0]["peak_force_n"] = INFINITY; }),
             "/maps/base/points/0/peak_force_n");
   EXPECT_EQ(field_of([](json& j) { j["maps"]["diagnosed"]["jump"] = json::object(); }), "/maps/diagnosed/jump");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["curves"][0]["effect"] = "magic"; }), "/diagnosis/curves/0/effect");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["curves"][0]["y_se"][3] = "wide"; }), "/diagnosis/curves/0/y_se/3");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["curves"][0]["y"].erase(0); }), "/diagnosis/curves/0");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["curves"][0]["x"][0] = nullptr; }), "/diagnosis/curves/0/x/0");
   EXPECT_EQ(field_of([](json& j) { j.erase("maps"); }), "/maps");
 }
 

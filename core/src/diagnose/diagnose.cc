@@ -13,6 +13,7 @@
 #include "diagnose_internal.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parallel_for.h"
+#include "strokelab/diagnose/effect_curves.h"
 #include "strokelab/steady/steady_state.h"
 
 namespace strokelab {
@@ -109,6 +110,7 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
     try {
       const PeriodMap map(m, a.drive.frequency_hz, a.drive.amplitude_v);
       const SteadyState s = SolveAttractor(map, map.ClippedLinearStart());
+      c.min_displacement_m = std::min(c.min_displacement_m, s.figures.min_displacement_m);
       c.max_displacement_m = std::max(c.max_displacement_m, s.figures.max_displacement_m);
       c.max_velocity_m_per_s =
           std::max(c.max_velocity_m_per_s, std::numbers::pi * a.drive.frequency_hz *
@@ -120,6 +122,7 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
   }
   c.contacts = !penetrations.empty() || !base.contact.records.empty();
   if (!penetrations.empty()) {
+    c.max_penetration_m = *std::max_element(penetrations.begin(), penetrations.end());
     std::nth_element(penetrations.begin(), penetrations.begin() + penetrations.size() / 2, penetrations.end());
     c.penetration_m = penetrations[penetrations.size() / 2];
   } else {
@@ -232,6 +235,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   if (!r.converged) c.note = r.report;
   c.model = r.model;
   c.parameters = r.parameters;
+  c.covariance = r.covariance;
   c.effect_parameters = internal::EffectParameters(effects, r.parameters);
   if (step) step("every record at the fitted model");
   const std::vector<RecordMatch> matches =
@@ -500,6 +504,10 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   if (d.chosen >= 0) {
     const CandidateFit& c = d.candidates[d.chosen];
     d.missing_physics = c.effects;
+    d.curves = EffectCurves(c, d.base.model,
+                            {context.min_displacement_m, context.max_displacement_m, context.max_velocity_m_per_s,
+                             context.max_penetration_m, context.max_amplitude_v,
+                             "reached by the base model's orbits on the fit records"});
     d.fit_after = c.figures;
     d.model = c.model;
     d.model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +

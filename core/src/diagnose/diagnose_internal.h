@@ -27,9 +27,11 @@ inline std::string FormatFigure(double value, int digits = 3) {
 // What the base fit tells about the campaign's scales, for the effects' start values.
 struct EffectContext {
   double stop_distance_m = 1e-3;  // |d| (or the model's length scale without a stop)
+  double min_displacement_m = 0;  // smallest x of the base model's orbits over the fit records
   double max_displacement_m = 0;  // largest x of the base model's orbits over the fit records
   double max_velocity_m_per_s = 0;  // largest pi f (x_max - x_min) of those orbits: their peak velocity scale
   double penetration_m = 0;       // typical (median) stop penetration of the contacting orbits
+  double max_penetration_m = 0;   // the deepest (0: no contact)
   double min_amplitude_v = 0, max_amplitude_v = 0;  // drive amplitudes of the campaign
   bool contacts = false;          // some record reaches the stop
   // The stiffest (linear) contact the records resolve: one whose natural frequency sqrt(k_s / m_p) / 2pi

@@ -72,6 +72,20 @@ nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
           {"description", u->description}};
 }
 
+nlohmann::json CurvesToJson(const std::vector<EffectCurve>& curves) {
+  const auto numbers = [](const std::vector<double>& values) {
+    nlohmann::json out = nlohmann::json::array();
+    for (double v : values) out.push_back(JsonNumber(v));
+    return out;
+  };
+  nlohmann::json out = nlohmann::json::array();
+  for (const EffectCurve& c : curves)
+    out.push_back({{"effect", Info(c.effect).id}, {"id", c.id}, {"title", c.title}, {"x_label", c.x_label},
+                   {"y_label", c.y_label}, {"x", numbers(c.x)}, {"y", numbers(c.y)}, {"y_se", numbers(c.y_se)},
+                   {"base_y", numbers(c.base_y)}, {"range", c.range}});
+  return out;
+}
+
 nlohmann::json DiagnosisToJson(const Diagnosis& d) {
   nlohmann::json out;
   out["conclusion"] = d.conclusion;
@@ -98,6 +112,7 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
     }
   }
   out["unexplained"] = UnexplainedToJson(d.unexplained);
+  out["curves"] = CurvesToJson(d.curves);
   out["model"] = ModelToJson(d.model);
   out["model_note"] = d.model_note;
   out["fit_before"] = Figures(d.fit_before);

@@ -356,6 +356,13 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     else if (!out.identifiable) out.note = "not identifiable from these records";
     result.parameters.push_back(out);
   }
+  result.covariance.assign(static_cast<size_t>(p) * p, std::numeric_limits<double>::quiet_NaN());
+  for (int i = 0; i < p; ++i)
+    for (int j = 0; j < p; ++j)
+      if (result.parameters[i].identifiable && result.parameters[j].identifiable)
+        result.covariance[static_cast<size_t>(i) * p + j] = problem.parameters[i].ValuePerTheta(theta[i]) *
+                                                            problem.parameters[j].ValuePerTheta(theta[j]) *
+                                                            errors.covariance(i, j);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return result;
 }

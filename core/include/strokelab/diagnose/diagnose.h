@@ -166,6 +166,7 @@ struct CandidateFit {
   bool fitted = false;                 // false: skipped (reason in `note`)
   bool converged = false;
   std::vector<FitParameter> parameters;  // base and effect parameters, with standard errors
+  std::vector<double> covariance;        // of their values (ExtendedFitResult::covariance)
   std::vector<FitParameter> effect_parameters;  // the effect's own
   ActuatorModel model;
   FitFigures figures;
@@ -212,6 +213,21 @@ struct Unexplained {
   std::string description;  // the above in words, with a guess at its shape from the data
 };
 
+// A named effect's characteristic, as a transducer analyser reports it (Klippel's large-signal
+// identification: K(x), Bl(x), R(v)): the diagnosed model's curve over the range the records reach,
+// with its standard error from the chosen fit's covariance (delta method: var y = g^T C g, g the
+// curve's gradient in the fitted parameters), and the base model's curve for comparison.
+struct EffectCurve {
+  Effect effect;
+  std::string id;       // "stiffness", "force_factor", "resistance", "friction", "stop_force", ...
+  std::string title;    // "K(x) = k_p + k2 x + k3 x^2, the suspension's stiffness (force / displacement)"
+  std::string x_label, y_label;  // with units: "x [m]", "K [N/m]"
+  std::vector<double> x, y;
+  std::vector<double> y_se;    // NaN where a parameter it needs is not identifiable
+  std::vector<double> base_y;  // the base fit's model
+  std::string range;           // where x comes from, in words
+};
+
 struct Diagnosis {
   FitResult base;                   // the base fit on the fit records
   std::vector<size_t> heldout;      // record indices (into `records`)
@@ -230,6 +246,7 @@ struct Diagnosis {
   // Empty: what the diagnosed model leaves on the held-out records is noise. Set: it is not, and
   // says where (reported beside any named effect: that effect explains only part of the misfit).
   std::optional<Unexplained> unexplained;
+  std::vector<EffectCurve> curves;       // one per characteristic of the named effects
   std::string conclusion;                // in words
   double seconds = 0.0;
 };
@@ -263,5 +280,8 @@ nlohmann::json DiagnosisToJson(const Diagnosis& diagnosis);
 // The open-world test's result as DiagnosisToJson writes it under "unexplained": null, or its figures,
 // places and description (also the form a remote worker's diagnosis data carries).
 nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& unexplained);
+// The named effects' curves as DiagnosisToJson writes them under "curves": [{effect, id, title,
+// x_label, y_label, x, y, y_se, base_y, range}], non-finite numbers as null.
+nlohmann::json CurvesToJson(const std::vector<EffectCurve>& curves);
 
 }  // namespace strokelab

@@ -59,6 +59,9 @@ struct ExtendedFitResult {
   std::vector<double> theta;
   ActuatorModel model;
   std::vector<FitParameter> parameters;  // every free parameter with its standard error
+  // Covariance of their values (row-major, P x P, units of the two parameters): the standard errors'
+  // matrix. NaN in the rows and columns of a parameter held at a bound or not identifiable.
+  std::vector<double> covariance;
   bool converged = false;
   int passes = 0, iterations = 0;
   double chi2 = 0.0;               // sum of squared residuals over the fit records, at the end
