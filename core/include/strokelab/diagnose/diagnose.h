@@ -218,9 +218,9 @@ struct Unexplained {
 // with its standard error from the chosen fit's covariance (delta method: var y = g^T C g, g the
 // curve's gradient in the fitted parameters), and the base model's curve for comparison.
 struct EffectCurve {
-  Effect effect;
+  Effect effect = Effect::kCubicStiffness;
   std::string id;       // "stiffness", "force_factor", "resistance", "friction", "stop_force", ...
-  std::string title;    // "K(x) = k_p + k2 x + k3 x^2, the suspension's stiffness (force / displacement)"
+  std::string title;    // "K(x) = k_p + k2 x + k3 x^2: the suspension's force over displacement"
   std::string x_label, y_label;  // with units: "x [m]", "K [N/m]"
   std::vector<double> x, y;
   std::vector<double> y_se;    // NaN where a parameter it needs is not identifiable
