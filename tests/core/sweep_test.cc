@@ -156,6 +156,32 @@ TEST(JumpTest, FoldIsWhereAMultiplierReachesOne) {
   EXPECT_NEAR(fold->point.parameter, 14.0683387, 1e-6);
 }
 
+// A corrector that fails far from any grazing point (here made to fail at the fold of paper + k3 +
+// Hertzian contact's contacting branch at 18.57 Hz, ~0.79 V, by two Newton iterations at most) stops
+// the branch there. It once restarted past the grazing point of the non-contacting response at
+// 1.0974 V, 0.3 V away, and reported that grazing point as the contacting branch's end: the map's
+// lowest contacting amplitude then read 1.0974 V where CVODE holds a stable contacting orbit at 0.85 V.
+TEST(ContinuationTest, AStallFarFromGrazingStopsTheBranchInsteadOfJumping) {
+  ActuatorModel model = PaperModel();
+  model.cubic_stiffness_n_per_m3 = 2.5e7;
+  model.contact_law = ContactLaw::kHertzian;
+  model.contact_stiffness = 2.65e8;
+  constexpr double kFrequencyHz = 18.5678, kStartV = 1.42665;  // 1.3 x grazing, as SweepColumn starts
+  const PeriodMap map(model, kFrequencyHz, kStartV);
+  const std::optional<SteadyState> start = Shoot(map, map.ClippedLinearStart(), 1);
+  ASSERT_TRUE(start);
+  ContinuationOptions crippled;
+  crippled.stop_at_first_event = true;
+  crippled.max_corrector_iterations = 2;
+  crippled.min_step = 1e-3;
+  const ContinuedBranch branch = ContinueBranch(model, ContinuationParameter::kAmplitudeV, kFrequencyHz, kStartV,
+                                                start->start, 0.05, 2.0 * kStartV, false, crippled);
+  for (const BranchEvent& e : branch.events) EXPECT_NE(e.kind, BranchEvent::Kind::kGrazing) << e.point.parameter;
+  for (const BranchPoint& p : branch.points) EXPECT_TRUE(p.contacting()) << "at " << p.parameter << " V";
+  EXPECT_EQ(branch.stopped_because.rfind("corrector failed", 0), 0u) << branch.stopped_because;
+  EXPECT_LT(branch.points.back().parameter, 0.85);  // it got near the fold before it stalled
+}
+
 TEST(PeriodDoublingTest, JustPastGrazingAt8HzTheResponseIsPeriod2) {
   // At 8 Hz, 0.262-0.267 V, the period-1 orbit is unstable (a Floquet
   // multiplier below -1) and the response is period-2.

@@ -200,7 +200,10 @@ bool PeriodDoublingLike(const BranchPoint& unstable) {
 
 // Where continuation stalls next to a grazing point: the grazing point itself and the first orbit
 // past it on the other leg (the one with the other contact state), tried in the direction of
-// travel first (a smooth passage) and then back (a corner).
+// travel first (a smooth passage) and then back (a corner). None where the grazing point found lies
+// farther from the stall than `reach` (scaled): the stall has another cause (a fold the corrector
+// could not round), and a restart there would jump onto another branch and report a grazing point
+// this branch never reaches.
 struct GrazingRestart {
   BranchPoint graze, point;
   Vec3 u, tangent;
@@ -208,11 +211,12 @@ struct GrazingRestart {
 
 std::optional<GrazingRestart> RestartPastGrazing(const ActuatorModel& model, ContinuationParameter which,
                                                  double fixed_value, const BranchProblem& problem,
-                                                 const BranchPoint& last, const Vec3& travel) {
+                                                 const BranchPoint& last, const Vec3& travel, double reach) {
   const std::optional<BranchPoint> graze = LocateGrazing(model, which, fixed_value, last);
   if (!graze) return std::nullopt;
   const double direction = travel.p >= 0 ? 1.0 : -1.0;
   const Vec3 at_graze = problem.ToScaled(graze->parameter, graze->start);
+  if ((at_graze - problem.ToScaled(last.parameter, last.start)).Norm() > reach) return std::nullopt;
   for (double sign : {direction, -direction}) {
     for (double offset : {1e-6, 1e-5, 1e-4}) {
       const double p = graze->parameter * (1.0 + sign * offset);
@@ -334,7 +338,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
         // Newton can lose its footing next to a grazing point, where the map is not smooth:
         // restart on the other side of it.
         if (!restarted_here) {
-          if (auto restart = RestartPastGrazing(model, which, fixed_value, problem, last, t)) {
+          if (auto restart = RestartPastGrazing(model, which, fixed_value, problem, last, t, 2.0 * options.max_step)) {
             restarted_here = true;
             branch.events.push_back({BranchEvent::Kind::kGrazing, branch.points.size() - 1, restart->graze, false});
             restart->point.arclength = arclength + (restart->u - u).Norm();
