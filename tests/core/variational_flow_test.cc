@@ -260,6 +260,30 @@ TEST(VariationalFlowTest, DriveDerivativesAreTheMapsFiniteDifferences) {
   }
 }
 
+// A record of two drive periods at 51.2 kHz from `start`, velocity included.
+SimulationOptions TwoPeriodsAt51kHz(double frequency_hz, State start) {
+  SimulationOptions sim;
+  sim.sample_rate_hz = 51200.0;
+  sim.duration_s = 2.0 / frequency_hz;
+  sim.initial = start;
+  sim.record_velocity = true;
+  return sim;
+}
+
+// The largest |x|, |v| and |force| of a record: the scale of the samples' tolerances.
+struct Peaks {
+  double x_m = 0, v_m_per_s = 0, force_n = 0;
+};
+Peaks PeaksOf(const Record& record) {
+  Peaks peaks;
+  for (size_t n = 0; n < record.displacement_m.size(); ++n) {
+    peaks.x_m = std::max(peaks.x_m, std::abs(record.displacement_m[n]));
+    peaks.v_m_per_s = std::max(peaks.v_m_per_s, std::abs(record.velocity_m_per_s[n]));
+    peaks.force_n = std::max(peaks.force_n, std::abs(record.force_n[n]));
+  }
+  return peaks;
+}
+
 // The samples on a record's grid from the dense output (what the fit's sampling correction analyses)
 // against the exact engine's record of the same motion: 51.2 kHz over two periods, through contacts,
 // a damped stop and clipping; displacement, velocity and force to 1e-8 of their largest values (the
@@ -269,11 +293,7 @@ TEST(VariationalFlowTest, SamplesOnARecordsGridAreTheExactEnginesRecord) {
     SCOPED_TRACE(c.name);
     const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
     const State start = SettledStart(c.model, drive);
-    SimulationOptions sim;
-    sim.sample_rate_hz = 51200.0;
-    sim.duration_s = 2.0 / c.frequency_hz;
-    sim.initial = start;
-    sim.record_velocity = true;
+    const SimulationOptions sim = TwoPeriodsAt51kHz(c.frequency_hz, start);
     const Record exact = MakeExactEngine()->Simulate(c.model, drive, sim);
     FlowRequest request;
     request.sample_count = static_cast<int>(exact.displacement_m.size());
@@ -282,17 +302,67 @@ TEST(VariationalFlowTest, SamplesOnARecordsGridAreTheExactEnginesRecord) {
     const FlowResult flow = Flow(c.model, drive, start, 0.0, end_s, request);
     ASSERT_EQ(flow.samples.size(), exact.displacement_m.size());
     ASSERT_EQ(flow.sample_force_n.size(), exact.force_n.size());
-    double x_max = 0, v_max = 0, f_max = 0;
-    for (size_t n = 0; n < exact.displacement_m.size(); ++n) {
-      x_max = std::max(x_max, std::abs(exact.displacement_m[n]));
-      v_max = std::max(v_max, std::abs(exact.velocity_m_per_s[n]));
-      f_max = std::max(f_max, std::abs(exact.force_n[n]));
-    }
+    const Peaks peaks = PeaksOf(exact);
+    const double x_max = peaks.x_m, v_max = peaks.v_m_per_s, f_max = peaks.force_n;
     for (size_t n = 0; n < exact.displacement_m.size(); ++n) {
       ASSERT_NEAR(flow.samples[n].x_m, exact.displacement_m[n], 1e-8 * x_max) << "sample " << n;
       ASSERT_NEAR(flow.samples[n].v_m_per_s, exact.velocity_m_per_s[n], 1e-8 * v_max) << "sample " << n;
       ASSERT_NEAR(flow.sample_force_n[n], exact.force_n[n], 1e-8 * f_max) << "sample " << n;
     }
+  }
+}
+
+// Hertzian contacts, whose two ends the flow integrates over u = sqrt(p) (variational_flow.cc's top),
+// against CVODE's record of the same motion at rtol 1e-12 (an independent integrator that steps over
+// t throughout): the samples at 51.2 kHz over two periods, and the end of a flow that stops at each
+// sample instant within a contact (its end cut out of a step over u where it falls in an entry or a
+// release). Lower and upper stops; to 1e-8 of the largest values, what the flow's tolerance of 1e-11
+// and CVODE's leave after ~10 steps of error growth through each stiff contact.
+TEST(VariationalFlowTest, HertzianContactsAreCvodesRecord) {
+  ActuatorModel lower = PaperModel();
+  lower.contact_law = ContactLaw::kHertzian;
+  lower.contact_stiffness = 2.65e8;
+  lower.cubic_stiffness_n_per_m3 = 2.5e7;
+  ActuatorModel both = lower;
+  both.upper_stop_m = 1.2e-3;
+  ActuatorModel damped = lower;  // the force jumps at entry, and the release is at p > 0, over t
+  damped.contact_damping_n_s_per_m = 15.0;
+  const PwlCase cases[] = {{"lower_8Hz_0.5V", lower, 8.0, 0.5},
+                           {"lower_13Hz_0.6V", lower, 13.0, 0.6},
+                           {"both_10Hz_0.8V", both, 10.0, 0.8},
+                           {"damped_8Hz_0.5V", damped, 8.0, 0.5}};
+  for (const PwlCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    const SineDrive drive{c.amplitude_v, c.frequency_hz, 0.0};
+    const State start = SettledStart(c.model, drive);
+    SimulationOptions sim = TwoPeriodsAt51kHz(c.frequency_hz, start);
+    sim.cvode_relative_tolerance = 1e-12;
+    sim.cvode_absolute_tolerance_m = 1e-17;
+    sim.cvode_absolute_tolerance_m_per_s = 1e-14;
+    const Record reference = MakeCvodeEngine()->Simulate(c.model, drive, sim);
+    const size_t count = reference.displacement_m.size();
+    const Peaks peaks = PeaksOf(reference);
+    const double x_max = peaks.x_m, v_max = peaks.v_m_per_s, f_max = peaks.force_n;
+    FlowRequest request;
+    request.sample_count = static_cast<int>(count);
+    request.sample_interval_s = 1.0 / sim.sample_rate_hz;
+    const FlowResult flow = Flow(c.model, drive, start, 0.0, (count - 1) * request.sample_interval_s, request);
+    ASSERT_GE(flow.contacts, 2);
+    for (size_t n = 0; n < count; ++n) {
+      ASSERT_NEAR(flow.samples[n].x_m, reference.displacement_m[n], 1e-8 * x_max) << "sample " << n;
+      ASSERT_NEAR(flow.samples[n].v_m_per_s, reference.velocity_m_per_s[n], 1e-8 * v_max) << "sample " << n;
+      ASSERT_NEAR(flow.sample_force_n[n], reference.force_n[n], 1e-8 * f_max) << "sample " << n;
+    }
+    int ends_in_contact = 0;
+    for (size_t n = 1; n < count; ++n) {
+      const double x = reference.displacement_m[n];
+      if (!(x < c.model.lower_stop_m || x > c.model.upper_stop_m)) continue;
+      ++ends_in_contact;
+      const State end = Flow(c.model, drive, start, 0.0, n * request.sample_interval_s, {}).end;
+      ASSERT_NEAR(end.x_m, x, 1e-8 * x_max) << "a flow ending at sample " << n;
+      ASSERT_NEAR(end.v_m_per_s, reference.velocity_m_per_s[n], 1e-8 * v_max) << "a flow ending at sample " << n;
+    }
+    EXPECT_GE(ends_in_contact, 10);
   }
 }
 

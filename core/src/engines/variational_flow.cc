@@ -1,6 +1,18 @@
 // The DOP853 integration of variational_flow.h: steps with error control on (x, v) and the
 // sensitivity columns, switching surfaces located on the dense output, the step cut at each switch
 // and the sensitivities' jump applied there.
+//
+// The two ends of a Hertzian contact are integrated over u = sqrt(p) instead of t. The stop force
+// k_s p^1.5 makes the solution non-analytic in t where p = 0 (x ~ t^3.5 and the sensitivities ~ t^1.5
+// after entry): an 8th-order step over or next to such a point is rejected until it is ~1e-10 s
+// long, and the steps after it grow back by ~1.5x each (~100 tries per contact). With p = u^2 the
+// solution is analytic in u (p^1.5 = u^3), and dt/du = 2u / p' is regular while the mass moves into
+// or out of the stop (p' != 0). After entry, u grows from 0 while the time each step covers still
+// grows (it stops growing as p' falls) and p' is above half its entry value; on the way out, once p
+// is back under half its largest value, u falls to 0, which is the release (without contact damping
+// the force vanishes exactly at p = 0). Time is then a component of the integrated vector (index n,
+// after the layout's), and samples and time boundaries are found on its dense output. Where u fails
+// as a chart (the mass turns round within the stop), the contact goes on over t.
 #include "strokelab/engines/variational_flow.h"
 
 #include <algorithm>
@@ -26,6 +38,10 @@ double StepFactor(double error) { return kStepSafety / std::sqrt(std::sqrt(std::
 // The longest step, as a fraction of the shortest period of drive and suspension: at most one extremum
 // of x per step, so that an apex shows a grazing contact the step's ends do not.
 constexpr double kFlowMaxStepFraction = 1.0 / 20.0;
+
+// An entry slower than this many length scales per shortest period grazes the stop: its contact is
+// too brief for the change of variable to pay (and p' may turn at once), so it stays over t.
+constexpr double kGrazingRate = 1e-3;
 
 // Instants in (t0, t1) where the drive crosses the amplifier's limit: sin(w t + phi) = +-r, r = limit / V.
 std::vector<double> ClippingKinks(const ActuatorModel& model, const SineDrive& drive, double t0, double t1) {
@@ -94,16 +110,22 @@ class FlowIntegrator {
  public:
   FlowIntegrator(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request,
              const FlowOptions& options)
-      : field_(model, drive, request), drive_(drive), request_(request), options_(options), n_(field_.layout().size) {
-    k_.assign(static_cast<size_t>(dop853::kExtendedStages) * n_, 0.0);
-    y_.assign(n_, 0.0);
-    y_new_.assign(n_, 0.0);
-    stage_.assign(n_, 0.0);
-    dense_.assign(static_cast<size_t>(dop853::kDenseTerms) * n_, 0.0);
+      : field_(model, drive, request),
+        drive_(drive),
+        request_(request),
+        options_(options),
+        n_(field_.layout().size),
+        width_(n_ + 1) {
+    k_.assign(static_cast<size_t>(dop853::kExtendedStages) * width_, 0.0);
+    y_.assign(width_, 0.0);
+    y_new_.assign(width_, 0.0);
+    stage_.assign(width_, 0.0);
+    dense_.assign(static_cast<size_t>(dop853::kDenseTerms) * width_, 0.0);
     double shortest_s = 1.0 / drive.frequency_hz;
     if (model.stiffness_n_per_m > 0)
       shortest_s = std::min(shortest_s, 2.0 * std::numbers::pi * std::sqrt(model.mass_kg / model.stiffness_n_per_m));
     max_step_s_ = kFlowMaxStepFraction * shortest_s;
+    shortest_period_s_ = shortest_s;
     // A column's absolute tolerances are the state's over the size of its perturbation: the length
     // scale for x0, the length scale times w for v0, |p| for a parameter (1 where p = 0).
     const variational::Layout& l = field_.layout();
@@ -126,8 +148,10 @@ class FlowIntegrator {
 
  private:
   const ActuatorModel& model() const { return field_.model(); }
-  double* K(int stage) { return &k_[static_cast<size_t>(stage) * n_]; }
-  double* DenseTerm(int i) { return &dense_[static_cast<size_t>(i) * n_]; }
+  double* K(int stage) { return &k_[static_cast<size_t>(stage) * width_]; }
+  double* DenseTerm(int i) { return &dense_[static_cast<size_t>(i) * width_]; }
+  // Components integrated: the layout's, and time as the last one over u (see the top).
+  int Active() const { return phase_.active ? width_ : n_; }
   // Stage s's argument y + h sum_j a_sj k_j into stage_, and the field there into dy.
   void StageState(int s, double h);
   void EvaluateStage(int s, double t, double h, const double* y, double* dy);
@@ -139,8 +163,19 @@ class FlowIntegrator {
   // The interpolated component i at theta in [0, 1] of the step.
   double Interpolate(int i, double theta) const;
   void Note(double t, double x, double v);
-  // The requested samples at instants up to t_until within the step just taken from t (size h).
+  // The requested samples at instants up to t_until within the step just taken from t (size h; over
+  // u, t and h are the independent variable's and the instants are found on time's dense output).
   void Sample(double t, double h, double t_until);
+  double ThetaAt(double t, double h, double time_s);
+  // p' of the phase's stop in the state y: dp/dt, -v for the lower stop, v for the upper.
+  double PenetrationRate(const double* y) const { return phase_.stop.upper ? y[1] : -y[1]; }
+  // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
+  // release.
+  bool RootPhaseApplies(bool entry) const;
+  // Integrates the contact end from y_ at time t over u (see the top) until it is left, the stop
+  // releases, or time reaches `boundary`; y_ and K(0) are then over t again. Returns the time
+  // reached; *h is the time step to go on with.
+  double RunRootPhase(double t, double boundary, const variational::StopSurface& stop, double direction, double* h);
   // Cuts the step at theta, switches the mode across `surface`, applies the jump.
   void Switch(double t, double h, double theta, const variational::StopSurface& surface, bool entry);
   // Locates the first switch in the step just taken (and notes its apex); if there is one, cuts the
@@ -152,13 +187,25 @@ class FlowIntegrator {
   const FlowRequest& request_;
   const FlowOptions& options_;
   int n_;
+  int width_;  // n_ and time (over u)
   std::vector<double> k_, y_, y_new_, stage_, dense_;
-  double max_step_s_ = 0.0;
+  double max_step_s_ = 0.0, shortest_period_s_ = 0.0;
   int controlled_ = 2;                      // components under error control: (x, v) and the columns
   std::vector<double> absolute_tolerance_;  // per controlled component
   ContactMode mode_;
   std::vector<variational::StopSurface> stops_;  // the penetration surface of each stop present
   double switch_time_ = 0.0;    // the instant of the last switch [s]
+  variational::StopSurface last_switch_;  // and its surface,
+  bool last_switch_entry_ = false;        // whether it entered a stop
+  double largest_penetration_m_ = 0.0;    // p's largest value at step ends in the current contact
+  bool release_over_u_failed_ = false;    // in the current contact: the release stays over t
+  // A contact end integrated over u = u_start + direction * sigma (sigma the independent variable).
+  struct RootPhase {
+    bool active = false;
+    variational::StopSurface stop;
+    double direction = 1.0;  // +1: after entry, u grows from 0; -1: before release, u falls to 0
+    double u_start = 0.0;    // [m^0.5]
+  } phase_;
   double step_cos_ = 1.0, step_sin_ = 0.0;  // cos(wt), sin(wt) at the start of the step being taken
   bool dense_ready_ = false;               // PrepareDense ran for the step just taken
   int next_sample_ = 0;
@@ -166,6 +213,17 @@ class FlowIntegrator {
 };
 
 void FlowIntegrator::EvaluateStage(int s, double t, double h, const double* y, double* dy) {
+  if (phase_.active) {  // t is sigma here; time is y[n_]
+    const double u = phase_.u_start + phase_.direction * (t + dop853::kC[s] * h);
+    const double dt_dsigma = phase_.direction * 2.0 * u / PenetrationRate(y);  // dt/du du/dsigma
+    field_.Evaluate(y[n_], y, dy, mode_);
+    // A stage where the mass turned round (p' of the wrong sign) is off the phase's chart: the step
+    // is rejected (a NaN error).
+    const double factor = dt_dsigma >= 0 ? dt_dsigma : std::numeric_limits<double>::quiet_NaN();
+    for (int i = 0; i < n_; ++i) dy[i] *= factor;
+    dy[n_] = factor;
+    return;
+  }
   // One sin and cos at the step's start (Step), rotated to the stage's node.
   const double theta = field_.omega_rad_per_s() * dop853::kC[s] * h;
   if (!(std::abs(theta) <= 0.5)) {
@@ -181,7 +239,7 @@ void FlowIntegrator::EvaluateStage(int s, double t, double h, const double* y, d
 // N > 0: the component count known at compile time (the sweep's common sizes), which lets the
 // compiler keep the sums in registers; N = 0: any count n.
 template <int N>
-void AccumulateStage(int s, double h, const double* y, const double* k, int n, double* out) {
+void AccumulateStage(int s, double h, const double* y, const double* k, int n, int stride, double* out) {
   const int count = N > 0 ? N : n;
   double sum[N > 0 ? N : 1];
   double* acc = N > 0 ? sum : out;
@@ -190,7 +248,7 @@ void AccumulateStage(int s, double h, const double* y, const double* k, int n, d
     const double a = dop853::kA[s][j];
     if (a == 0.0) continue;
     const double ha = h * a;
-    const double* kj = k + static_cast<size_t>(j) * n;
+    const double* kj = k + static_cast<size_t>(j) * stride;
     for (int i = 0; i < count; ++i) acc[i] += ha * kj[i];
   }
   if (N > 0)
@@ -199,18 +257,20 @@ void AccumulateStage(int s, double h, const double* y, const double* k, int n, d
 
 void FlowIntegrator::StageState(int s, double h) {
   // The sizes of Apply (2), Linearize with a drive column (8) and Trace (10).
-  switch (n_) {
-    case 2: return AccumulateStage<2>(s, h, y_.data(), K(0), n_, stage_.data());
-    case 8: return AccumulateStage<8>(s, h, y_.data(), K(0), n_, stage_.data());
-    case 10: return AccumulateStage<10>(s, h, y_.data(), K(0), n_, stage_.data());
-    default: return AccumulateStage<0>(s, h, y_.data(), K(0), n_, stage_.data());
+  switch (phase_.active ? 0 : n_) {
+    case 2: return AccumulateStage<2>(s, h, y_.data(), K(0), n_, width_, stage_.data());
+    case 8: return AccumulateStage<8>(s, h, y_.data(), K(0), n_, width_, stage_.data());
+    case 10: return AccumulateStage<10>(s, h, y_.data(), K(0), n_, width_, stage_.data());
+    default: return AccumulateStage<0>(s, h, y_.data(), K(0), Active(), width_, stage_.data());
   }
 }
 
 double FlowIntegrator::Step(double t, double h) {
   dense_ready_ = false;
-  step_cos_ = std::cos(field_.omega_rad_per_s() * t);
-  step_sin_ = std::sin(field_.omega_rad_per_s() * t);
+  if (!phase_.active) {
+    step_cos_ = std::cos(field_.omega_rad_per_s() * t);
+    step_sin_ = std::sin(field_.omega_rad_per_s() * t);
+  }
   for (int s = 1; s < dop853::kStages; ++s) {
     StageState(s, h);
     EvaluateStage(s, t, h, stage_.data(), K(s));
@@ -221,10 +281,9 @@ double FlowIntegrator::Step(double t, double h) {
   // Error norm over (x, v) and the sensitivity columns (Hairer, Norsett and Wanner, Sec. II.10, the
   // DOP853 estimate): a column is less smooth than the state where a force's derivative is (Hertzian
   // contact's p^(1/2) at entry), and controlling the state alone left 0.1 % errors in the monodromy.
+  // Over u, time is controlled too, to the state's relative tolerance of the shortest period.
   double err5 = 0.0, err3 = 0.0;
-  for (int i = 0; i < controlled_; ++i) {
-    const double relative = i < 2 ? options_.relative_tolerance : options_.sensitivity_relative_tolerance;
-    const double scale = absolute_tolerance_[i] + relative * std::max(std::abs(y_[i]), std::abs(y_new_[i]));
+  auto add = [&](int i, double scale) {
     double e5 = 0.0, e3 = 0.0;
     for (int j = 0; j <= dop853::kStages; ++j) {
       e5 += dop853::kE5[j] * K(j)[i];
@@ -232,9 +291,15 @@ double FlowIntegrator::Step(double t, double h) {
     }
     err5 += (e5 / scale) * (e5 / scale);
     err3 += (e3 / scale) * (e3 / scale);
+  };
+  for (int i = 0; i < controlled_; ++i) {
+    const double relative = i < 2 ? options_.relative_tolerance : options_.sensitivity_relative_tolerance;
+    add(i, absolute_tolerance_[i] + relative * std::max(std::abs(y_[i]), std::abs(y_new_[i])));
   }
+  if (phase_.active) add(n_, options_.relative_tolerance * shortest_period_s_);
   if (err5 == 0.0 && err3 == 0.0) return 0.0;
-  const double error = std::abs(h) * err5 / std::sqrt((err5 + 0.01 * err3) * controlled_);
+  const int controlled = controlled_ + (phase_.active ? 1 : 0);
+  const double error = std::abs(h) * err5 / std::sqrt((err5 + 0.01 * err3) * controlled);
   return std::isfinite(error) ? error : std::numeric_limits<double>::infinity();
 }
 
@@ -246,7 +311,7 @@ void FlowIntegrator::PrepareDense(double t, double h) {
     StageState(s, h);
     EvaluateStage(s, t, h, stage_.data(), K(s));
   }
-  for (int i = 0; i < n_; ++i) {
+  for (int i = 0; i < Active(); ++i) {
     const double delta = y_new_[i] - y_[i];
     DenseTerm(0)[i] = delta;
     DenseTerm(1)[i] = h * K(0)[i] - delta;
@@ -263,7 +328,7 @@ double FlowIntegrator::Interpolate(int i, double theta) const {
   // y_old + F0 th + F1 th (1-th) + F2 th^2 (1-th) + ..., nested as in the DOP853 code's CONTD8.
   double value = 0.0;
   for (int term = dop853::kDenseTerms - 1; term >= 0; --term) {
-    value += dense_[static_cast<size_t>(term) * n_ + i];
+    value += dense_[static_cast<size_t>(term) * width_ + i];
     value *= term % 2 == 0 ? theta : 1.0 - theta;
   }
   return y_[i] + value;
@@ -281,11 +346,20 @@ void FlowIntegrator::Sample(double t, double h, double t_until) {
     const double ts = request_.sample_start_s + next_sample_ * request_.sample_interval_s;
     if (ts > t_until) return;
     PrepareDense(t, h);
-    const double theta = (ts - t) / h, x = Interpolate(0, theta), v = Interpolate(1, theta);
+    const double theta = ThetaAt(t, h, ts), x = Interpolate(0, theta), v = Interpolate(1, theta);
     result_.samples.push_back({x, v});
     result_.sample_force_n.push_back(field_.Force(ts, x, v, mode_));
     ++next_sample_;
   }
+}
+
+double FlowIntegrator::ThetaAt(double t, double h, double time_s) {
+  if (!phase_.active) return (time_s - t) / h;
+  // Time grows over the step (dt/du has the phase's sign): its root on the dense output.
+  const double start = y_[n_] - time_s, end = y_new_[n_] - time_s;
+  if (end <= 0.0) return 1.0;
+  if (start >= 0.0) return 0.0;
+  return LocateRootOnStep([&](double theta) { return Interpolate(n_, theta) - time_s; }, start, end);
 }
 
 void FlowIntegrator::Switch(double t, double h, double theta, const variational::StopSurface& surface, bool entry) {
@@ -315,7 +389,13 @@ void FlowIntegrator::Switch(double t, double h, double theta, const variational:
     }
   }
   mode_ = after;
-  if (entry) ++result_.contacts;
+  last_switch_ = surface;
+  last_switch_entry_ = entry;
+  if (entry) {
+    ++result_.contacts;
+    largest_penetration_m_ = 0.0;
+    release_over_u_failed_ = false;
+  }
   y_.swap(y_new_);
   field_.Evaluate(t_switch, y_.data(), K(0), mode_);
   Note(t_switch, x, v);
@@ -382,6 +462,94 @@ bool FlowIntegrator::HandleEvents(double t, double h) {
   return true;
 }
 
+bool FlowIntegrator::RootPhaseApplies(bool entry) const {
+  const ActuatorModel& m = model();
+  if (m.contact_law != ContactLaw::kHertzian) return false;
+  // With contact damping the force vanishes at p > 0 on the way out, where the solution is smooth.
+  if (!entry && (m.contact_damping_n_s_per_m != 0.0 || release_over_u_failed_)) return false;
+  return true;
+}
+
+double FlowIntegrator::RunRootPhase(double t, double boundary, const variational::StopSurface& stop, double direction,
+                                    double* h_time) {
+  const double entry_rate = direction > 0 ? (stop.upper ? y_[1] : -y_[1]) : 0.0;
+  const double p_start = stop.Value(model(), y_[0], y_[1]);
+  phase_ = {true, stop, direction, direction > 0 ? 0.0 : std::sqrt(std::max(p_start, 0.0))};
+  // First step: near u = 0, dt = 2 u du / p', so a time step h covers du ~ sqrt(h p'); after entry at
+  // most a quarter of sqrt(p_max), p_max = (5 m p'^2 / (4 k_s))^(2/5) the deepest penetration of a
+  // free Hertzian impact at that speed (Johnson, Contact Mechanics, 1985, Sec. 11.4).
+  const double rate = std::abs(PenetrationRate(y_.data()));
+  double h;
+  if (direction > 0) {
+    const double p_max = std::pow(1.25 * model().mass_kg * rate * rate / model().contact_stiffness, 0.4);
+    h = std::min(std::sqrt(*h_time * rate), 0.25 * std::sqrt(p_max));
+  } else {
+    h = std::min(phase_.u_start, *h_time * rate / (2.0 * phase_.u_start));
+  }
+  double sigma = 0.0;
+  y_[n_] = t;
+  EvaluateStage(0, sigma, 0.0, y_.data(), K(0));
+  auto leave = [&](double time_s) {
+    phase_.active = false;
+    field_.Evaluate(time_s, y_.data(), K(0), mode_);
+    return time_s;
+  };
+  bool rejected_last = false;
+  int rejections_in_row = 0;
+  double last_dt = 0.0;  // the time the last accepted step covered
+  for (;;) {
+    double h_try = h;
+    const bool to_release = direction < 0 && sigma + h_try >= phase_.u_start;
+    if (to_release) h_try = phase_.u_start - sigma;
+    if (++result_.steps > options_.max_steps)
+      throw NumericalError("the variational flow spent its budget of " + std::to_string(options_.max_steps) +
+                           " steps at t = " + std::to_string(t) + " s in a Hertzian contact");
+    const double error = h_try > 0 ? Step(sigma, h_try) : std::numeric_limits<double>::infinity();
+    if (!(error <= 1.0)) {
+      ++result_.rejected_steps;
+      // Where p' nears 0 within the phase (the mass turns round in the stop), u is no chart: go on over t.
+      if (++rejections_in_row > 12 || !(h_try > 1e-12 * phase_.u_start)) {
+        if (direction < 0) release_over_u_failed_ = true;
+        return leave(t);
+      }
+      h = h_try * (std::isfinite(error) ? std::max(kMinStepFactor, StepFactor(error)) : kMinStepFactor);
+      rejected_last = true;
+      continue;
+    }
+    rejections_in_row = 0;
+    double factor = error == 0.0 ? kMaxStepFactor : std::min(kMaxStepFactor, StepFactor(error));
+    if (rejected_last) factor = std::min(factor, 1.0);
+    rejected_last = false;
+    const double t_end = y_new_[n_];
+    if (t_end >= boundary) {  // cut at the boundary
+      PrepareDense(sigma, h_try);
+      const double theta = ThetaAt(sigma, h_try, boundary);
+      Sample(sigma, h_try, boundary);
+      for (int i = 0; i < n_; ++i) y_new_[i] = Interpolate(i, theta);
+      y_.swap(y_new_);
+      *h_time = std::max(boundary - t, 1e-3 * max_step_s_);
+      return leave(boundary);
+    }
+    Sample(sigma, h_try, t_end);
+    const double dt = t_end - t;
+    *h_time = dt * factor;
+    t = t_end;
+    sigma += h_try;
+    y_.swap(y_new_);
+    std::copy_n(K(dop853::kStages), width_, K(0));
+    if (to_release) {  // p = 0: the stop lets go, with no jump (its force is 0 there)
+      (stop.upper ? mode_.upper : mode_.lower) = false;
+      Note(t, y_[0], y_[1]);
+      return leave(t);
+    }
+    // After entry, u pays while the time per step grows; it stops growing as p' falls (dt/du = 2u/p'),
+    // and t is then far enough from the entry for its own steps.
+    if (direction > 0 && (dt < 1.2 * last_dt || PenetrationRate(y_.data()) <= 0.5 * entry_rate)) return leave(t);
+    last_dt = dt;
+    h = h_try * factor;
+  }
+}
+
 FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   const variational::Layout& l = field_.layout();
   y_[0] = start.x_m;
@@ -427,6 +595,11 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
     h = to_boundary ? std::max(h, h_try * factor) : h_try * factor;
     if (HandleEvents(t, h_try)) {
       t = switch_time_;  // Switch moved y_ to the switch instant
+      if (last_switch_entry_ && !last_switch_.force && RootPhaseApplies(true) &&
+          std::abs(y_[1]) > kGrazingRate * LengthScaleM(model()) / shortest_period_s_) {
+        t = RunRootPhase(t, boundary, last_switch_, 1.0, &h);
+        if (t >= boundary) ++next_boundary;
+      }
       continue;
     }
     const double t_end = to_boundary ? boundary : t + h_try;
@@ -435,6 +608,18 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
     if (to_boundary) ++next_boundary;
     y_.swap(y_new_);
     std::copy_n(K(dop853::kStages), n_, K(0));  // first same as last
+    // On the way out of a Hertzian stop, past half its largest penetration: the release over u.
+    for (const variational::StopSurface& penetration : stops_) {
+      if (!(penetration.upper ? mode_.upper : mode_.lower) || t >= t1) continue;
+      const double p = penetration.Value(model(), y_[0], y_[1]);
+      largest_penetration_m_ = std::max(largest_penetration_m_, p);
+      const double rate = penetration.upper ? y_[1] : -y_[1];
+      if (rate < 0 && p > 0 && p <= 0.5 * largest_penetration_m_ && RootPhaseApplies(false)) {
+        const double next = boundaries[next_boundary];
+        t = RunRootPhase(t, next, penetration, -1.0, &h);
+        if (t >= next) ++next_boundary;
+      }
+    }
   }
   Note(t1, y_[0], y_[1]);
   for (; next_sample_ < request_.sample_count; ++next_sample_) {  // the last instant's rounding past t1
