@@ -240,6 +240,34 @@ TEST(AttractorTest, SettledAttractorIsTheOneTheTimeDomainReaches) {
   EXPECT_LT(off, 1e-9);  // m; the transient decays by ~0.18 per period
 }
 
+// SettledAttractor stops its plain periods once the motion repeats with period 1 or 2: the orbit it
+// returns must be the one all 400 periods and the period search reach (the procedure it shortens),
+// for a period-1 attractor (paper model, 8 Hz / 0.5 V, multipliers ~1e-3) and a period-2 one (8 Hz /
+// 0.264 V, just past grazing), to the shooting tolerance.
+TEST(AttractorTest, SettlingStopsOnceTheMotionRepeatsAndFindsTheSameOrbit) {
+  for (const double amplitude_v : {0.5, 0.264}) {
+    SCOPED_TRACE(amplitude_v);
+    const PeriodMap map(PaperModel(), 8.0, amplitude_v);
+    const std::optional<SteadyState> settled = SettledAttractor(map, map.ClippedLinearStart());
+    ASSERT_TRUE(settled.has_value());
+    State y = map.ClippedLinearStart();
+    for (int i = 0; i < ShootingOptions{}.settle_periods; ++i) y = map.Apply(y);
+    int period = 0;
+    for (State z = map.Apply(y); period < 16; z = map.Apply(z))
+      if (++period, std::hypot(z.x_m - y.x_m, z.v_m_per_s - y.v_m_per_s) < 1e-12) break;
+    const std::optional<SteadyState> reference = Shoot(map, y, period);
+    ASSERT_TRUE(reference.has_value());
+    EXPECT_EQ(settled->period, amplitude_v == 0.5 ? 1 : 2);
+    EXPECT_EQ(settled->period, reference->period);
+    // The same orbit, though perhaps another of its phases for period 2: one of its periods' starts.
+    double closest = INFINITY;
+    State z = reference->start;
+    for (int k = 0; k < reference->period; ++k, z = map.Apply(z))
+      closest = std::min(closest, std::hypot((settled->start.x_m - z.x_m) / 1e-3, (settled->start.v_m_per_s - z.v_m_per_s) / 0.05));
+    EXPECT_LT(closest, 1e-9);
+  }
+}
+
 // Newton's iterates use Linearize, the reported orbit Trace: the two must agree bit for bit on what
 // both compute, on a contacting orbit (switches, saltation) and a free one.
 TEST(PeriodMapTest, LinearizeIsTraceWithoutTheFigures) {

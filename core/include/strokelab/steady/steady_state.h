@@ -92,7 +92,7 @@ struct ShootingOptions {
   int plain_iterations = 3;          // period iterations before Newton (it can cycle)
   int max_newton_iterations = 30;
   double tolerance = 1e-11;          // on the scaled residual |P^k(y) - y| (x / L, v / (w L)), L = length scale
-  int settle_periods = 400;          // plain iterations when Newton fails, to reach an attractor
+  int settle_periods = 400;          // plain iterations when Newton fails, to reach an attractor (at most)
   int max_period = 16;               // longest period searched for
   std::optional<FieldError> IsValid() const;
 };
@@ -120,7 +120,8 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period =
 SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOptions& options = {});
 
 // The attractor whose basin holds `guess`, as a test rig or a time simulation reaches it: settle_periods
-// plain periods first, then the period of the settled motion and Newton on that period. SolveAttractor
+// plain periods first (fewer once the motion repeats with period 1 or 2), then the period of the
+// settled motion and Newton on that period. SolveAttractor
 // tries Newton on period 1 early and can land on a coexisting stable period-1 orbit instead (e.g. just
 // past grazing a second stop, where a period-2 orbit and a two-contact period-1 orbit coexist);
 // nullopt when the settled motion has no stable period up to max_period.
