@@ -121,10 +121,10 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
 
 // The attractor whose basin holds `guess`, as a test rig or a time simulation reaches it: settle_periods
 // plain periods first (fewer once the motion repeats with period 1 or 2), then the period of the
-// settled motion and Newton on that period. SolveAttractor
-// tries Newton on period 1 early and can land on a coexisting stable period-1 orbit instead (e.g. just
-// past grazing a second stop, where a period-2 orbit and a two-contact period-1 orbit coexist);
-// nullopt when the settled motion has no stable period up to max_period.
+// settled motion and Newton on that period. SolveAttractor tries Newton on period 1 early and can land
+// on a coexisting stable period-1 orbit instead (e.g. just past grazing a second stop, where a period-2
+// orbit and a two-contact period-1 orbit coexist); nullopt when the settled motion has no stable
+// period up to max_period.
 std::optional<SteadyState> SettledAttractor(const PeriodMap& map, State guess, const ShootingOptions& options = {});
 
 // Harmonics C_h, h = 1..orders, of x over `period` drive periods from `start` (on the orbit at phase 0):
