@@ -3,8 +3,8 @@
 // be a self-contained file (no -wal beside it) that passes PRAGMA integrity_check, at the latest
 // schema version, and a consistent snapshot: per job, tasks_done is the number of done tasks and the
 // status follows from it; a done task's result rows are exactly the rows the store holds for it when
-// the service has stopped, a task not done has none; the job's last recorded event is its status. And its refusals, one
-// line each.
+// the service has stopped, a task not done has none; the job's last recorded event is its status. And
+// its refusals, one line each.
 #include <gtest/gtest.h>
 
 #include <cstdio>
