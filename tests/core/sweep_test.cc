@@ -263,7 +263,8 @@ TEST(AttractorTest, SettlingStopsOnceTheMotionRepeatsAndFindsTheSameOrbit) {
     double closest = INFINITY;
     State z = reference->start;
     for (int k = 0; k < reference->period; ++k, z = map.Apply(z))
-      closest = std::min(closest, std::hypot((settled->start.x_m - z.x_m) / 1e-3, (settled->start.v_m_per_s - z.v_m_per_s) / 0.05));
+      closest = std::min(closest, std::hypot((settled->start.x_m - z.x_m) / 1e-3,  // x / L, v / (w L)
+                                             (settled->start.v_m_per_s - z.v_m_per_s) / 0.05));
     EXPECT_LT(closest, 1e-9);
   }
 }

@@ -338,7 +338,8 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
         // Newton can lose its footing next to a grazing point, where the map is not smooth:
         // restart on the other side of it.
         if (!restarted_here) {
-          if (auto restart = RestartPastGrazing(model, which, fixed_value, problem, last, t, 2.0 * options.max_step)) {
+          const double reach = 2.0 * options.max_step;
+          if (auto restart = RestartPastGrazing(model, which, fixed_value, problem, last, t, reach)) {
             restarted_here = true;
             branch.events.push_back({BranchEvent::Kind::kGrazing, branch.points.size() - 1, restart->graze, false});
             restart->point.arclength = arclength + (restart->u - u).Norm();
