@@ -18,13 +18,11 @@ using nlohmann::json;
 // One axis as it runs: its range, spacing and every value (as Values() gives them: the numbers the
 // results carry and an amplitude query must name).
 json AxisJson(const GridAxis& axis) {
-  json values = json::array();
-  for (double v : axis.Values()) values.push_back(JsonNumber(v));
   return {{"from", JsonNumber(axis.from)},
           {"to", JsonNumber(axis.to)},
           {"points", axis.points},
           {"spacing", axis.geometric ? "geometric" : "linear"},
-          {"values", std::move(values)}};
+          {"values", JsonNumbers(axis.Values())}};
 }
 
 // Every option of `table`, by its job name, at the value `options` holds.

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "strokelab/base/errors.h"
 #include "strokelab/base/json_number.h"
@@ -34,12 +35,6 @@ json FiguresOut(const FitFigures& f) {
           {"heldout_chi2", JsonNumber(f.heldout_chi2)}, {"residual_variance", JsonNumber(f.residual_variance)}};
 }
 
-json NumbersOut(const std::vector<double>& values) {
-  json out = json::array();
-  for (double v : values) out.push_back(JsonNumber(v));
-  return out;
-}
-
 json ComplexesOut(const std::vector<std::complex<double>>& values) {
   json out = json::array();
   for (const auto& c : values) out.push_back({JsonNumber(c.real()), JsonNumber(c.imag())});
@@ -61,7 +56,7 @@ json MatchesOut(const std::vector<RecordMatch>& matches) {
                    {"measured", ComplexesOut(m.measured)}, {"model", ComplexesOut(m.model)},
                    {"model_period", m.model_period},
                    {"model_contacts_per_period", JsonNumber(m.model_contacts_per_period)},
-                   {"harmonic_chi2", NumbersOut(m.harmonic_chi2)}, {"residuals", m.residuals}});
+                   {"harmonic_chi2", JsonNumbers(m.harmonic_chi2)}, {"residuals", m.residuals}});
   return out;
 }
 
@@ -128,55 +123,50 @@ const json& Array(const json& object, const char* key, const std::string& at, st
   return v;
 }
 
-std::vector<std::string> Texts(const json& object, const char* key, const std::string& at) {
+// Each item of the array at `key`, read by read(item, the item's pointer), within `limit` items.
+template <class Read>
+auto ItemsIn(const json& object, const char* key, const std::string& at, Read read, size_t limit = kMaxItems) {
   std::string p;
-  std::vector<std::string> out;
-  const json& items = Array(object, key, at, &p);
-  for (size_t i = 0; i < items.size(); ++i) out.push_back(Text(items[i], p + "/" + std::to_string(i)));
+  const json& items = Array(object, key, at, &p, limit);
+  std::vector<std::invoke_result_t<Read, const json&, const std::string&>> out;
+  out.reserve(items.size());
+  for (size_t i = 0; i < items.size(); ++i) out.push_back(read(items[i], p + "/" + std::to_string(i)));
   return out;
+}
+
+std::vector<std::string> Texts(const json& object, const char* key, const std::string& at) {
+  return ItemsIn(object, key, at, [](const json& v, const std::string& q) { return Text(v, q); });
 }
 
 // Finite numbers; with `null_is_nan`, nulls too (read as NaN).
 std::vector<double> Numbers(const json& object, const char* key, const std::string& at, bool null_is_nan = false) {
-  std::string p;
-  std::vector<double> out;
-  const json& items = Array(object, key, at, &p);
-  for (size_t i = 0; i < items.size(); ++i) {
-    if (null_is_nan && items[i].is_null()) {
-      out.push_back(NAN);
-      continue;
-    }
-    if (!items[i].is_number() || !std::isfinite(items[i].get<double>()))
-      throw InputError(p + "/" + std::to_string(i), null_is_nan ? "must be a finite number or null" : "must be a finite number");
-    out.push_back(items[i].get<double>());
+  return ItemsIn(object, key, at, [null_is_nan](const json& v, const std::string& q) {
+    if (null_is_nan && v.is_null()) return static_cast<double>(NAN);
+    if (!v.is_number() || !std::isfinite(v.get<double>()))
+      throw InputError(q, null_is_nan ? "must be a finite number or null" : "must be a finite number");
+    return v.get<double>();
+  });
+}
+
+// An effect's id at `at`; an unknown id is refused naming that pointer.
+Effect EffectAt(const json& value, const std::string& at) {
+  try {
+    return ParseEffect(Text(value, at));
+  } catch (const InputError& e) {
+    throw InputError(at, e.bare_message());
   }
-  return out;
 }
 
 std::vector<Effect> EffectsIn(const json& object, const char* key, const std::string& at) {
-  std::vector<Effect> out;
-  const std::vector<std::string> ids = Texts(object, key, at);
-  for (size_t i = 0; i < ids.size(); ++i) {
-    try {
-      out.push_back(ParseEffect(ids[i]));
-    } catch (const InputError& e) {
-      throw InputError(at + "/" + key + "/" + std::to_string(i), e.bare_message());
-    }
-  }
-  return out;
+  return ItemsIn(object, key, at, EffectAt);
 }
 
 std::vector<FitParameter> ParametersIn(const json& object, const char* key, const std::string& at) {
-  std::string p;
-  std::vector<FitParameter> out;
-  const json& items = Array(object, key, at, &p);
-  for (size_t i = 0; i < items.size(); ++i) {
-    const std::string q = p + "/" + std::to_string(i);
-    const json& v = items[i];
-    out.push_back({Text(v, "name", q), Text(v, "unit", q), Number(v, "value", q), Number(v, "standard_error", q),
-                   Flag(v, "fixed", q), Flag(v, "identifiable", q), Text(v, "note", q)});
-  }
-  return out;
+  return ItemsIn(object, key, at, [](const json& v, const std::string& q) {
+    return FitParameter{Text(v, "name", q),           Text(v, "unit", q),         Number(v, "value", q),
+                        Number(v, "standard_error", q), Flag(v, "fixed", q),        Flag(v, "identifiable", q),
+                        Text(v, "note", q)};
+  });
 }
 
 FitFigures FiguresIn(const json& object, const char* key, const std::string& at) {
@@ -187,16 +177,12 @@ FitFigures FiguresIn(const json& object, const char* key, const std::string& at)
 }
 
 std::vector<std::complex<double>> ComplexesIn(const json& object, const char* key, const std::string& at) {
-  std::string p;
-  std::vector<std::complex<double>> out;
-  const json& items = Array(object, key, at, &p, kMaxHarmonics);
-  for (size_t i = 0; i < items.size(); ++i) {
-    const std::string q = p + "/" + std::to_string(i);
-    if (!items[i].is_array() || items[i].size() != 2) throw InputError(q, "must be [re, im]");
-    const json pair = {{"re", items[i][0]}, {"im", items[i][1]}};
-    out.emplace_back(Number(pair, "re", q), Number(pair, "im", q));
-  }
-  return out;
+  auto read = [](const json& v, const std::string& q) {
+    if (!v.is_array() || v.size() != 2) throw InputError(q, "must be [re, im]");
+    const json pair = {{"re", v[0]}, {"im", v[1]}};
+    return std::complex<double>(Number(pair, "re", q), Number(pair, "im", q));
+  };
+  return ItemsIn(object, key, at, read, kMaxHarmonics);
 }
 
 ActuatorModel ModelIn(const json& object, const char* key, const std::string& at) {
@@ -204,12 +190,7 @@ ActuatorModel ModelIn(const json& object, const char* key, const std::string& at
 }
 
 std::vector<RecordMatch> MatchesIn(const json& object, const char* key, const std::string& at) {
-  std::string p;
-  std::vector<RecordMatch> out;
-  const json& items = Array(object, key, at, &p);
-  for (size_t i = 0; i < items.size(); ++i) {
-    const std::string q = p + "/" + std::to_string(i);
-    const json& v = items[i];
+  return ItemsIn(object, key, at, [](const json& v, const std::string& q) {
     RecordMatch m;
     m.name = Text(v, "name", q);
     m.frequency_hz = Number(v, "frequency_hz", q);
@@ -226,30 +207,24 @@ std::vector<RecordMatch> MatchesIn(const json& object, const char* key, const st
     m.harmonic_chi2 = Numbers(v, "harmonic_chi2", q);
     if (m.harmonic_chi2.size() > kMaxHarmonics) throw InputError(q + "/harmonic_chi2", "has too many harmonics");
     m.residuals = static_cast<int>(Integer(v, "residuals", q, 0, 2 * kMaxHarmonics));
-    out.push_back(std::move(m));
-  }
-  return out;
+    return m;
+  });
 }
 
 template <class Row>
 std::vector<Row> RowsIn(const json& object, const char* key, const std::string& at) {
-  std::string p;
-  std::vector<Row> out;
-  const json& items = Array(object, key, at, &p);
-  for (size_t i = 0; i < items.size(); ++i) {
-    const std::string q = p + "/" + std::to_string(i);
-    if (items[i].is_object())  // RowFromJson would take an infinity as a number
-      for (auto it = items[i].begin(); it != items[i].end(); ++it)
+  return ItemsIn(object, key, at, [](const json& v, const std::string& q) {
+    if (v.is_object())  // RowFromJson would take an infinity as a number
+      for (auto it = v.begin(); it != v.end(); ++it)
         if (it->is_number() && !std::isfinite(it->template get<double>())) throw InputError(q + "/" + it.key(), "must be finite");
     try {
-      out.push_back(RowFromJson<Row>(items[i]));
+      return RowFromJson<Row>(v);
     } catch (const InputError& e) {
       throw InputError(q + "/" + e.field(), e.bare_message());
     } catch (const json::exception& e) {
       throw InputError(q, e.what());
     }
-  }
-  return out;
+  });
 }
 
 std::optional<SweepResult> SweepIn(const json& object, const char* key, const std::string& at) {
@@ -280,18 +255,9 @@ GridAxis AxisIn(const json& object, const char* key, const std::string& at) {
 }
 
 std::vector<EffectCurve> CurvesIn(const json& object, const char* key, const std::string& at) {
-  std::string p;
-  std::vector<EffectCurve> out;
-  const json& items = Array(object, key, at, &p);
-  for (size_t i = 0; i < items.size(); ++i) {
-    const std::string q = p + "/" + std::to_string(i);
-    const json& v = items[i];
+  return ItemsIn(object, key, at, [](const json& v, const std::string& q) {
     EffectCurve c;
-    try {
-      c.effect = ParseEffect(Text(v, "effect", q));
-    } catch (const InputError& e) {
-      throw InputError(q + "/effect", e.bare_message());
-    }
+    c.effect = EffectAt(Member(v, "effect", q), q + "/effect");
     c.id = Text(v, "id", q);
     c.title = Text(v, "title", q);
     c.x_label = Text(v, "x_label", q);
@@ -303,9 +269,8 @@ std::vector<EffectCurve> CurvesIn(const json& object, const char* key, const std
     c.range = Text(v, "range", q);
     if (c.y.size() != c.x.size() || c.y_se.size() != c.x.size() || c.base_y.size() != c.x.size())
       throw InputError(q, "x, y, y_se and base_y must have the same length");
-    out.push_back(std::move(c));
-  }
-  return out;
+    return c;
+  });
 }
 
 std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, const std::string& at) {

@@ -33,12 +33,6 @@ std::string AmplitudeColor(const SweepResult& r, size_t i) {
   return bar ? plot::ColorBarColor(*bar, r.amplitude_v[i]) : std::string(kSingleAmplitudeColor);
 }
 
-json Numbers(const std::vector<double>& values) {
-  json list = json::array();
-  for (double v : values) list.push_back(JsonNumber(v));
-  return list;
-}
-
 // A table's rows as a JSON array and as CSV, header first (sweep_tables.h).
 template <class Row>
 json RowsToJson(const std::vector<Row>& rows) {
@@ -288,7 +282,7 @@ json SweepToJson(const SweepResult& r, const ActuatorModel& model) {
       {"points", std::move(points)},
       {"saturation_threshold", std::move(thresholds)},
       {"jump", std::move(jumps)},
-      {"grid", {{"frequency_hz", Numbers(r.frequency_hz)}, {"amplitude_v", Numbers(r.amplitude_v)}}},
+      {"grid", {{"frequency_hz", JsonNumbers(r.frequency_hz)}, {"amplitude_v", JsonNumbers(r.amplitude_v)}}},
       {"model", ModelToJson(model)},
       {"wall_time_s", JsonNumber(r.wall_time_s)},
       {"points_per_second", JsonNumber(r.points_per_second)},

@@ -59,8 +59,6 @@ nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
                       {"worst_harmonic_hz", JsonNumber(p.worst_harmonic_hz)},
                       {"residual_peak_phase_deg", JsonNumber(p.residual_peak_phase_deg)},
                       {"impact_phase_deg", JsonNumber(p.impact_phase_deg)}});
-  nlohmann::json harmonics = nlohmann::json::array();
-  for (double v : u->harmonic_chi2_per_residual) harmonics.push_back(JsonNumber(v));
   return {{"heldout_chi2", JsonNumber(u->heldout_chi2)},
           {"heldout_residuals", u->heldout_residuals},
           {"expected_chi2", JsonNumber(u->expected_chi2)},
@@ -68,21 +66,16 @@ nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
           {"p_value", JsonNumber(u->p_value)},
           {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
           {"places", places},
-          {"harmonic_chi2_per_residual", harmonics},
+          {"harmonic_chi2_per_residual", JsonNumbers(u->harmonic_chi2_per_residual)},
           {"description", u->description}};
 }
 
 nlohmann::json CurvesToJson(const std::vector<EffectCurve>& curves) {
-  const auto numbers = [](const std::vector<double>& values) {
-    nlohmann::json out = nlohmann::json::array();
-    for (double v : values) out.push_back(JsonNumber(v));
-    return out;
-  };
   nlohmann::json out = nlohmann::json::array();
   for (const EffectCurve& c : curves)
     out.push_back({{"effect", Info(c.effect).id}, {"id", c.id}, {"title", c.title}, {"x_label", c.x_label},
-                   {"y_label", c.y_label}, {"x", numbers(c.x)}, {"y", numbers(c.y)}, {"y_se", numbers(c.y_se)},
-                   {"base_y", numbers(c.base_y)}, {"range", c.range}});
+                   {"y_label", c.y_label}, {"x", JsonNumbers(c.x)}, {"y", JsonNumbers(c.y)}, {"y_se", JsonNumbers(c.y_se)},
+                   {"base_y", JsonNumbers(c.base_y)}, {"range", c.range}});
   return out;
 }
 

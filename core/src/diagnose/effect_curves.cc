@@ -9,6 +9,7 @@
 #include <string>
 
 #include "strokelab/diagnose/effect_curves.h"
+#include "strokelab/model/dynamics.h"
 
 namespace strokelab {
 namespace {
@@ -60,13 +61,8 @@ EffectCurve MakeCurve(Effect effect, std::string id, std::string title, std::str
   return c;
 }
 
-// The stop force at penetration p >= 0: k_s p (linear) or k_s p^(3/2) (Hertzian), and dF/dp.
-double StopForce(const ActuatorModel& m, double p) {
-  return m.contact_law == ContactLaw::kHertzian ? m.contact_stiffness * std::pow(p, 1.5) : m.contact_stiffness * p;
-}
-double StopForcePerPenetration(const ActuatorModel& m, double p) {
-  return m.contact_law == ContactLaw::kHertzian ? 1.5 * m.contact_stiffness * std::sqrt(p) : m.contact_stiffness;
-}
+// The stop force at penetration p >= 0, k_s p^n (n = 1 linear, 3/2 Hertzian; dynamics.h).
+double StopForce(const ActuatorModel& m, double p) { return m.contact_stiffness * StopForcePerContactStiffness(m, p); }
 
 }  // namespace
 
@@ -130,8 +126,7 @@ std::vector<EffectCurve> EffectCurves(const CandidateFit& chosen, const Actuator
             effect, "stop_force", "F(p) = k_s p^n: the stop's force over penetration (n = 3/2 Hertzian, 1 linear)",
             "p [m]", "F [N]", Grid(0.0, ranges.max_penetration_m), "penetrations " + orbits,
             [](const ActuatorModel& m, double p) {
-              const double n = m.contact_law == ContactLaw::kHertzian ? 1.5 : 1.0;
-              return CurvePoint{StopForce(m, p), {{"k_s", std::pow(p, n)}}};
+              return CurvePoint{StopForce(m, p), {{"k_s", StopForcePerContactStiffness(m, p)}}};
             },
             chosen, base));
         break;
@@ -149,8 +144,9 @@ std::vector<EffectCurve> EffectCurves(const CandidateFit& chosen, const Actuator
             "x [m]", "F [N]", Grid(0.0, x_hi), "displacements " + orbits,
             [](const ActuatorModel& m, double x) {
               if (!m.HasUpperStop() || x <= m.upper_stop_m) return CurvePoint{0.0, {}};
-              const double p = x - m.upper_stop_m, n = m.contact_law == ContactLaw::kHertzian ? 1.5 : 1.0;
-              return CurvePoint{StopForce(m, p), {{"k_s", std::pow(p, n)}, {"d_upper", -StopForcePerPenetration(m, p)}}};
+              const double p = x - m.upper_stop_m;
+              return CurvePoint{StopForce(m, p),
+                                {{"k_s", StopForcePerContactStiffness(m, p)}, {"d_upper", -StopStiffnessNPerM(m, p)}}};
             },
             chosen, base));
         break;
