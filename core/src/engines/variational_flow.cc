@@ -106,6 +106,9 @@ double LocateRootOnStep(const G& g, double g_start, double g_end) {
   return b;
 }
 
+// p' = dp/dt of a stop's penetration in the state y: -v for the lower stop, v for the upper.
+double PenetrationRate(const variational::StopSurface& stop, const double* y) { return stop.upper ? y[1] : -y[1]; }
+
 class FlowIntegrator {
  public:
   FlowIntegrator(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request,
@@ -167,8 +170,6 @@ class FlowIntegrator {
   // u, t and h are the independent variable's and the instants are found on time's dense output).
   void Sample(double t, double h, double t_until);
   double ThetaAt(double t, double h, double time_s);
-  // p' of the phase's stop in the state y: dp/dt, -v for the lower stop, v for the upper.
-  double PenetrationRate(const double* y) const { return phase_.stop.upper ? y[1] : -y[1]; }
   // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
   // release.
   bool RootPhaseApplies(bool entry) const;
@@ -215,7 +216,7 @@ class FlowIntegrator {
 void FlowIntegrator::EvaluateStage(int s, double t, double h, const double* y, double* dy) {
   if (phase_.active) {  // t is sigma here; time is y[n_]
     const double u = phase_.u_start + phase_.direction * (t + dop853::kC[s] * h);
-    const double dt_dsigma = phase_.direction * 2.0 * u / PenetrationRate(y);  // dt/du du/dsigma
+    const double dt_dsigma = phase_.direction * 2.0 * u / PenetrationRate(phase_.stop, y);  // dt/du du/dsigma
     field_.Evaluate(y[n_], y, dy, mode_);
     // A stage where the mass turned round (p' of the wrong sign) is off the phase's chart: the step
     // is rejected (a NaN error).
@@ -472,13 +473,13 @@ bool FlowIntegrator::RootPhaseApplies(bool entry) const {
 
 double FlowIntegrator::RunRootPhase(double t, double boundary, const variational::StopSurface& stop, double direction,
                                     double* h_time) {
-  const double entry_rate = direction > 0 ? (stop.upper ? y_[1] : -y_[1]) : 0.0;
+  const double entry_rate = direction > 0 ? PenetrationRate(stop, y_.data()) : 0.0;
   const double p_start = stop.Value(model(), y_[0], y_[1]);
   phase_ = {true, stop, direction, direction > 0 ? 0.0 : std::sqrt(std::max(p_start, 0.0))};
   // First step: near u = 0, dt = 2 u du / p', so a time step h covers du ~ sqrt(h p'); after entry at
   // most a quarter of sqrt(p_max), p_max = (5 m p'^2 / (4 k_s))^(2/5) the deepest penetration of a
   // free Hertzian impact at that speed (Johnson, Contact Mechanics, 1985, Sec. 11.4).
-  const double rate = std::abs(PenetrationRate(y_.data()));
+  const double rate = std::abs(PenetrationRate(stop, y_.data()));
   double h;
   if (direction > 0) {
     const double p_max = std::pow(1.25 * model().mass_kg * rate * rate / model().contact_stiffness, 0.4);
@@ -544,7 +545,7 @@ double FlowIntegrator::RunRootPhase(double t, double boundary, const variational
     }
     // After entry, u pays while the time per step grows; it stops growing as p' falls (dt/du = 2u/p'),
     // and t is then far enough from the entry for its own steps.
-    if (direction > 0 && (dt < 1.2 * last_dt || PenetrationRate(y_.data()) <= 0.5 * entry_rate)) return leave(t);
+    if (direction > 0 && (dt < 1.2 * last_dt || PenetrationRate(stop, y_.data()) <= 0.5 * entry_rate)) return leave(t);
     last_dt = dt;
     h = h_try * factor;
   }
@@ -613,7 +614,7 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
       if (!(penetration.upper ? mode_.upper : mode_.lower) || t >= t1) continue;
       const double p = penetration.Value(model(), y_[0], y_[1]);
       largest_penetration_m_ = std::max(largest_penetration_m_, p);
-      const double rate = penetration.upper ? y_[1] : -y_[1];
+      const double rate = PenetrationRate(penetration, y_.data());
       if (rate < 0 && p > 0 && p <= 0.5 * largest_penetration_m_ && RootPhaseApplies(false)) {
         const double next = boundaries[next_boundary];
         t = RunRootPhase(t, next, penetration, -1.0, &h);
