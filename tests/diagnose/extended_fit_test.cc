@@ -144,6 +144,23 @@ TEST(ExtendedFitTest, AParameterPushedAgainstItsBoundIsHeldThereAndSaysSo) {
   }
 }
 
+// The passes' divergence test on moves (in standard errors) seen in a 72-record diagnosis: the right
+// effect's passes (1290 then 1.1: contracting fast) go on; a wrong effect's that grow (0.219 then 4.95)
+// or shrink too slowly for the tolerance of 0.01 in the solves left (0.0766 then 0.0549, 5 left:
+// 0.717^5 / 0.283 x 0.0549 = 0.037) stop. Geometric moves of ratio 0.1 from 0.1 meet the tolerance
+// within 2 more solves (0.1^2 / 0.9 x 0.01 = 1.1e-4) and go on; with 0 left they stop.
+TEST(ExtendedFitTest, PassesThatDoNotContractStopAndSayWhy) {
+  EXPECT_EQ(internal::PassesNotContracting(1.1, 1290, 6), "");
+  EXPECT_EQ(internal::PassesNotContracting(4.95, 0.219, 5),
+            "the passes stopped: they do not contract (moves of 0.219 then 4.95 standard errors)");
+  EXPECT_EQ(internal::PassesNotContracting(0.0549, 0.0766, 5),
+            "the passes stopped: they contract too slowly to settle in the 5 solves left (moves of 0.0766 then "
+            "0.0549 standard errors)");
+  EXPECT_EQ(internal::PassesNotContracting(0.01 * 1.0001, 0.1, 2), "");
+  EXPECT_NE(internal::PassesNotContracting(0.02, 0.1, 0), "");
+  EXPECT_NE(internal::PassesNotContracting(0.05, 0.05, 7), "");  // theta = 1: a constant move never settles
+}
+
 TEST(ExtendedFitTest, CutOffBeforeCeresConvergesSaysSo) {
   const CubicCampaign c = MakeCubicCampaign();
   ExtendedFitOptions options;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "step_callback.h"
@@ -51,15 +52,27 @@ class OrbitCost : public ceres::CostFunction {
       const ActuatorModel model = problem_->Decode(theta);
       const RecordAnalysis& record = *target_->record;
       // The orbit near the anchor: Newton on its period; an aperiodic anchor is settled further.
+      // Ceres evaluates an accepted step twice, residuals alone and then with the Jacobian: the
+      // second reuses the first's orbit (a third of the cost's periods).
+      const int period = target_->anchor.period;
       State start = target_->anchor.start;
-      int period = target_->anchor.period;
-      const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
-      if (period > 0) {
-        const std::optional<SteadyState> orbit = Shoot(map, start, period);
-        if (!orbit) return false;  // Ceres rejects the step
-        start = orbit->start;
+      const bool same = !last_theta_.empty() && std::equal(last_theta_.begin(), last_theta_.end(), theta) &&
+                        last_anchor_.start.x_m == start.x_m && last_anchor_.start.v_m_per_s == start.v_m_per_s &&
+                        last_anchor_.period == period;
+      if (!same) {
+        const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
+        if (period > 0) {
+          const std::optional<SteadyState> orbit = Shoot(map, start, period);
+          if (!orbit) return false;  // Ceres rejects the step
+          start = orbit->start;
+        } else {
+          for (int i = 0; i < kAperiodicSettlePeriods; ++i) start = map.Apply(start);
+        }
+        last_theta_.assign(theta, theta + fields_.size());
+        last_anchor_ = target_->anchor;
+        last_start_ = start;
       } else {
-        for (int i = 0; i < kAperiodicSettlePeriods; ++i) start = map.Apply(start);
+        start = last_start_;
       }
       // Ceres asks for residuals alone at trial steps: then the harmonics without their slopes.
       const bool jacobian = jacobians != nullptr && jacobians[0] != nullptr;
@@ -92,6 +105,11 @@ class OrbitCost : public ceres::CostFunction {
   ResponseKind kind_;
   int orders_;
   std::vector<double ActuatorModel::*> fields_;
+  // The last theta and anchor whose orbit was solved, and that orbit's start (Ceres never evaluates
+  // one residual block from two threads at once; the anchors move between iterations).
+  mutable std::vector<double> last_theta_;
+  mutable Anchor last_anchor_;
+  mutable State last_start_;
 };
 
 // The sampling correction of a record at `model`, on the model's orbit through the record's anchor.
@@ -177,6 +195,18 @@ double FreeParameter::StandardError(double theta, double theta_variance) const {
   if (!(theta_variance >= 0.0)) return std::numeric_limits<double>::quiet_NaN();  // not identifiable
   const double se = std::sqrt(theta_variance);
   return log_scale ? std::abs(Value(theta)) * se : std::abs(scale) * se;
+}
+
+// Hairer & Wanner's test of a simplified Newton iteration (extended_fit.h), with the solves' moves.
+std::string PassesNotContracting(double move, double last_move, int passes_left) {
+  const double ratio = move / last_move;
+  char moves[96];
+  std::snprintf(moves, sizeof moves, "(moves of %.3g then %.3g standard errors)", last_move, move);
+  if (ratio >= 1.0) return std::string("the passes stopped: they do not contract ") + moves;
+  if (std::pow(ratio, passes_left) / (1.0 - ratio) * move > kSolveTolerancePerError)
+    return "the passes stopped: they contract too slowly to settle in the " + std::to_string(passes_left) +
+           " solves left " + moves;
+  return "";
 }
 
 ActuatorModel ExtendedProblem::Decode(const double* theta) const {
@@ -268,6 +298,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   // parameters it left on a bound and is followed by another solve.
   std::vector<bool> held(p, false);
   bool ceres_converged = false, moved = true;
+  double last_move = kInf;  // the previous solve's move (infinite before a comparable one)
+  std::string not_contracting;
   for (int solve = 0; solve < options.max_passes && moved; ++solve) {
     const ActuatorModel model = problem.Decode(theta.data());
     ParallelFor(targets.size(), [&](size_t i) {
@@ -302,6 +334,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
       }
       if (!newly_held || constant.size() == static_cast<size_t>(p)) break;
       ceres_problem.SetManifold(theta.data(), new ceres::SubsetManifold(p, constant));
+      last_move = kInf;  // another problem: its moves are not compared with this one's
       continue;
     }
     if (!ceres_converged) break;
@@ -310,10 +343,18 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian)) break;
     const double variance = 2.0 * cost / static_cast<double>(result.residuals - p);
     const ParameterErrors errors = ErrorsFromJacobian(DenseJacobian(jacobian, held, problem, theta), variance);
-    moved = false;
+    double move = 0.0;  // the largest move of an identifiable theta, in its standard errors
     for (int i = 0; i < p; ++i)
-      if (errors.identifiable[i] && std::abs(theta[i] - before[i]) > kSolveTolerancePerError * std::sqrt(errors.covariance(i, i)))
-        moved = true;
+      if (errors.identifiable[i]) move = std::max(move, std::abs(theta[i] - before[i]) / std::sqrt(errors.covariance(i, i)));
+    moved = move > kSolveTolerancePerError;
+    if (moved && std::isfinite(last_move)) {
+      const std::string why = PassesNotContracting(move, last_move, options.max_passes - (solve + 1));
+      if (!why.empty()) {
+        not_contracting = why;
+        break;
+      }
+    }
+    last_move = move;
   }
   // The cost and the Jacobian at the end (a record without a steady state leaves neither).
   double cost = 0.0;
@@ -324,7 +365,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   result.converged = ceres_converged && !moved && evaluates;
   if (!ceres_converged) result.report += "\nNOT CONVERGED: Ceres did not meet its convergence test";
   else if (moved) result.report += "\nNOT CONVERGED: the sampling corrections still moved the parameters after " +
-                                   std::to_string(result.passes) + " solves";
+                                   std::to_string(result.passes) + " solves" +
+                                   (not_contracting.empty() ? "" : "; " + not_contracting);
   if (!evaluates) result.report += "\nNOT CONVERGED: a record has no steady state at the end";
 
   ParameterErrors errors{Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN()),

@@ -8,7 +8,8 @@
 // OrbitHarmonicSlopes): one nonlinear least-squares problem, converged when Ceres' own convergence
 // test holds, with standard errors from the true Jacobian at the solution. The records' sampling
 // correction (fit_orbit.h, SamplingCorrection: what a record's sampling makes of the model's response)
-// is frozen during a solve and refreshed between solves.
+// is frozen during a solve and refreshed between solves, until the parameters stay or those passes
+// are seen not to converge (PassesNotContracting).
 #pragma once
 
 #include <complex>
@@ -70,6 +71,18 @@ struct ExtendedFitResult {
   std::string report;              // why not converged
   double seconds = 0.0;
 };
+
+// Whether refreshing the sampling corrections between solves is a contraction that can bring the
+// parameters' move below FitExtended's tolerance (0.01 standard errors) within `passes_left` more
+// solves. It is the divergence test of the simplified Newton iterations in E. Hairer and G. Wanner,
+// "Solving Ordinary Differential Equations II", 2nd ed., Springer 1996, Sec. IV.8 (stopping criterion), with
+// theta = move / last_move the ratio of successive moves (each the largest over the identifiable
+// parameters, in their standard errors): moves that grow (theta >= 1), or that shrink too slowly to
+// fall below the tolerance in the solves left (theta^left / (1 - theta) move > tolerance), will not
+// converge. A candidate whose orbits jump between attractors as its parameters move (physics the
+// records do not show) behaves so, and more solves only shuffle it. Empty when the passes may go on;
+// otherwise why they stop, with the two moves.
+std::string PassesNotContracting(double move, double last_move, int passes_left);
 
 // Fits problem.parameters to `records` (their anchors: each record's best-matching orbit at the start).
 ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, ResponseKind kind,
