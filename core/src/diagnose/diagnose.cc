@@ -87,7 +87,7 @@ FitFigures Figures(const std::vector<RecordMatch>& matches, size_t parameters) {
       f.heldout_chi2 += m.chi2;
     } else {
       f.chi2 += m.chi2;
-      residuals += 2 * m.measured.size();
+      residuals += m.residuals;
     }
   }
   f.nrmse = std::sqrt(mismatch / power);

@@ -249,7 +249,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   const auto clock_start = std::chrono::steady_clock::now();
   const int p = static_cast<int>(problem.parameters.size()), orders = options.orders;
   ExtendedFitResult result;
-  result.residuals = 2 * static_cast<size_t>(orders) * records.size();
+  result.residuals = 0;
+  for (const RecordAnalysis* r : records) result.residuals += FittedResiduals(*r, orders);
   if (p == 0 || result.residuals <= static_cast<size_t>(p))
     throw InputError("records", "too few records for " + std::to_string(p) + " parameters");
 

@@ -127,6 +127,12 @@ double MismatchSquared(const RecordAnalysis& record, const std::vector<Complex>&
   return sum;
 }
 
+size_t FittedResiduals(const RecordAnalysis& record, int orders) {
+  size_t n = 0;
+  for (int h = 0; h < orders; ++h) n += record.usable.empty() || record.usable[h] ? 2 : 0;
+  return n;
+}
+
 double PowerOf(const RecordAnalysis& record) {
   double sum = 0.0;
   for (size_t h = 0; h < record.harmonics.size(); ++h)

@@ -3,6 +3,7 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -17,6 +18,7 @@
 
 #include "fit_internal.h"
 #include "step_callback.h"
+#include "strokelab/base/cancel.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/identify/fit_orbit.h"
@@ -159,7 +161,8 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
 
   RefinementSummary& summary = result->refinement;
   summary.parameters = static_cast<size_t>(p);
-  summary.residuals = 2 * static_cast<size_t>(orders) * targets.size();
+  summary.residuals = 0;
+  for (const RecordTarget& t : targets) summary.residuals += internal::FittedResiduals(*t.record, orders);
   if (summary.residuals <= summary.parameters) throw InputError("records", "too few records to fit the parameters");
 
   // The sampling corrections at the current iterate; returns their largest change in standard errors.
@@ -258,16 +261,27 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   // for k_s, which the impacts' high harmonics carry: frozen corrections leave its standard error
   // about 30 % too small).
   for (RecordTarget& t : targets) t.live_correction = true;
+  // Ceres' own Covariance (DENSE_SVD) does not check that the Jacobian evaluated: a record without a
+  // steady state there, or a cancel (cancel.h), left it empty and Eigen's SVD segfaulted. The same
+  // computation here, on a Jacobian known to be whole: J = U S V^T, (J^T J)^-1 = V S^-2 V^T, rank
+  // deficient when a squared singular value ratio falls below Ceres' min_reciprocal_condition_number.
   Eigen::MatrixXd covariance = Eigen::MatrixXd::Constant(p, p, kNaN);
-  {
-    ceres::Covariance::Options covariance_options;
-    covariance_options.algorithm_type = ceres::DENSE_SVD;
-    covariance_options.num_threads = 1;
-    ceres::Covariance cov(covariance_options);
-    const double* block = theta.data();
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(p, p);
-    if (cov.Compute(std::vector<const double*>{block}, &problem) && cov.GetCovarianceBlock(block, block, c.data())) {
-      covariance = summary.residual_variance * Eigen::MatrixXd(c);
+  ceres::CRSMatrix crs;
+  const bool evaluates = problem.Evaluate(ceres::Problem::EvaluateOptions(), nullptr, nullptr, nullptr, &crs);
+  ThrowIfCancelled();
+  if (!evaluates) {
+    solved = false;
+    summary.report += "\nNOT CONVERGED: a record has no steady state at the end";
+  } else {
+    Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, p);
+    for (int r = 0; r < crs.num_rows; ++r)
+      for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinV);
+    const Eigen::VectorXd& sigma = svd.singularValues();
+    constexpr double kMinReciprocalCondition = 1e-14;  // ceres::Covariance::Options' default
+    if (sigma.size() == p && sigma(0) > 0.0 && sigma(p - 1) * sigma(p - 1) >= kMinReciprocalCondition * sigma(0) * sigma(0)) {
+      const Eigen::VectorXd inverse_squares = sigma.array().square().inverse();
+      covariance = summary.residual_variance * svd.matrixV() * inverse_squares.asDiagonal() * svd.matrixV().transpose();
     } else {
       solved = false;
       summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (parameters not all identifiable)";

@@ -68,6 +68,9 @@ OrbitSlopes OrbitHarmonicSlopes(const ActuatorModel& model, const RecordAnalysis
 // sum_h |C_h - model_h|^2 and sum_h |C_h|^2 over the record's usable harmonics.
 double MismatchSquared(const RecordAnalysis& record, const std::vector<std::complex<double>>& model);
 double PowerOf(const RecordAnalysis& record);
+// Real residuals a record's harmonics 1..orders give a fit: 2 per usable harmonic (a masked one has
+// weight 0 and is no degree of freedom of the residual variance).
+size_t FittedResiduals(const RecordAnalysis& record, int orders);
 
 // Moves `anchor` to the orbit SolveOrbit (kAttractor) finds from it for `model`; keeps it when none
 // is found or an engine fails.
