@@ -9,13 +9,12 @@
 #include <numbers>
 #include <vector>
 
+#include "strokelab/base/chi_square.h"
 #include "strokelab/diagnose/open_world.h"
 
 namespace strokelab {
 namespace {
 
-using internal::ChiSquareQuantile;
-using internal::ChiSquareUpperTail;
 using internal::FindUnexplained;
 
 constexpr int kHarmonics = 12;

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "diagnose_internal.h"
+#include "strokelab/base/chi_square.h"
 
 namespace strokelab::internal {
 namespace {
@@ -95,28 +96,6 @@ std::string Describe(const Unexplained& u) {
 }
 
 }  // namespace
-
-// Upper tail of chi-square with k degrees of freedom by the Wilson-Hilferty cube-root normal
-// approximation (E. B. Wilson and M. M. Hilferty, "The distribution of chi-square", Proc. Natl.
-// Acad. Sci. 17 (1931) 684-688): (x/k)^(1/3) is near-normal with mean 1 - 2/(9k), variance 2/(9k).
-// Relative error of a few per cent at p ~ 1e-3 for k >= 10; the held-out sets have k >= 40.
-double ChiSquareUpperTail(double x, double k) {
-  if (!(x > 0)) return 1.0;
-  const double v = 2.0 / (9.0 * k);
-  const double z = (std::cbrt(x / k) - (1.0 - v)) / std::sqrt(v);
-  return 0.5 * std::erfc(z / std::numbers::sqrt2);
-}
-
-// The x with ChiSquareUpperTail(x, k) = p, by bisection (the tail falls monotonically in x).
-double ChiSquareQuantile(double p, double k) {
-  double lo = 0.0, hi = k;
-  while (ChiSquareUpperTail(hi, k) > p) hi *= 2.0;
-  for (int i = 0; i < 100; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (ChiSquareUpperTail(mid, k) > p ? lo : hi) = mid;
-  }
-  return hi;
-}
 
 std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& matches,
                                            std::span<const RecordAnalysis> analyses, size_t parameters) {

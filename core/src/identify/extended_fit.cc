@@ -6,12 +6,14 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
 #include "step_callback.h"
+#include "strokelab/base/chi_square.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/steady/steady_state.h"
@@ -24,6 +26,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Solves end when the refreshed sampling corrections moved no identifiable theta by more than this
 // fraction of its standard error (a change no test on the estimate could see).
 constexpr double kSolveTolerancePerError = 0.01;
+// A fit's chi-square beyond this upper-tail probability of chi-square(M - P): the records reject the
+// model (its residuals are not noise), so its passes may stop once they stop converging.
+constexpr double kBeyondNoiseP = 1e-3;
 constexpr int kAperiodicSettlePeriods = 64;  // plain periods before harmonics of an aperiodic anchor
 const std::vector<double ActuatorModel::*> kNoFields;
 
@@ -117,6 +122,35 @@ std::vector<Complex> CorrectionAt(const ActuatorModel& model, const Target& t, R
   const std::optional<ModelOrbit> orbit = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
   if (!orbit) return std::vector<Complex>(orders, 0.0);
   return SamplingCorrection(model, *t.record, *orbit, kind, orders);
+}
+
+// Whether a chi-square of `dof` degrees of freedom is beyond noise: the records reject the model.
+bool BeyondNoise(double chi2, size_t dof) {
+  return chi2 > ChiSquareQuantile(kBeyondNoiseP, static_cast<double>(dof));
+}
+
+// Moves the anchor of each record whose best-matching orbit at `model` (BestMatchingOrbit) matches it
+// better than its anchor's orbit by more than the record's own expected chi-square (its residual
+// count): a difference noise does not make. Returns how many moved.
+size_t ReAnchor(const ActuatorModel& model, std::vector<Target>& targets, ResponseKind kind, int orders) {
+  std::atomic<size_t> moved = 0;
+  ParallelFor(targets.size(), [&](size_t i) {
+    Target& t = targets[i];
+    try {
+      const std::optional<ModelOrbit> now = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
+      const std::optional<ModelOrbit> best = BestMatchingOrbit(model, *t.record, kind, orders);
+      if (!now || !best) return;
+      const double gain_chi2 =
+          (MismatchSquared(*t.record, now->harmonics) - MismatchSquared(*t.record, best->harmonics)) * t.weight * t.weight;
+      if (gain_chi2 > static_cast<double>(FittedResiduals(*t.record, orders))) {
+        t.anchor = best->anchor;
+        ++moved;
+      }
+    } catch (const std::exception&) {
+      // keep the anchor
+    }
+  });
+  return moved;
 }
 
 bool OnBound(const FreeParameter& p, double theta) {
@@ -300,62 +334,82 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   std::vector<bool> held(p, false);
   bool ceres_converged = false, moved = true;
   double last_move = kInf;  // the previous solve's move (infinite before a comparable one)
+  double last_chi2 = kInf;  // the last solve's chi-square (its sampling corrections frozen)
   std::string not_contracting;
-  for (int solve = 0; solve < options.max_passes && moved; ++solve) {
-    const ActuatorModel model = problem.Decode(theta.data());
-    ParallelFor(targets.size(), [&](size_t i) {
-      try {
-        targets[i].correction = CorrectionAt(model, targets[i], kind, orders);
-      } catch (const std::exception&) {
-        targets[i].correction.assign(orders, 0.0);
-      }
-    });
-    const double seconds_left = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
-    if (seconds_left <= 0) {
-      result.report = "time limit of " + std::to_string(options.max_seconds) + " s reached";
-      ceres_converged = false;
-      break;
-    }
-    solver.max_solver_time_in_seconds = seconds_left;
-    solve_now = solve + 1, steps_now = 0;
-    if (options.progress) options.progress(solve_now, 0);
-    const std::vector<double> before = theta;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver, &ceres_problem, &summary);
-    result.iterations += static_cast<int>(summary.iterations.size()) - 1;
-    result.passes = solve + 1;
-    result.report = summary.BriefReport();
-    ceres_converged = summary.termination_type == ceres::CONVERGENCE;
-    if (summary.termination_type == ceres::NO_CONVERGENCE) {
-      std::vector<int> constant;
-      bool newly_held = false;
-      for (int i = 0; i < p; ++i) {
-        if (!held[i] && OnBound(problem.parameters[i], theta[i])) held[i] = newly_held = true;
-        if (held[i]) constant.push_back(i);
-      }
-      if (!newly_held || constant.size() == static_cast<size_t>(p)) break;
-      ceres_problem.SetManifold(theta.data(), new ceres::SubsetManifold(p, constant));
-      last_move = kInf;  // another problem: its moves are not compared with this one's
-      continue;
-    }
-    if (!ceres_converged) break;
-    ceres::CRSMatrix jacobian;
-    double cost = 0.0;
-    if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian)) break;
-    const double variance = 2.0 * cost / static_cast<double>(result.residuals - p);
-    const ParameterErrors errors = ErrorsFromJacobian(DenseJacobian(jacobian, held, problem, theta), variance);
-    double move = 0.0;  // the largest move of an identifiable theta, in its standard errors
-    for (int i = 0; i < p; ++i)
-      if (errors.identifiable[i]) move = std::max(move, std::abs(theta[i] - before[i]) / std::sqrt(errors.covariance(i, i)));
-    moved = move > kSolveTolerancePerError;
-    if (moved && std::isfinite(last_move)) {
-      const std::string why = PassesNotContracting(move, last_move, options.max_passes - (solve + 1));
-      if (!why.empty()) {
-        not_contracting = why;
+  auto run_passes = [&] {
+    moved = true;
+    last_move = kInf;
+    for (int solve = result.passes; solve < options.max_passes && moved; ++solve) {
+      const ActuatorModel model = problem.Decode(theta.data());
+      ParallelFor(targets.size(), [&](size_t i) {
+        try {
+          targets[i].correction = CorrectionAt(model, targets[i], kind, orders);
+        } catch (const std::exception&) {
+          targets[i].correction.assign(orders, 0.0);
+        }
+      });
+      const double seconds_left = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
+      if (seconds_left <= 0) {
+        result.report = "time limit of " + std::to_string(options.max_seconds) + " s reached";
+        ceres_converged = false;
         break;
       }
+      solver.max_solver_time_in_seconds = seconds_left;
+      solve_now = solve + 1, steps_now = 0;
+      if (options.progress) options.progress(solve_now, 0);
+      const std::vector<double> before = theta;
+      ceres::Solver::Summary summary;
+      ceres::Solve(solver, &ceres_problem, &summary);
+      result.iterations += static_cast<int>(summary.iterations.size()) - 1;
+      result.passes = solve + 1;
+      result.report = summary.BriefReport();
+      ceres_converged = summary.termination_type == ceres::CONVERGENCE;
+      if (summary.termination_type == ceres::NO_CONVERGENCE) {
+        std::vector<int> constant;
+        bool newly_held = false;
+        for (int i = 0; i < p; ++i) {
+          if (!held[i] && OnBound(problem.parameters[i], theta[i])) held[i] = newly_held = true;
+          if (held[i]) constant.push_back(i);
+        }
+        if (!newly_held || constant.size() == static_cast<size_t>(p)) break;
+        ceres_problem.SetManifold(theta.data(), new ceres::SubsetManifold(p, constant));
+        last_move = kInf;  // another problem: its moves are not compared with this one's
+        continue;
+      }
+      if (!ceres_converged) break;
+      ceres::CRSMatrix jacobian;
+      double cost = 0.0;
+      if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian)) break;
+      const double variance = 2.0 * cost / static_cast<double>(result.residuals - p);
+      const ParameterErrors errors = ErrorsFromJacobian(DenseJacobian(jacobian, held, problem, theta), variance);
+      double move = 0.0;  // the largest move of an identifiable theta, in its standard errors
+      for (int i = 0; i < p; ++i)
+        if (errors.identifiable[i])
+          move = std::max(move, std::abs(theta[i] - before[i]) / std::sqrt(errors.covariance(i, i)));
+      moved = move > kSolveTolerancePerError;
+      // Only a model the records reject may be given up on: where the chi-square is noise's, the
+      // parameters and their standard errors are the answer, and every pass is run for them.
+      last_chi2 = 2.0 * summary.final_cost;
+      if (moved && BeyondNoise(last_chi2, result.residuals - p) && std::isfinite(last_move)) {
+        const std::string why = PassesNotContracting(move, last_move, options.max_passes - (solve + 1));
+        if (!why.empty()) {
+          not_contracting = why;
+          break;
+        }
+      }
+      last_move = move;
     }
-    last_move = move;
+  };
+  run_passes();
+  // A converged fit the records still reject may hold a record on the wrong one of two coexisting
+  // orbits (its anchor was chosen at the starting model): records move to a better-matching orbit of
+  // the fitted model, and the passes go on from there.
+  if (ceres_converged && !moved && BeyondNoise(last_chi2, result.residuals - p)) {
+    if (const size_t moved_anchors = ReAnchor(problem.Decode(theta.data()), targets, kind, orders)) {
+      result.report += "\n" + std::to_string(moved_anchors) +
+                       " record(s) moved to an orbit of the fitted model that matches them better";
+      run_passes();
+    }
   }
   // The cost and the Jacobian at the end (a record without a steady state leaves neither).
   double cost = 0.0;

@@ -22,8 +22,4 @@ inline constexpr double kUnexplainedP = 1e-3;
 std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& matches,
                                            std::span<const RecordAnalysis> analyses, size_t parameters);
 
-// Upper tail P(X > x) of chi-square with k degrees of freedom (Wilson-Hilferty), and its inverse.
-double ChiSquareUpperTail(double x, double k);
-double ChiSquareQuantile(double p, double k);
-
 }  // namespace strokelab::internal

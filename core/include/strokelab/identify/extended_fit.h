@@ -8,8 +8,12 @@
 // OrbitHarmonicSlopes): one nonlinear least-squares problem, converged when Ceres' own convergence
 // test holds, with standard errors from the true Jacobian at the solution. The records' sampling
 // correction (fit_orbit.h, SamplingCorrection: what a record's sampling makes of the model's response)
-// is frozen during a solve and refreshed between solves, until the parameters stay or those passes
-// are seen not to converge (PassesNotContracting).
+// is frozen during a solve and refreshed between solves, until the parameters stay or, for a model
+// whose chi-square the records reject (beyond chi-square(M - P)'s 1e-3 upper tail), those passes are
+// seen not to converge (PassesNotContracting). A converged fit the records reject may hold a record
+// on the wrong one of two coexisting orbits (anchors are chosen at the starting model): records whose
+// best-matching orbit of the fitted model matches them better by more than their own residual count
+// in chi-square move there, and the passes go on.
 #pragma once
 
 #include <complex>
@@ -80,7 +84,9 @@ struct ExtendedFitResult {
 // parameters, in their standard errors): moves that grow (theta >= 1), or that shrink too slowly to
 // fall below the tolerance in the solves left (theta^left / (1 - theta) move > tolerance), will not
 // converge. A candidate whose orbits jump between attractors as its parameters move (physics the
-// records do not show) behaves so, and more solves only shuffle it. Empty when the passes may go on;
+// records do not show) behaves so, and more solves only shuffle it. A model within noise can show one
+// such jump near its optimum (a record's orbit switching) and still converge after it, so the test is
+// applied to models beyond noise only. Empty when the passes may go on;
 // otherwise why they stop, with the two moves.
 std::string PassesNotContracting(double move, double last_move, int passes_left);
 
