@@ -146,5 +146,92 @@ class ReadersTest(unittest.TestCase):
             json.loads(run([binary(), "diagnose", "--data", out, "--json"]).stdout)
 
 
+# The diagnosis on concealed campaigns of this generator (issue 13, "What it must show"): the
+# diagnosis tests' campaign shape (6 frequencies x 4 amplitudes, 0.5 mV noise, 10 mV offset, 0.5 mV
+# hum, k_p, c_p, g, d, k_s perturbed by up to 10 %), one actuator (perturbation seed 1400) and new
+# noise seeds 1401-1409, never diagnosed before these tests were written. About a minute per case
+# (generation; the diagnosis takes seconds): ctest label `slow`.
+CAMPAIGN = ["--frequencies-hz", "5,6,7,8,9,11", "--amplitudes-v", "0.1,0.3,0.4,0.5", "--settle-s", "5",
+            "--duration-s", "1", "--noise-rms", "0.0005", "--offset-v", "0.01", "--hum-v", "0.0005",
+            "--perturb", "k_p=0.1,c_p=0.1,g=0.1,d=0.1,k_s=0.1", "--perturb-seed", "1400", "--jobs", "2"]
+
+
+class DiagnosisTest(unittest.TestCase):
+    """Library effects alone and in pairs are named with their parameters within 25 % and the held-out
+    error at least halved, nothing else is named; controls get nothing named and no `unexplained`;
+    effects in no library (the coil's inductance, damping that grows with x^2) get `unexplained` and no
+    library effect named. Three cases fail today and are marked expected failures with what happens:
+    an unexpected success is reported, so a fix shows."""
+
+    def diagnose(self, seed, effects):
+        with tempfile.TemporaryDirectory(prefix="gen2_diagnosis_") as work:
+            out = os.path.join(work, "c")
+            generate(out, CAMPAIGN + ["--seed", str(seed)] + effects)
+            d = json.loads(run([binary(), "diagnose", "--data", out, "--json", "--map-frequency-points", "0"]).stdout)
+        print(f"\n  seed {seed} {' '.join(effects)}: {d['conclusion'][:300]}", file=sys.stderr)
+        return d
+
+    def expect_named(self, seed, effects, truth):
+        """truth: {effect id: {parameter: true value}}; exactly these effects must be named."""
+        d = self.diagnose(seed, effects)
+        named = {m["effect"]: m for m in d["missing_physics"]}
+        self.assertEqual(set(named), set(truth), d["conclusion"])
+        for effect, parameters in truth.items():
+            for key, value in parameters.items():
+                estimate = named[effect]["parameters"][key]["value"]
+                self.assertLess(abs(estimate - value), 0.25 * abs(value), f"{effect} {key} = {estimate}, truth {value}")
+        self.assertLessEqual(d["fit_after"]["heldout_nrmse"], 0.5 * d["fit_before"]["heldout_nrmse"])
+
+    def expect_nothing(self, seed, effects, unexplained):
+        d = self.diagnose(seed, effects)
+        self.assertEqual(d["missing_physics"], [], d["conclusion"])
+        if unexplained:
+            self.assertIsNotNone(d["unexplained"], d["conclusion"])
+        else:
+            self.assertIsNone(d["unexplained"], d["conclusion"])
+
+    def test_control_1(self):
+        self.expect_nothing(1401, [], unexplained=False)
+
+    def test_control_2(self):
+        self.expect_nothing(1402, [], unexplained=False)
+
+    def test_force_factor(self):
+        self.expect_named(1403, ["--effect", "force_factor=-5e4", "--set", "b1=-10"],
+                          {"force_factor": {"b1": -10.0, "b2": -5e4}})
+
+    def test_quadratic_damping(self):
+        self.expect_named(1404, ["--effect", "quadratic_damping=1"], {"quadratic_damping": {"c2": 1.0}})
+
+    # Open (issue 13), as of 2026-11-26: the pair's fit lowers the fit records' chi-square (held-out gain
+    # over the base 72,030 against k3 alone's 58,911 in their own variances) but not the held-out
+    # records' (by -7.4 variances over k3 alone): cubic_stiffness is named, with "more is missing" (1.26
+    # x noise). Which records are held out decides whether the contact's law can be seen there.
+    @unittest.expectedFailure
+    def test_cubic_stiffness_and_hertzian_contact(self):
+        self.expect_named(1405, ["--effect", "cubic_stiffness=1.5e7", "--effect", "hertzian_contact=1.5e7"],
+                          {"cubic_stiffness": {"k3": 1.5e7}, "hertzian_contact": {"k_s": 1.5e7}})
+
+    def test_quadratic_damping_and_cubic_stiffness(self):
+        self.expect_named(1406, ["--effect", "quadratic_damping=1", "--effect", "cubic_stiffness=1.5e7"],
+                          {"quadratic_damping": {"c2": 1.0}, "cubic_stiffness": {"k3": 1.5e7}})
+
+    # Open (issue 13), as of 2026-11-26: nothing named, "unexplained" at 8.05 x noise.
+    @unittest.expectedFailure
+    def test_force_factor_and_dry_friction(self):
+        self.expect_named(1407, ["--effect", "force_factor=-5e4", "--set", "b1=-10", "--effect", "dry_friction=0.003"],
+                          {"force_factor": {"b1": -10.0, "b2": -5e4}, "dry_friction": {"friction_n": 0.003}})
+
+    def test_coil_inductance_in_no_library(self):
+        self.expect_nothing(1408, ["--effect", "coil_inductance=2e-3"], unexplained=True)
+
+    # Open (issue 13), as of 2026-11-26: "unexplained" is set (8.78 x noise), but contact_damping +
+    # cubic_stiffness is named beside it, as a partial explanation (it removes more of the misfit than
+    # it leaves).
+    @unittest.expectedFailure
+    def test_position_damping_in_no_library(self):
+        self.expect_nothing(1409, ["--effect", "position_damping=2e5"], unexplained=True)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

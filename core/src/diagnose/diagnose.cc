@@ -248,10 +248,8 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   return c;
 }
 
-// Forward selection's limits: effects in one model, and candidates fitted per added effect (the
-// accepted singles in order of their own gain).
+// Forward selection's limit: effects in one model.
 constexpr size_t kMaxEffects = 3;
-constexpr int kMaxTriesPerRound = 3;
 // An effect whose parameter is within this many standard errors of its null value (zero) is not named.
 constexpr double kMinSignificance = 2.0;
 
@@ -430,22 +428,26 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     return ga > gb;
   };
   std::stable_sort(d.candidates.begin(), d.candidates.end(), by_gain);
-  std::vector<Effect> accepted;  // singles that beat the base beyond noise, best first
-  for (CandidateFit& c : d.candidates) {
+  std::vector<Effect> fitted;  // every single that was fitted, best held-out gain first
+  int first = -1;              // the best single that beats the base beyond noise
+  for (size_t i = 0; i < d.candidates.size(); ++i) {
+    CandidateFit& c = d.candidates[i];
     c.decision = Rejection(c, d.fit_before, 0, options.min_heldout_gain);
-    if (c.decision.empty()) accepted.push_back(c.effects[0]);
+    if (c.decision.empty() && first < 0) first = static_cast<int>(i);
+    if (c.fitted) fitted.push_back(c.effects[0]);
   }
-  if (!accepted.empty()) d.chosen = FindFit(d.candidates, {accepted[0]});
+  d.chosen = first;
 
-  // Forward selection: add the accepted effect that lowers the held-out chi-square most beyond noise
-  // over the current model, refit with every parameter free, repeat.
+  // Forward selection: add the effect that lowers the held-out chi-square most beyond noise over the
+  // current model, refit with every parameter free, repeat. Every effect is tried at each step, not
+  // only those that beat the base alone: beside a large first effect, a second one's single fit can
+  // do worse than the base (it bends the model towards the first's misfit).
   while (options.pairs && d.chosen >= 0 && d.candidates[d.chosen].effects.size() < kMaxEffects) {
     const std::vector<Effect> current = d.candidates[d.chosen].effects;
     int best = -1;
-    int tried = 0;
-    for (Effect e : accepted) {
+    for (Effect e : fitted) {
       if (std::find(current.begin(), current.end(), e) != current.end()) continue;
-      if (tried++ == kMaxTriesPerRound || seconds_left() <= 0) break;
+      if (seconds_left() <= 0) break;
       std::vector<Effect> effects = current;
       effects.push_back(e);
       const int stage = 4 + static_cast<int>(applicable.size());

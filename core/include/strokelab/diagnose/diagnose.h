@@ -16,9 +16,10 @@
 //      the fit records) by more than `min_heldout_gain`, the fit records' chi-square by more than the
 //      Akaike penalty 2 k (k its new parameters), and its parameter lies beyond two standard errors of
 //      zero (for effects whose absence is a zero parameter). The best accepted single is taken; then
-//      each other accepted effect is added in turn (up to three effects, three tries per round), the
-//      best that beats the current model by the same rules is kept if dropping any of its effects
-//      again costs more than noise (backward check), and so on.
+//      every other fitted effect is added in turn (up to three effects; not only the accepted ones:
+//      beside a large first effect a second one's single fit can do worse than the base), the best
+//      that beats the current model by the same rules is kept if dropping any of its effects again
+//      costs more than noise (backward check), and so on.
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
 //      is beyond noise, the report says where; when the chosen effects removed less of the excess than
 //      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).
