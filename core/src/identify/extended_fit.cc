@@ -406,9 +406,9 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   // the fitted model, and the passes go on from there.
   if (ceres_converged && !moved && BeyondNoise(last_chi2, result.residuals - p)) {
     if (const size_t moved_anchors = ReAnchor(problem.Decode(theta.data()), targets, kind, orders)) {
+      run_passes();  // it rewrites the report with its last solve's
       result.report += "\n" + std::to_string(moved_anchors) +
                        " record(s) moved to an orbit of the fitted model that matches them better";
-      run_passes();
     }
   }
   // The cost and the Jacobian at the end (a record without a steady state leaves neither).
