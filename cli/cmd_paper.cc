@@ -164,7 +164,7 @@ void RestoringForce(Study& study) {
     // Static restoring force at zero velocity: minus the blocked force with no drive.
     const ContactMode mode = ModeFromState(m, x, 0.0);
     s.x.push_back(x * 1e3);
-    s.y.push_back(-BlockedForce(m, 0.0, x, 0.0, mode));
+    s.y.push_back(-BlockedForce(m, 0.0, State{x, 0.0}, mode));
   }
   CsvTable table({"displacement_mm", "restoring_force_n"});
   table.SetColumn("displacement_mm", s.x);

@@ -147,7 +147,7 @@ TEST(CvodeEngineTest, DampedStopNeverPullsAndLetsGoBeforeTheSurface) {
   for (size_t n = 0; n < record.size(); ++n) {
     if (!record.in_contact[n]) continue;
     ++contact_samples;
-    const double free_force_n = BlockedForce(model, 0.0, record.displacement_m[n], record.velocity_m_per_s[n], {});
+    const double free_force_n = BlockedForce(model, 0.0, State{record.displacement_m[n], record.velocity_m_per_s[n]}, {});
     EXPECT_GE(record.force_n[n] - free_force_n, -1e-12) << "sample " << n;
   }
   EXPECT_GT(contact_samples, 100u);
@@ -288,8 +288,8 @@ TEST(CvodeEngineTest, PaperModelSaturatesOncePerPeriodAt8Hz) {
   // The force is BlockedForce of the interpolated state in the tracked mode (lower stop only here).
   for (size_t n = 0; n < record.size(); ++n) {
     const ContactMode mode{.lower = record.in_contact[n] == 1, .upper = false};
-    ASSERT_EQ(record.force_n[n], BlockedForce(model, drive.Voltage(record.TimeS(n)), record.displacement_m[n],
-                                              record.velocity_m_per_s[n], mode));
+    ASSERT_EQ(record.force_n[n], BlockedForce(model, drive.Voltage(record.TimeS(n)),
+                                              State{record.displacement_m[n], record.velocity_m_per_s[n]}, mode));
   }
   // |F1| of an independent prototype's closed-form reference: 0.0774131 N.
   const Complex f1 = ComplexAmplitude(record.force_n, LastSecond(record), record.sample_rate_hz, 8.0);

@@ -134,7 +134,7 @@ TEST(Ode3EngineTest, RecordedForceIsTheBlockedForceOfTheSampledState) {
     EXPECT_EQ(record.in_contact[n], mode.Any() ? 1 : 0);
     max_difference_n =
         std::max(max_difference_n,
-                 std::abs(record.force_n[n] - BlockedForce(model, drive.Voltage(record.TimeS(n)), x, v, mode)));
+                 std::abs(record.force_n[n] - BlockedForce(model, drive.Voltage(record.TimeS(n)), State{x, v}, mode)));
   }
   EXPECT_LT(max_difference_n, 1e-14);  // 0.15 N of drive force, rounded: a few 1e-17 N
 }

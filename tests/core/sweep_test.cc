@@ -282,10 +282,7 @@ TEST(PeriodMapTest, LinearizeIsTraceWithoutTheFigures) {
     const OrbitFigures full = map.Trace(y, 2), light = map.Linearize(y, 2);
     EXPECT_EQ(light.end.x_m, full.end.x_m);
     EXPECT_EQ(light.end.v_m_per_s, full.end.v_m_per_s);
-    EXPECT_EQ(light.monodromy.a, full.monodromy.a);
-    EXPECT_EQ(light.monodromy.b, full.monodromy.b);
-    EXPECT_EQ(light.monodromy.c, full.monodromy.c);
-    EXPECT_EQ(light.monodromy.d, full.monodromy.d);
+    EXPECT_EQ(light.monodromy, full.monodromy);
     EXPECT_EQ(light.contacts, full.contacts);
     EXPECT_EQ(full.contacts > 0, c.contacts) << c.f_hz << " Hz";
     EXPECT_TRUE(std::isnan(light.min_displacement_m)) << "figures it does not compute must not look computed";

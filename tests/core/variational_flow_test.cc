@@ -19,18 +19,31 @@ namespace {
 
 using Field = double ActuatorModel::*;
 
-// x / L and v / (w L): the sweep's scaling (steady_state.h), so that both components count alike.
+// x / L, v / (w L) and, with the coil's pole, F_e / (k_p L): the sweep's scaling (steady_state.h), so
+// that the components count alike.
 struct Scale {
-  double length_m, speed_m_per_s;
-  double Norm(State s) const { return std::hypot(s.x_m / length_m, s.v_m_per_s / speed_m_per_s); }
+  double length_m, speed_m_per_s, force_n;
+  double Norm(State s) const {
+    const double e = force_n > 0 ? s.coil_force_n / force_n : 0.0;
+    return std::sqrt(std::pow(s.x_m / length_m, 2) + std::pow(s.v_m_per_s / speed_m_per_s, 2) + e * e);
+  }
 };
 
 Scale ScaleOf(const ActuatorModel& model, double frequency_hz) {
   const double length = LengthScaleM(model);
-  return {length, length * 2.0 * std::numbers::pi * frequency_hz};
+  return {length, length * 2.0 * std::numbers::pi * frequency_hz,
+          model.HasCoilPole() ? model.stiffness_n_per_m * length : 0.0};
 }
 
-State Difference(State a, State b) { return {a.x_m - b.x_m, a.v_m_per_s - b.v_m_per_s}; }
+State Difference(State a, State b) {
+  return {a.x_m - b.x_m, a.v_m_per_s - b.v_m_per_s, a.coil_force_n - b.coil_force_n};
+}
+
+// (plus - minus) / (2 step), component by component.
+State CentralQuotient(State plus, State minus, double step) {
+  return {(plus.x_m - minus.x_m) / (2 * step), (plus.v_m_per_s - minus.v_m_per_s) / (2 * step),
+          (plus.coil_force_n - minus.coil_force_n) / (2 * step)};
+}
 
 // A start on or near the orbit (a few periods from the linear start), so that the pass has contacts.
 State SettledStart(const ActuatorModel& model, const SineDrive& drive) {
@@ -73,9 +86,9 @@ TEST(VariationalFlowTest, MatchesTheClosedFormOnPiecewiseLinearModels) {
     const FlowResult flow = Flow(c.model, drive, start, 0.0, map.period_s(), request);
     EXPECT_LT(scale.Norm(Difference(flow.end, closed.end)), 1e-9);
     // Monodromy in the scaled coordinates, elementwise against its largest element.
-    const Matrix2& m = closed.monodromy;
+    const StateMatrix& m = closed.monodromy;
     const double r = scale.speed_m_per_s / scale.length_m;  // d(v/V)/d(x/L) = dv/dx / r
-    const double closed_scaled[4] = {m.a, m.b * r, m.c / r, m.d};
+    const double closed_scaled[4] = {m(0, 0), m(0, 1) * r, m(1, 0) / r, m(1, 1)};
     const double flow_scaled[4] = {flow.columns[0].x_m, flow.columns[1].x_m * r, flow.columns[0].v_m_per_s / r,
                                    flow.columns[1].v_m_per_s};
     double largest = 0.0;
@@ -143,6 +156,17 @@ std::vector<SmoothCase> ForceTermCases() {
   upper.contact_law = ContactLaw::kHertzian;
   upper.contact_stiffness = 2.65e8;
   add("upper_stop", upper, 10.0, 0.8, {&M::upper_stop_m});
+  // The coil's pole (a third state) with a force factor over the stroke: F_e' couples to x and v
+  // through c_emf phi v, and g and the drive act through F_e. tau_e = 2 mH / 3 Ohm.
+  ActuatorModel coil = force_factor;
+  coil.coil_time_constant_s = 2e-3 / 3.0;
+  add("coil_pole", coil, 8.0, 0.5,
+      {&M::coil_time_constant_s, &M::back_emf_damping_n_s_per_m, &M::force_factor_b1_per_m,
+       &M::force_factor_b2_per_m2});
+  ActuatorModel clipped_coil = clipped;
+  clipped_coil.coil_time_constant_s = 2e-3 / 3.0;
+  clipped_coil.back_emf_damping_n_s_per_m = 0.8;
+  add("coil_pole_clipping", clipped_coil, 8.0, 0.6, {&M::coil_time_constant_s, &M::amplifier_limit_v});
   return cases;
 }
 
@@ -164,6 +188,7 @@ Perturbed CentralDifference(const SmoothCase& c, State start, double step, int h
   tight.relative_tolerance = kDifferenceTolerance;
   tight.absolute_tolerance_m = 1e-17;
   tight.absolute_tolerance_m_per_s = 1e-14;
+  tight.absolute_tolerance_n = 1e-15;
   auto run = [&](double sign) {
     ActuatorModel model = c.model;
     State y = start;
@@ -172,7 +197,7 @@ Perturbed CentralDifference(const SmoothCase& c, State start, double step, int h
   };
   const FlowResult plus = run(1.0), minus = run(-1.0);
   Perturbed d;
-  d.end = {(plus.end.x_m - minus.end.x_m) / (2 * step), (plus.end.v_m_per_s - minus.end.v_m_per_s) / (2 * step)};
+  d.end = CentralQuotient(plus.end, minus.end, step);
   for (int k = 0; k < harmonics; ++k)
     d.harmonics.push_back((plus.harmonic_integrals[k] - minus.harmonic_integrals[k]) / (2 * step));
   return d;
@@ -184,8 +209,8 @@ Perturbed CentralDifference(const SmoothCase& c, State start, double step, int h
 void ExpectColumn(const Scale& scale, State analytic, State difference, const std::vector<std::complex<double>>& h_analytic,
                   const std::vector<std::complex<double>>& h_difference, double tolerance, double harmonic_noise) {
   EXPECT_LE(scale.Norm(Difference(analytic, difference)), tolerance * scale.Norm(difference))
-      << "analytic (" << analytic.x_m << ", " << analytic.v_m_per_s << ") difference (" << difference.x_m << ", "
-      << difference.v_m_per_s << ")";
+      << "analytic (" << analytic.x_m << ", " << analytic.v_m_per_s << ", " << analytic.coil_force_n << ") difference ("
+      << difference.x_m << ", " << difference.v_m_per_s << ", " << difference.coil_force_n << ")";
   double size = 0.0, error = 0.0;
   for (size_t k = 0; k < h_difference.size(); ++k) {
     size = std::max(size, std::abs(h_difference[k]));
@@ -221,13 +246,20 @@ TEST(VariationalFlowTest, EveryForceTermsSensitivitiesAreTheFlowsFiniteDifferenc
     const Perturbed dv =
         CentralDifference(c, start, h_v, kHarmonics, [](ActuatorModel*, State* y, double e) { y->v_m_per_s += e; });
     ExpectColumn(scale, flow.columns[1], dv.end, flow.harmonic_sensitivities[1], dv.harmonics, kTolerance, noise(h_v));
+    const int d = c.model.StateSize();
+    if (d > 2) {
+      const double h_e = kRelativeStep * scale.force_n;
+      const Perturbed de =
+          CentralDifference(c, start, h_e, kHarmonics, [](ActuatorModel*, State* y, double e) { y->coil_force_n += e; });
+      ExpectColumn(scale, flow.columns[2], de.end, flow.harmonic_sensitivities[2], de.harmonics, kTolerance, noise(h_e));
+    }
     for (size_t p = 0; p < c.parameters.size(); ++p) {
       const Field field = c.parameters[p];
       SCOPED_TRACE("parameter " + std::to_string(p));
       const double step = kRelativeStep * std::abs(c.model.*field);
       const Perturbed dp = CentralDifference(c, start, step, kHarmonics,
                                              [field](ActuatorModel* m, State*, double e) { m->*field += e; });
-      ExpectColumn(scale, flow.columns[2 + p], dp.end, flow.harmonic_sensitivities[2 + p], dp.harmonics, kTolerance, noise(step));
+      ExpectColumn(scale, flow.columns[d + p], dp.end, flow.harmonic_sensitivities[d + p], dp.harmonics, kTolerance, noise(step));
     }
   }
 }
@@ -252,7 +284,7 @@ TEST(VariationalFlowTest, DriveDerivativesAreTheMapsFiniteDifferences) {
         return shifted.Apply(start);
       };
       const State plus = apply(1.0), minus = apply(-1.0);
-      const State difference{(plus.x_m - minus.x_m) / (2 * step), (plus.v_m_per_s - minus.v_m_per_s) / (2 * step)};
+      const State difference = CentralQuotient(plus, minus, step);
       EXPECT_LE(scale.Norm(Difference(exact, difference)), 1e-6 * scale.Norm(difference))
           << (frequency ? "frequency" : "amplitude") << ": exact (" << exact.x_m << ", " << exact.v_m_per_s
           << ") difference (" << difference.x_m << ", " << difference.v_m_per_s << ")";

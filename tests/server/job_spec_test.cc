@@ -219,7 +219,7 @@ std::vector<MalformedCase> MalformedCases() {
   // 6. Model keys that do not exist.
   for (const std::string key : {"K3", "mass", "k4", "lower_stop", "stop_m", "Preset"})
     add("model key " + key, With(With(BaseSimulate(), "/model", json::object()), "/model/" + key, 1.0), "/model/" + key,
-        "unknown field (allowed: amplifier_limit_v, b1, b2, back_emf_damping_n_s_per_m, c2, c_emf, c_p, c_s, contact_damping_n_s_per_m, contact_law");
+        "unknown field (allowed: amplifier_limit_v, b1, b2, back_emf_damping_n_s_per_m, c2, c_emf, c_p, c_s, coil_time_constant_s, contact_damping_n_s_per_m, contact_law");
 
   // 7. Semantic checks after the schema.
   add("frequency to < from", With(BaseSweep(), "/grid/frequency_hz/to", 4), "/grid/frequency_hz/to", "must be >= from (5)");

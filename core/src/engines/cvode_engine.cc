@@ -1,7 +1,7 @@
 // The cvode engine: SUNDIALS CVODE (6.4 C API) with root-finding on every switching surface.
 //
 // State y = [x, v]; y' = [v, f / m_p], f = BlockedForce(...) (dynamics.h, paper Eq. 2 in its
-// continuous form). The discrete contact mode is tracked here, not judged from the state: between
+// continuous form); with the coil's pole (model.h) y = [x, v, F_e] and F_e' = CoilForceRate. The discrete contact mode is tracked here, not judged from the state: between
 // two located events the right-hand side is one smooth vector field, so the multistep method keeps
 // its order, and every mode change happens at a located root followed by CVodeReInit.
 //
@@ -98,6 +98,7 @@ double UpperPenetrationM(const ActuatorModel& model, double x_m) { return x_m - 
 // Everything the SUNDIALS callbacks see (their user_data).
 struct Problem {
   const ActuatorModel* model = nullptr;
+  int size = 2;                   // ActuatorModel::StateSize
   const SineDrive* drive = nullptr;
   double inverse_mass_per_kg = 0.0;
   ContactMode mode;               // the tracked contact mode: the RHS uses it, never the state
@@ -148,14 +149,25 @@ double SwitchingFunction(const Problem& problem, CvodeSurface surface, double t_
 
 // ---- SUNDIALS callbacks -------------------------------------------------------------------------
 
+State Read(N_Vector y, int size) {
+  return {NV_Ith_S(y, 0), NV_Ith_S(y, 1), size > 2 ? NV_Ith_S(y, 2) : 0.0};
+}
+
+void Write(const State& state, int size, N_Vector y) {
+  NV_Ith_S(y, 0) = state.x_m;
+  NV_Ith_S(y, 1) = state.v_m_per_s;
+  if (size > 2) NV_Ith_S(y, 2) = state.coil_force_n;
+}
+
 int RightHandSide(sunrealtype t_s, N_Vector y, N_Vector ydot, void* user_data) {
   auto* problem = static_cast<Problem*>(user_data);
   ++problem->rhs_evaluations;
-  const double x_m = NV_Ith_S(y, 0);
-  const double v_m_per_s = NV_Ith_S(y, 1);
-  const double force_n = BlockedForce(*problem->model, problem->drive->Voltage(t_s), x_m, v_m_per_s, problem->mode);
-  NV_Ith_S(ydot, 0) = v_m_per_s;
+  const State state = Read(y, problem->size);
+  const double voltage_v = problem->drive->Voltage(t_s);
+  const double force_n = BlockedForce(*problem->model, voltage_v, state, problem->mode);
+  NV_Ith_S(ydot, 0) = state.v_m_per_s;
   NV_Ith_S(ydot, 1) = force_n * problem->inverse_mass_per_kg;
+  if (problem->size > 2) NV_Ith_S(ydot, 2) = CoilForceRateJacobian(*problem->model, voltage_v, state).rate_n_per_s;
   // A positive return is a recoverable failure: CVODE retries with a smaller step, and reports
   // CV_REPTD_RHSFUNC_ERR if that does not help.
   return std::isfinite(force_n) ? 0 : 1;
@@ -165,12 +177,20 @@ int RightHandSide(sunrealtype t_s, N_Vector y, N_Vector ydot, void* user_data) {
 int Jacobian(sunrealtype t_s, N_Vector y, N_Vector /*fy*/, SUNMatrix jacobian, void* user_data, N_Vector /*tmp1*/,
              N_Vector /*tmp2*/, N_Vector /*tmp3*/) {
   const auto* problem = static_cast<const Problem*>(user_data);
-  const ForceJacobian j = BlockedForceJacobian(*problem->model, problem->drive->Voltage(t_s), NV_Ith_S(y, 0),
-                                               NV_Ith_S(y, 1), problem->mode);
-  SM_ELEMENT_D(jacobian, 0, 0) = 0.0;
+  const State state = Read(y, problem->size);
+  const double voltage_v = problem->drive->Voltage(t_s);
+  const ForceJacobian j = BlockedForceJacobian(*problem->model, voltage_v, state, problem->mode);
+  SUNMatZero(jacobian);
   SM_ELEMENT_D(jacobian, 0, 1) = 1.0;
   SM_ELEMENT_D(jacobian, 1, 0) = j.d_dx_n_per_m * problem->inverse_mass_per_kg;
   SM_ELEMENT_D(jacobian, 1, 1) = j.d_dv_n_s_per_m * problem->inverse_mass_per_kg;
+  if (problem->size > 2) {
+    const CoilForceRate r = CoilForceRateJacobian(*problem->model, voltage_v, state);
+    SM_ELEMENT_D(jacobian, 1, 2) = j.d_dcoil * problem->inverse_mass_per_kg;
+    SM_ELEMENT_D(jacobian, 2, 0) = r.d_dx_n_per_m_s;
+    SM_ELEMENT_D(jacobian, 2, 1) = r.d_dv_n_per_m;
+    SM_ELEMENT_D(jacobian, 2, 2) = r.d_dcoil_per_s;
+  }
   return 0;
 }
 
@@ -247,16 +267,17 @@ void CreateSolver(const SimulationOptions& options, double max_step_s, Problem* 
   // SUNContext_Create's flag is not a CVODE flag: no CVodeGetReturnFlagName for it.
   if (const int flag = SUNContext_Create(nullptr, &s->context); flag != 0)
     throw NumericalError("cvode engine: SUNContext_Create failed with flag " + std::to_string(flag));
-  s->y = N_VNew_Serial(2, s->context);
+  const int n = problem->size;
+  s->y = N_VNew_Serial(n, s->context);
   CheckCreated(s->y, "N_VNew_Serial");
-  s->sample = N_VNew_Serial(2, s->context);
+  s->sample = N_VNew_Serial(n, s->context);
   CheckCreated(s->sample, "N_VNew_Serial");
-  s->absolute_tolerance = N_VNew_Serial(2, s->context);
+  s->absolute_tolerance = N_VNew_Serial(n, s->context);
   CheckCreated(s->absolute_tolerance, "N_VNew_Serial");
-  NV_Ith_S(s->y, 0) = options.initial.x_m;
-  NV_Ith_S(s->y, 1) = options.initial.v_m_per_s;
+  Write(options.initial, n, s->y);
   NV_Ith_S(s->absolute_tolerance, 0) = options.cvode_absolute_tolerance_m;
   NV_Ith_S(s->absolute_tolerance, 1) = options.cvode_absolute_tolerance_m_per_s;
+  if (n > 2) NV_Ith_S(s->absolute_tolerance, 2) = options.cvode_absolute_tolerance_n;
 
   s->cvode = CVodeCreate(kMultistepMethod, s->context);
   CheckCreated(s->cvode, "CVodeCreate");
@@ -265,7 +286,7 @@ void CreateSolver(const SimulationOptions& options, double max_step_s, Problem* 
   Check(CVodeSetUserData(s->cvode, problem), "CVodeSetUserData", *problem);
   Check(CVodeSVtolerances(s->cvode, options.cvode_relative_tolerance, s->absolute_tolerance), "CVodeSVtolerances",
         *problem);
-  s->matrix = SUNDenseMatrix(2, 2, s->context);
+  s->matrix = SUNDenseMatrix(n, n, s->context);
   CheckCreated(s->matrix, "SUNDenseMatrix");
   s->linear_solver = SUNLinSol_Dense(s->y, s->matrix, s->context);
   CheckCreated(s->linear_solver, "SUNLinSol_Dense");
@@ -295,6 +316,7 @@ class CvodeRun {
         end_s_(static_cast<double>(sample_count_) / options.sample_rate_hz) {
     problem_.model = &model;
     problem_.drive = &drive;
+    problem_.size = model.StateSize();
     problem_.inverse_mass_per_kg = 1.0 / model.mass_kg;
     problem_.surfaces = SwitchingSurfaces(model, drive);
     problem_.mode = StartingMode(model, options.initial.x_m, options.initial.v_m_per_s);
@@ -306,7 +328,7 @@ class CvodeRun {
     CreateSolver(options_, MaxStepS(model_, drive_), &problem_, &sundials_);
     Check(CVodeSetStopTime(sundials_.cvode, end_s_), "CVodeSetStopTime", problem_);
     contacts_.emplace(&out_->contacts, problem_.mode);
-    EmitSample(0, options_.initial.x_m, options_.initial.v_m_per_s);
+    EmitSample(0, options_.initial);
     next_sample_ = 1;
 
     const double max_steps = MaxSteps();
@@ -339,7 +361,7 @@ class CvodeRun {
       if (flag == CV_TSTOP_RETURN || t_s >= end_s_) done = true;
     }
     // The stop time makes the last step end on t = N / fs (or a restart within rounding of it).
-    out_->final_state = {NV_Ith_S(sundials_.y, 0), NV_Ith_S(sundials_.y, 1)};
+    out_->final_state = Read(sundials_.y, problem_.size);
     EmitRemainingSamples();
     contacts_->Finish(end_s_);
     out_->rhs_evaluations = problem_.rhs_evaluations;
@@ -382,10 +404,10 @@ class CvodeRun {
 
   double SampleTimeS(size_t n) const { return static_cast<double>(n) / options_.sample_rate_hz; }
 
-  void EmitSample(size_t n, double x_m, double v_m_per_s) {
-    out_->displacement_m[n] = x_m;
-    if (options_.record_velocity) out_->velocity_m_per_s[n] = v_m_per_s;
-    out_->force_n[n] = BlockedForce(model_, drive_.Voltage(SampleTimeS(n)), x_m, v_m_per_s, problem_.mode);
+  void EmitSample(size_t n, const State& state) {
+    out_->displacement_m[n] = state.x_m;
+    if (options_.record_velocity) out_->velocity_m_per_s[n] = state.v_m_per_s;
+    out_->force_n[n] = BlockedForce(model_, drive_.Voltage(SampleTimeS(n)), state, problem_.mode);
     out_->in_contact[n] = problem_.mode.Any() ? 1 : 0;
   }
 
@@ -395,8 +417,7 @@ class CvodeRun {
     if (next_sample_ >= sample_count_ || SampleTimeS(next_sample_) > t_s) return;
     LoadStepPolynomial();
     for (; next_sample_ < sample_count_ && SampleTimeS(next_sample_) <= t_s; ++next_sample_) {
-      const State state = EvaluateStepPolynomial(SampleTimeS(next_sample_));
-      EmitSample(next_sample_, state.x_m, state.v_m_per_s);
+      EmitSample(next_sample_, EvaluateStepPolynomial(SampleTimeS(next_sample_)));
     }
   }
 
@@ -404,7 +425,7 @@ class CvodeRun {
   // stopped there. They take the final state.
   void EmitRemainingSamples() {
     for (; next_sample_ < sample_count_; ++next_sample_)
-      EmitSample(next_sample_, out_->final_state.x_m, out_->final_state.v_m_per_s);
+      EmitSample(next_sample_, out_->final_state);
   }
 
   // The interpolant of the last step is the Nordsieck polynomial of degree q about t_n:
@@ -417,14 +438,14 @@ class CvodeRun {
     int order = 0;
     Check(CVodeGetLastOrder(sundials_.cvode, &order), "CVodeGetLastOrder", problem_);
     Check(CVodeGetCurrentTime(sundials_.cvode, &polynomial_time_s_), "CVodeGetCurrentTime", problem_);
-    polynomial_x_.resize(static_cast<size_t>(order) + 1);
-    polynomial_v_.resize(static_cast<size_t>(order) + 1);
+    polynomial_.resize(static_cast<size_t>(order) + 1);
     double factorial = 1.0;
     for (int k = 0; k <= order; ++k) {
       if (k > 0) factorial *= k;
       Check(CVodeGetDky(sundials_.cvode, polynomial_time_s_, k, sundials_.sample), "CVodeGetDky", problem_);
-      polynomial_x_[static_cast<size_t>(k)] = NV_Ith_S(sundials_.sample, 0) / factorial;
-      polynomial_v_[static_cast<size_t>(k)] = NV_Ith_S(sundials_.sample, 1) / factorial;
+      const State term = Read(sundials_.sample, problem_.size);
+      polynomial_[static_cast<size_t>(k)] = {term.x_m / factorial, term.v_m_per_s / factorial,
+                                             term.coil_force_n / factorial};
     }
     polynomial_loaded_ = true;
   }
@@ -432,9 +453,10 @@ class CvodeRun {
   State EvaluateStepPolynomial(double t_s) const {
     const double dt_s = t_s - polynomial_time_s_;
     State state;
-    for (size_t k = polynomial_x_.size(); k-- > 0;) {
-      state.x_m = state.x_m * dt_s + polynomial_x_[k];
-      state.v_m_per_s = state.v_m_per_s * dt_s + polynomial_v_[k];
+    for (size_t k = polynomial_.size(); k-- > 0;) {
+      state.x_m = state.x_m * dt_s + polynomial_[k].x_m;
+      state.v_m_per_s = state.v_m_per_s * dt_s + polynomial_[k].v_m_per_s;
+      state.coil_force_n = state.coil_force_n * dt_s + polynomial_[k].coil_force_n;
     }
     return state;
   }
@@ -513,9 +535,7 @@ class CvodeRun {
       (missed_stop_pushes(middle_s) ? inside_s : outside_s) = middle_s;
     }
     EmitSamplesThrough(inside_s);
-    const State entry = EvaluateStepPolynomial(inside_s);
-    NV_Ith_S(sundials_.y, 0) = entry.x_m;
-    NV_Ith_S(sundials_.y, 1) = entry.v_m_per_s;
+    Write(EvaluateStepPolynomial(inside_s), problem_.size, sundials_.y);
     ContactMode new_mode = problem_.mode;
     new_mode.lower = new_mode.lower || missed.lower;
     new_mode.upper = new_mode.upper || missed.upper;
@@ -552,8 +572,7 @@ class CvodeRun {
   std::optional<ContactLog> contacts_;  // from the start of the run
   bool polynomial_loaded_ = false;    // the coefficients below belong to the last step
   double polynomial_time_s_ = 0.0;    // t_n, the end of the last step [s]
-  std::vector<double> polynomial_x_;  // y^(k)(t_n) / k! for x [m / s^k], k = 0 .. q
-  std::vector<double> polynomial_v_;  // the same for v [m/s / s^k]
+  std::vector<State> polynomial_;     // y^(k)(t_n) / k!, k = 0 .. q [the state's units / s^k]
 };
 
 class CvodeEngine final : public Engine {

@@ -60,8 +60,9 @@ std::optional<FieldError> SimulationOptions::IsValid() const {
     return FieldError{"duration_s", "duration x sample rate exceeds 2e8 samples"};
   if (!std::isfinite(initial.x_m)) return FieldError{"initial.x_m", "must be finite"};
   if (!std::isfinite(initial.v_m_per_s)) return FieldError{"initial.v_m_per_s", "must be finite"};
+  if (!std::isfinite(initial.coil_force_n)) return FieldError{"initial.coil_force_n", "must be finite"};
   if (!(cvode_relative_tolerance > 0) || !(cvode_absolute_tolerance_m > 0) ||
-      !(cvode_absolute_tolerance_m_per_s > 0))
+      !(cvode_absolute_tolerance_m_per_s > 0) || !(cvode_absolute_tolerance_n > 0))
     return FieldError{"cvode tolerances", "must be > 0"};
   return std::nullopt;
 }

@@ -26,11 +26,17 @@
 namespace strokelab {
 namespace {
 
-// y' = [x', v'] = [v, f / m_p] at one stage.
+// y' = [x', v', F_e'] = [v, f / m_p, CoilForceRate] at one stage (F_e' = 0 without the coil's pole).
 struct Derivative {
   double x_rate_m_per_s = 0.0;
   double v_rate_m_per_s2 = 0.0;
+  double coil_rate_n_per_s = 0.0;
 };
+
+// y + h k.
+State Advance(const State& y, double h, const Derivative& k) {
+  return {y.x_m + h * k.x_rate_m_per_s, y.v_m_per_s + h * k.v_rate_m_per_s2, y.coil_force_n + h * k.coil_rate_n_per_s};
+}
 
 // The drive v_in = V sin(w t + phi) at the three stage times of step n: t_n, t_n + h/2, t_n + 3h/4.
 // Three sin() calls per step were 80% of the run time; instead the phasor e^{j(w t_n + phi)} is
@@ -95,21 +101,20 @@ class Ode3Run {
 
   void Run() {
     PrepareRecord();
-    double x_m = options_.initial.x_m;
-    double v_m_per_s = options_.initial.v_m_per_s;
+    State y = options_.initial;
     for (size_t n = 0; n < sample_count_; ++n) {
       if ((n & 4095) == 0) ThrowIfCancelled();  // cancel.h
       const StageDrive::Voltages drive_v = stage_drive_.AtStep(n);
       // The first stage doubles as the sample's force (no extra evaluation).
-      const ContactMode mode = ModeFromState(model_, x_m, v_m_per_s);
-      const double force_n = Force(drive_v.start_v, x_m, v_m_per_s, mode);
-      EmitSample(n, x_m, v_m_per_s, force_n, mode);
-      Step(drive_v, force_n, &x_m, &v_m_per_s);
-      if (!std::isfinite(x_m) || !std::isfinite(v_m_per_s))
+      const ContactMode mode = ModeFromState(model_, y.x_m, y.v_m_per_s);
+      const double force_n = Force(drive_v.start_v, y, mode);
+      EmitSample(n, y, force_n, mode);
+      Step(drive_v, force_n, &y);
+      if (!std::isfinite(y.x_m) || !std::isfinite(y.v_m_per_s) || !std::isfinite(y.coil_force_n))
         throw NumericalError("ode3 engine: the state is no longer finite at t = " + std::to_string(TimeS(n + 1)) +
                              " s (the fixed step 1/fs is unstable or the model diverges)");
     }
-    out_->final_state = {x_m, v_m_per_s};
+    out_->final_state = y;
     contacts_.Finish(TimeS(sample_count_));
   }
 
@@ -131,32 +136,36 @@ class Ode3Run {
     out_->rhs_evaluations = 0;
   }
 
-  double Force(double drive_v, double x_m, double v_m_per_s, ContactMode mode) {
+  double Force(double drive_v, const State& y, ContactMode mode) {
     ++out_->rhs_evaluations;
-    return BlockedForce(model_, drive_v, x_m, v_m_per_s, mode);
+    return BlockedForce(model_, drive_v, y, mode);
   }
 
-  Derivative StageDerivative(double drive_v, double x_m, double v_m_per_s) {
-    const double force_n = Force(drive_v, x_m, v_m_per_s, ModeFromState(model_, x_m, v_m_per_s));
-    return {v_m_per_s, force_n * inverse_mass_per_kg_};
+  double CoilRate(double drive_v, const State& y) const {
+    return model_.HasCoilPole() ? CoilForceRateJacobian(model_, drive_v, y).rate_n_per_s : 0.0;
+  }
+
+  Derivative StageDerivative(double drive_v, const State& y) {
+    const double force_n = Force(drive_v, y, ModeFromState(model_, y.x_m, y.v_m_per_s));
+    return {y.v_m_per_s, force_n * inverse_mass_per_kg_, CoilRate(drive_v, y)};
   }
 
   // One Bogacki-Shampine step from t_n; k1 from the force already evaluated there.
-  void Step(const StageDrive::Voltages& drive_v, double force_n, double* x_m, double* v_m_per_s) {
+  void Step(const StageDrive::Voltages& drive_v, double force_n, State* y) {
     const double h = step_s_;
-    const Derivative k1{*v_m_per_s, force_n * inverse_mass_per_kg_};
-    const Derivative k2 =
-        StageDerivative(drive_v.half_v, *x_m + 0.5 * h * k1.x_rate_m_per_s, *v_m_per_s + 0.5 * h * k1.v_rate_m_per_s2);
-    const Derivative k3 = StageDerivative(drive_v.three_quarter_v, *x_m + 0.75 * h * k2.x_rate_m_per_s,
-                                          *v_m_per_s + 0.75 * h * k2.v_rate_m_per_s2);
-    *x_m += h * (2.0 / 9.0 * k1.x_rate_m_per_s + 1.0 / 3.0 * k2.x_rate_m_per_s + 4.0 / 9.0 * k3.x_rate_m_per_s);
-    *v_m_per_s +=
+    const Derivative k1{y->v_m_per_s, force_n * inverse_mass_per_kg_, CoilRate(drive_v.start_v, *y)};
+    const Derivative k2 = StageDerivative(drive_v.half_v, Advance(*y, 0.5 * h, k1));
+    const Derivative k3 = StageDerivative(drive_v.three_quarter_v, Advance(*y, 0.75 * h, k2));
+    y->x_m += h * (2.0 / 9.0 * k1.x_rate_m_per_s + 1.0 / 3.0 * k2.x_rate_m_per_s + 4.0 / 9.0 * k3.x_rate_m_per_s);
+    y->v_m_per_s +=
         h * (2.0 / 9.0 * k1.v_rate_m_per_s2 + 1.0 / 3.0 * k2.v_rate_m_per_s2 + 4.0 / 9.0 * k3.v_rate_m_per_s2);
+    y->coil_force_n +=
+        h * (2.0 / 9.0 * k1.coil_rate_n_per_s + 1.0 / 3.0 * k2.coil_rate_n_per_s + 4.0 / 9.0 * k3.coil_rate_n_per_s);
   }
 
-  void EmitSample(size_t n, double x_m, double v_m_per_s, double force_n, ContactMode mode) {
-    out_->displacement_m[n] = x_m;
-    if (options_.record_velocity) out_->velocity_m_per_s[n] = v_m_per_s;
+  void EmitSample(size_t n, const State& y, double force_n, ContactMode mode) {
+    out_->displacement_m[n] = y.x_m;
+    if (options_.record_velocity) out_->velocity_m_per_s[n] = y.v_m_per_s;
     out_->force_n[n] = force_n;
     out_->in_contact[n] = mode.Any() ? 1 : 0;
     // A fixed-step solver knows contacts only from its samples: a contact starts at the first sample

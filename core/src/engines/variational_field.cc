@@ -5,29 +5,32 @@
 
 namespace strokelab::variational {
 
-Layout::Layout(const FlowRequest& request)
-    : state_columns(request.monodromy ? 2 : 0),
+Layout::Layout(const FlowRequest& request, int d)
+    : state_size(d),
+      state_columns(request.monodromy ? d : 0),
       parameter_columns(static_cast<int>(request.parameters.size())),
       harmonics(request.harmonics),
       harmonic_sensitivities(request.harmonic_sensitivities) {
   columns = state_columns + parameter_columns;
   if (request.drive_amplitude) amplitude_column = columns++;
   if (request.drive_frequency) frequency_column = columns++;
-  size = 2 + 2 * columns + 2 * harmonics + (harmonic_sensitivities ? 2 * columns * harmonics : 0);
+  size = d * (1 + columns) + 2 * harmonics + (harmonic_sensitivities ? 2 * columns * harmonics : 0);
 }
 
 Field::Field(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request)
     : model_(model),
       drive_(drive),
       parameters_(request.parameters),
-      layout_(request),
+      layout_(request, model.StateSize()),
       inverse_mass_per_kg_(1.0 / model.mass_kg),
       omega_rad_per_s_(drive.AngularFrequency()),
       cos_phase_(std::cos(drive.phase_rad)),
       sin_phase_(std::sin(drive.phase_rad)) {}
 
-double Field::Force(double t_s, double x_m, double v_m_per_s, ContactMode mode) const {
-  return BlockedForce(model_, drive_.Voltage(t_s), x_m, v_m_per_s, mode);
+State StateOf(const double* y, int state_size) { return {y[0], y[1], state_size > 2 ? y[2] : 0.0}; }
+
+double Field::Force(double t_s, const double* y, ContactMode mode) const {
+  return BlockedForce(model_, drive_.Voltage(t_s), StateOf(y, layout_.state_size), mode);
 }
 
 void SmallAngleCosSin(double theta, double* cos_theta, double* sin_theta) {
@@ -51,43 +54,53 @@ double Field::Evaluate(double t_s, const double* y, double* dy, ContactMode mode
 }
 
 double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
-  const double x = y[0], v = y[1];
+  const Layout& l = layout_;
+  const State state = StateOf(y, l.state_size);
+  const double x = state.x_m;
+  const bool pole = l.state_size > 2;
   // sin/cos of w t serve the drive (angle addition with its phase) and the quadratures.
   const double sin_drive = sin_wt * cos_phase_ + cos_wt * sin_phase_;  // sin(wt + phi)
   const double voltage_v = drive_.amplitude_v * sin_drive;
-  const Layout& l = layout_;
   const double m = inverse_mass_per_kg_;
   double force_n;
+  CoilForceRate coil;
+  if (pole) coil = CoilForceRateJacobian(model_, voltage_v, state);
   if (l.columns == 0) {
-    force_n = BlockedForce(model_, voltage_v, x, v, mode);
+    force_n = BlockedForce(model_, voltage_v, state, mode);
   } else {
-    const ForceJacobian j = BlockedForceJacobian(model_, voltage_v, x, v, mode);
+    const ForceJacobian j = BlockedForceJacobian(model_, voltage_v, state, mode);
     force_n = j.force_n;
     for (int c = 0; c < l.columns; ++c) {
       const int i = l.Column(c);
-      dy[i] = y[i + 1];
-      double acceleration = (j.d_dx_n_per_m * y[i] + j.d_dv_n_s_per_m * y[i + 1]) * m;
+      const double sx = y[i], sv = y[i + 1], se = pole ? y[i + 2] : 0.0;
+      dy[i] = sv;
+      double acceleration = (j.d_dx_n_per_m * sx + j.d_dv_n_s_per_m * sv + j.d_dcoil * se) * m;
+      double coil_rate = pole ? coil.d_dx_n_per_m_s * sx + coil.d_dv_n_per_m * sv + coil.d_dcoil_per_s * se : 0.0;
       if (c == l.amplitude_column || c == l.frequency_column) {
-        // g v_in(t) with v_in = V sin(wt + phi), while the amplifier does not clip it:
-        // d/dV = g sin(wt + phi), d/df = g V 2 pi t cos(wt + phi).
+        // The drive enters as g phi u, or through F_e' with the coil's pole, with u = V sin(wt + phi)
+        // while the amplifier does not clip it: du/dV = sin(wt + phi), du/df = V 2 pi t cos(wt + phi).
         if (std::abs(voltage_v) <= model_.amplifier_limit_v) {
           const double cos_drive = cos_wt * cos_phase_ - sin_wt * sin_phase_;
-          acceleration += model_.gain_n_per_v * ForceFactorShape(model_, x) * m *
-                          (c == l.amplitude_column ? sin_drive
-                                                   : drive_.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive);
+          const double du = c == l.amplitude_column ? sin_drive
+                                                    : drive_.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive;
+          if (pole) coil_rate += coil.d_dvoltage_n_per_v_s * du;
+          else acceleration += model_.gain_n_per_v * ForceFactorShape(model_, x) * m * du;
         }
       } else if (c >= l.state_columns) {
         double ActuatorModel::*p = parameters_[c - l.state_columns];
         // x'' = f / m_p: the mass enters through 1 / m_p (d/dm_p = -f / m_p^2), the rest through f.
         acceleration += p == &ActuatorModel::mass_kg
                             ? -force_n * m * m
-                            : BlockedForceParameterDerivative(model_, p, voltage_v, x, v, mode) * m;
+                            : BlockedForceParameterDerivative(model_, p, voltage_v, state, mode) * m;
+        if (pole) coil_rate += CoilForceRateParameterDerivative(model_, p, voltage_v, state);
       }
       dy[i + 1] = acceleration;
+      if (pole) dy[i + 2] = coil_rate;
     }
   }
-  dy[0] = v;
+  dy[0] = state.v_m_per_s;
   dy[1] = force_n * m;
+  if (pole) dy[2] = coil.rate_n_per_s;
   // e^{-jhwt} by repeated multiplication with e^{-jwt}.
   double re = 1.0, im = 0.0;
   for (int k = 0; k < l.harmonics; ++k) {

@@ -2,13 +2,13 @@
 // equations and quadratures packed into one flat vector, and the switching surfaces with the
 // derivatives that the jump of the sensitivities at a switch needs.
 //
-// Layout of the packed vector y (n components):
-//   y[0], y[1]                   x [m], v [m/s]
-//   y[2 + 2c], y[3 + 2c]         column c of the sensitivities: d(x, v)/d(x0, v0) first when the
-//                                monodromy is asked for, then d(x, v)/d(parameter)
+// Layout of the packed vector y (n components), with d = ActuatorModel::StateSize() (2: x, v; 3: and F_e):
+//   y[0 .. d-1]                  the state: x [m], v [m/s] (, F_e [N])
+//   y[d + dc .. d + dc + d-1]    column c of the sensitivities: d(state)/d(initial state) first (d
+//                                columns) when the monodromy is asked for, then d(state)/d(parameter)
 //   quadrature(k)                Re, Im of int x e^{-j(k+1)wt} dt, k = 0 .. N-1
 //   quadrature_sensitivity(c, k) Re, Im of int (column c's x) e^{-j(k+1)wt} dt
-// Only y[0], y[1] take part in the error control.
+// The state and the columns take part in the error control.
 #pragma once
 
 #include <vector>
@@ -20,7 +20,8 @@
 namespace strokelab::variational {
 
 struct Layout {
-  int state_columns = 0;  // 2 with the monodromy, else 0
+  int state_size = 2;     // d
+  int state_columns = 0;  // d with the monodromy, else 0
   int parameter_columns = 0;
   int amplitude_column = -1, frequency_column = -1;  // -1: not asked for
   int columns = 0;        // state columns + parameters + drive columns
@@ -28,9 +29,9 @@ struct Layout {
   bool harmonic_sensitivities = false;
   int size = 2;
 
-  explicit Layout(const FlowRequest& request);
-  int Column(int c) const { return 2 + 2 * c; }
-  int Quadrature(int k) const { return 2 + 2 * columns + 2 * k; }
+  Layout(const FlowRequest& request, int state_size);
+  int Column(int c) const { return state_size * (1 + c); }
+  int Quadrature(int k) const { return state_size * (1 + columns) + 2 * k; }
   int QuadratureSensitivity(int c, int k) const { return Quadrature(harmonics) + 2 * (c * harmonics + k); }
 };
 
@@ -45,7 +46,7 @@ class Field {
   double Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
   double Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const;
   double omega_rad_per_s() const { return omega_rad_per_s_; }
-  double Force(double t_s, double x_m, double v_m_per_s, ContactMode mode) const;
+  double Force(double t_s, const double* y, ContactMode mode) const;
 
  private:
   ActuatorModel model_;
@@ -58,6 +59,9 @@ class Field {
 
 // (cos theta, sin theta) for |theta| <= 0.5 by their Taylor series to theta^17 (error < 1e-20).
 void SmallAngleCosSin(double theta, double* cos_theta, double* sin_theta);
+
+// The state in y[0 .. d-1].
+State StateOf(const double* y, int state_size);
 
 // One switching surface h(x, v) = 0 of one stop: its penetration p, or its stop force before the
 // clamp (dynamics.h, StopForceUnclamped).

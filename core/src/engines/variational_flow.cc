@@ -131,19 +131,23 @@ class FlowIntegrator {
     shortest_period_s_ = shortest_s;
     // A column's absolute tolerances are the state's over the size of its perturbation: the length
     // scale for x0, the length scale times w for v0, |p| for a parameter (1 where p = 0).
+    // (The coil's force: its size is the drive's force g V.)
     const variational::Layout& l = field_.layout();
-    controlled_ = 2 + 2 * l.columns;
+    d_ = l.state_size;
+    controlled_ = d_ * (1 + l.columns);
     const double length_m = LengthScaleM(model), speed_m_per_s = length_m * drive.AngularFrequency();
-    absolute_tolerance_ = {options.absolute_tolerance_m, options.absolute_tolerance_m_per_s};
+    const double state_tolerance[] = {options.absolute_tolerance_m, options.absolute_tolerance_m_per_s,
+                                      options.absolute_tolerance_n};
+    const double state_size[] = {length_m, speed_m_per_s, std::abs(model.gain_n_per_v) * drive.amplitude_v};
+    absolute_tolerance_.assign(state_tolerance, state_tolerance + d_);
     for (int c = 0; c < l.columns; ++c) {
-      double size = c < l.state_columns                      ? (c == 0 ? length_m : speed_m_per_s)
+      double size = c < l.state_columns                      ? state_size[c]
                     : c == l.amplitude_column                ? drive.amplitude_v
                     : c == l.frequency_column                ? drive.frequency_hz
                                                              : std::abs(model.*request.parameters[c - l.state_columns]);
       if (!(size > 0) || !std::isfinite(size)) size = 1.0;
       const double looser = options.sensitivity_relative_tolerance / options.relative_tolerance;
-      absolute_tolerance_.push_back(looser * options.absolute_tolerance_m / size);
-      absolute_tolerance_.push_back(looser * options.absolute_tolerance_m_per_s / size);
+      for (int i = 0; i < d_; ++i) absolute_tolerance_.push_back(looser * state_tolerance[i] / size);
     }
   }
 
@@ -165,7 +169,9 @@ class FlowIntegrator {
   void PrepareDense(double t, double h);
   // The interpolated component i at theta in [0, 1] of the step.
   double Interpolate(int i, double theta) const;
-  void Note(double t, double x, double v);
+  // The state in the dense output at theta.
+  State InterpolateState(double theta) const;
+  void Note(double t, const State& y);
   // The requested samples at instants up to t_until within the step just taken from t (size h; over
   // u, t and h are the independent variable's and the instants are found on time's dense output).
   void Sample(double t, double h, double t_until);
@@ -189,9 +195,10 @@ class FlowIntegrator {
   const FlowOptions& options_;
   int n_;
   int width_;  // n_ and time (over u)
+  int d_ = 2;  // the state's size (Layout::state_size)
   std::vector<double> k_, y_, y_new_, stage_, dense_;
   double max_step_s_ = 0.0, shortest_period_s_ = 0.0;
-  int controlled_ = 2;                      // components under error control: (x, v) and the columns
+  int controlled_ = 2;                      // components under error control: the state and the columns
   std::vector<double> absolute_tolerance_;  // per controlled component
   ContactMode mode_;
   std::vector<variational::StopSurface> stops_;  // the penetration surface of each stop present
@@ -294,7 +301,7 @@ double FlowIntegrator::Step(double t, double h) {
     err3 += (e3 / scale) * (e3 / scale);
   };
   for (int i = 0; i < controlled_; ++i) {
-    const double relative = i < 2 ? options_.relative_tolerance : options_.sensitivity_relative_tolerance;
+    const double relative = i < d_ ? options_.relative_tolerance : options_.sensitivity_relative_tolerance;
     add(i, absolute_tolerance_[i] + relative * std::max(std::abs(y_[i]), std::abs(y_new_[i])));
   }
   if (phase_.active) add(n_, options_.relative_tolerance * shortest_period_s_);
@@ -335,10 +342,17 @@ double FlowIntegrator::Interpolate(int i, double theta) const {
   return y_[i] + value;
 }
 
-void FlowIntegrator::Note(double t, double x, double v) {
-  result_.min_displacement_m = std::min(result_.min_displacement_m, x);
-  result_.max_displacement_m = std::max(result_.max_displacement_m, x);
-  if (request_.figures) result_.peak_force_n = std::max(result_.peak_force_n, std::abs(field_.Force(t, x, v, mode_)));
+State FlowIntegrator::InterpolateState(double theta) const {
+  return {Interpolate(0, theta), Interpolate(1, theta), d_ > 2 ? Interpolate(2, theta) : 0.0};
+}
+
+void FlowIntegrator::Note(double t, const State& y) {
+  result_.min_displacement_m = std::min(result_.min_displacement_m, y.x_m);
+  result_.max_displacement_m = std::max(result_.max_displacement_m, y.x_m);
+  if (request_.figures) {
+    const double packed[] = {y.x_m, y.v_m_per_s, y.coil_force_n};
+    result_.peak_force_n = std::max(result_.peak_force_n, std::abs(field_.Force(t, packed, mode_)));
+  }
 }
 
 void FlowIntegrator::Sample(double t, double h, double t_until) {
@@ -347,9 +361,10 @@ void FlowIntegrator::Sample(double t, double h, double t_until) {
     const double ts = request_.sample_start_s + next_sample_ * request_.sample_interval_s;
     if (ts > t_until) return;
     PrepareDense(t, h);
-    const double theta = ThetaAt(t, h, ts), x = Interpolate(0, theta), v = Interpolate(1, theta);
-    result_.samples.push_back({x, v});
-    result_.sample_force_n.push_back(field_.Force(ts, x, v, mode_));
+    const State y = InterpolateState(ThetaAt(t, h, ts));
+    const double packed[] = {y.x_m, y.v_m_per_s, y.coil_force_n};
+    result_.samples.push_back(y);
+    result_.sample_force_n.push_back(field_.Force(ts, packed, mode_));
     ++next_sample_;
   }
 }
@@ -373,8 +388,8 @@ void FlowIntegrator::Switch(double t, double h, double theta, const variational:
   const ContactMode before = mode_;
   ContactMode after = mode_;
   (surface.upper ? after.upper : after.lower) = entry;
-  const double a_before = field_.Force(t_switch, x, v, before) / m.mass_kg;
-  const double jump = field_.Force(t_switch, x, v, after) / m.mass_kg - a_before;  // only x'' can jump
+  const double a_before = field_.Force(t_switch, y_new_.data(), before) / m.mass_kg;
+  const double jump = field_.Force(t_switch, y_new_.data(), after) / m.mass_kg - a_before;  // only x'' can jump
   double dh_dx, dh_dv;
   surface.Gradient(m, x, v, &dh_dx, &dh_dv);
   const double rate = dh_dx * v + dh_dv * a_before;  // dh/dt along the flow before the switch
@@ -399,7 +414,7 @@ void FlowIntegrator::Switch(double t, double h, double theta, const variational:
   }
   y_.swap(y_new_);
   field_.Evaluate(t_switch, y_.data(), K(0), mode_);
-  Note(t_switch, x, v);
+  Note(t_switch, variational::StateOf(y_.data(), d_));
 }
 
 bool FlowIntegrator::HandleEvents(double t, double h) {
@@ -446,8 +461,9 @@ bool FlowIntegrator::HandleEvents(double t, double h) {
     };
     const double theta_apex = v1 == 0.0 ? 1.0 : LocateRootOnStep(velocity, v0, v1);
     if (theta_apex < best_theta) {
-      const double x_apex = Interpolate(0, theta_apex), v_apex = Interpolate(1, theta_apex);
-      Note(t + theta_apex * h, x_apex, v_apex);
+      const State apex = InterpolateState(theta_apex);
+      const double x_apex = apex.x_m, v_apex = apex.v_m_per_s;
+      Note(t + theta_apex * h, apex);
       for (const variational::StopSurface& penetration : stops_) {
         if (penetration.upper ? mode_.upper : mode_.lower) continue;
         const double p0 = penetration.Value(model(), x0, v0), p_apex = penetration.Value(model(), x_apex, v_apex);
@@ -540,7 +556,7 @@ double FlowIntegrator::RunRootPhase(double t, double boundary, const variational
     std::copy_n(K(dop853::kStages), width_, K(0));
     if (to_release) {  // p = 0: the stop lets go, with no jump (its force is 0 there)
       (stop.upper ? mode_.upper : mode_.lower) = false;
-      Note(t, y_[0], y_[1]);
+      Note(t, variational::StateOf(y_.data(), d_));
       return leave(t);
     }
     // After entry, u pays while the time per step grows; it stops growing as p' falls (dt/du = 2u/p'),
@@ -555,12 +571,13 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   const variational::Layout& l = field_.layout();
   y_[0] = start.x_m;
   y_[1] = start.v_m_per_s;
+  if (d_ > 2) y_[2] = start.coil_force_n;
   for (int c = 0; c < l.state_columns; ++c) y_[l.Column(c) + c] = 1.0;  // s(t0) = I
   mode_ = StartingMode(model(), start.x_m, start.v_m_per_s);
   if (model().HasLowerStop()) stops_.push_back({false, false});
   if (model().HasUpperStop()) stops_.push_back({true, false});
   result_.min_displacement_m = result_.max_displacement_m = start.x_m;
-  Note(t0, start.x_m, start.v_m_per_s);
+  Note(t0, start);
   field_.Evaluate(t0, y_.data(), K(0), mode_);
 
   std::vector<double> boundaries = ClippingKinks(model(), drive_, t0, t1);
@@ -622,14 +639,14 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
       }
     }
   }
-  Note(t1, y_[0], y_[1]);
+  result_.end = variational::StateOf(y_.data(), d_);
+  Note(t1, result_.end);
   for (; next_sample_ < request_.sample_count; ++next_sample_) {  // the last instant's rounding past t1
-    result_.samples.push_back({y_[0], y_[1]});
-    result_.sample_force_n.push_back(field_.Force(t1, y_[0], y_[1], mode_));
+    result_.samples.push_back(result_.end);
+    result_.sample_force_n.push_back(field_.Force(t1, y_.data(), mode_));
   }
-  result_.end = {y_[0], y_[1]};
-  result_.end_rate = {K(0)[0], K(0)[1]};  // f(t1, y(t1)): the last step's first-same-as-last stage
-  for (int c = 0; c < l.columns; ++c) result_.columns.push_back({y_[l.Column(c)], y_[l.Column(c) + 1]});
+  result_.end_rate = variational::StateOf(K(0), d_);  // f(t1, y(t1)): the last step's first-same-as-last stage
+  for (int c = 0; c < l.columns; ++c) result_.columns.push_back(variational::StateOf(&y_[l.Column(c)], d_));
   for (int k = 0; k < l.harmonics; ++k) result_.harmonic_integrals.emplace_back(y_[l.Quadrature(k)], y_[l.Quadrature(k) + 1]);
   if (l.harmonic_sensitivities) {
     result_.harmonic_sensitivities.resize(l.columns);
@@ -649,7 +666,8 @@ FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start,
   Validate(model);
   Validate(drive);
   Validate(options);
-  if (!std::isfinite(start.x_m) || !std::isfinite(start.v_m_per_s)) throw InputError("initial", "must be finite");
+  if (!std::isfinite(start.x_m) || !std::isfinite(start.v_m_per_s) || !std::isfinite(start.coil_force_n))
+    throw InputError("initial", "must be finite");
   if (!std::isfinite(t0_s) || !std::isfinite(t1_s) || !(t1_s >= t0_s))
     throw InputError("t1_s", "the interval must be finite with t1 >= t0");
   if (request.harmonics < 0) throw InputError("harmonics", "must be >= 0");
@@ -671,6 +689,8 @@ std::optional<FieldError> FlowOptions::IsValid() const {
     return FieldError{"absolute_tolerance_m", "must be a finite number > 0"};
   if (!(absolute_tolerance_m_per_s > 0) || !std::isfinite(absolute_tolerance_m_per_s))
     return FieldError{"absolute_tolerance_m_per_s", "must be a finite number > 0"};
+  if (!(absolute_tolerance_n > 0) || !std::isfinite(absolute_tolerance_n))
+    return FieldError{"absolute_tolerance_n", "must be a finite number > 0"};
   if (!(initial_step_s >= 0) || !std::isfinite(initial_step_s))
     return FieldError{"initial_step_s", "must be a finite number >= 0"};
   if (max_steps < 1) return FieldError{"max_steps", "must be >= 1"};

@@ -95,21 +95,22 @@ OrbitSlopes OrbitHarmonicSlopes(const ActuatorModel& model, const RecordAnalysis
     out.harmonics[h - 1] = ResponseHarmonic(scale * flow.harmonic_integrals[h - 1], h, omega, kind, model.mass_kg);
   if (!slopes) return out;
   // dy*/dp_j = (I - M)^{-1} dP/dp_j on a periodic orbit; 0 on a fixed stretch of aperiodic motion.
-  const State mx = flow.columns[0], mv = flow.columns[1];
-  const double a = 1.0 - mx.x_m, b = -mv.x_m, c = -mx.v_m_per_s, d = 1.0 - mv.v_m_per_s;
-  const double det = a * d - b * c;
-  if (period > 0 && !(std::abs(det) > 0.0)) throw NumericalError("the orbit's monodromy has a multiplier of 1");
+  const int d = model.StateSize();
+  const StateMatrix monodromy = MonodromyFromColumns(flow.columns, d);
+  const auto& hs = flow.harmonic_sensitivities;
   for (size_t j = 0; j < parameters.size(); ++j) {
-    const State dp = flow.columns[2 + j];
-    double dx0 = 0.0, dv0 = 0.0;
+    const State dp = flow.columns[d + j];
+    State dy0;
     if (period > 0) {
-      dx0 = (d * dp.x_m - b * dp.v_m_per_s) / det;
-      dv0 = (-c * dp.x_m + a * dp.v_m_per_s) / det;
+      const std::optional<State> solved = SolveShiftedByIdentity(monodromy, State{-dp.x_m, -dp.v_m_per_s, -dp.coil_force_n});
+      if (!solved) throw NumericalError("the orbit's monodromy has a multiplier of 1");
+      dy0 = *solved;
     }
     std::vector<Complex> slopes(orders);
     for (int h = 1; h <= orders; ++h) {
-      const Complex dx_h = scale * (flow.harmonic_sensitivities[2 + j][h - 1] + flow.harmonic_sensitivities[0][h - 1] * dx0 +
-                                    flow.harmonic_sensitivities[1][h - 1] * dv0);
+      Complex sum = hs[d + j][h - 1] + hs[0][h - 1] * dy0.x_m + hs[1][h - 1] * dy0.v_m_per_s;
+      if (d > 2) sum += hs[2][h - 1] * dy0.coil_force_n;
+      const Complex dx_h = scale * sum;
       slopes[h - 1] = ResponseHarmonic(dx_h, h, omega, kind, model.mass_kg);
       // The force is m_p x'': its harmonics scale with the mass too.
       if (parameters[j] == &ActuatorModel::mass_kg && kind == ResponseKind::kForce)
@@ -156,14 +157,15 @@ std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const Re
   const State linear = map.ClippedLinearStart();
   std::optional<ModelOrbit> best;
   double best_mismatch = std::numeric_limits<double>::infinity();
-  std::vector<State> starts = {linear, State{0.0, 0.0}, State{0.5 * linear.x_m, 0.5 * linear.v_m_per_s}};
+  std::vector<State> starts = {linear, State{0.0, 0.0},
+                               State{0.5 * linear.x_m, 0.5 * linear.v_m_per_s, 0.5 * linear.coil_force_n}};
   // At a stop, moving into it at the linear response's peak speed: the contacting branch of a
   // bistable record, which none of the starts above may reach (the record may have got there by a
   // transient the model's start does not repeat).
   const double omega = 2.0 * std::numbers::pi * record.drive.frequency_hz;
   const double speed = std::hypot(omega * linear.x_m, linear.v_m_per_s);
-  if (model.HasLowerStop()) starts.push_back(State{model.lower_stop_m, -speed});
-  if (model.HasUpperStop()) starts.push_back(State{model.upper_stop_m, speed});
+  if (model.HasLowerStop()) starts.push_back(State{model.lower_stop_m, -speed, linear.coil_force_n});
+  if (model.HasUpperStop()) starts.push_back(State{model.upper_stop_m, speed, linear.coil_force_n});
   for (const State start : starts) {
     for (const OrbitSearch search : {OrbitSearch::kAttractor, OrbitSearch::kSettled}) {
       std::optional<ModelOrbit> orbit;

@@ -63,19 +63,39 @@ double ForceFactorShape(const ActuatorModel& m, double x) {
 }
 
 namespace {
-// dF/dphi [N]: how the coil's force g phi u - c_emf phi^2 v changes with the force factor's shape.
-double ForcePerForceFactorShape(const ActuatorModel& m, double drive_voltage_v, double x, double v) {
-  return m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - 2.0 * m.back_emf_damping_n_s_per_m * ForceFactorShape(m, x) * v;
+// dF/dphi [N]: how the coil's force changes with the force factor's shape: g phi u - c_emf phi^2 v
+// without the coil's pole, phi F_e with it.
+double ForcePerForceFactorShape(const ActuatorModel& m, double drive_voltage_v, const State& y) {
+  if (m.HasCoilPole()) return y.coil_force_n;
+  return m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) -
+         2.0 * m.back_emf_damping_n_s_per_m * ForceFactorShape(m, y.x_m) * y.v_m_per_s;
+}
+
+double ForceFactorSlope(const ActuatorModel& m, double x) {
+  return m.force_factor_b1_per_m + 2.0 * m.force_factor_b2_per_m2 * x;
+}
+
+// d(clipped voltage)/d(amplifier limit): +-1 where the amplifier clips, else 0.
+double ClippedVoltagePerLimit(const ActuatorModel& m, double drive_voltage_v) {
+  if (drive_voltage_v > m.amplifier_limit_v) return 1.0;
+  if (drive_voltage_v < -m.amplifier_limit_v) return -1.0;
+  return 0.0;
 }
 }  // namespace
 
-double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, double v, ContactMode mode) {
-  // The coil's force g phi u - c_emf phi^2 v, written as the rest's g u - c_emf v (the latter inside
-  // c_p v) plus what the force factor changes (model.h).
+double BlockedForce(const ActuatorModel& m, double drive_voltage_v, const State& y, ContactMode mode) {
+  const double x = y.x_m, v = y.v_m_per_s;
   const double phi = ForceFactorShape(m, x);
-  double force = m.gain_n_per_v * phi * ClippedVoltage(m, drive_voltage_v) - m.stiffness_n_per_m * x -
-                 m.damping_n_s_per_m * v;
-  if (m.back_emf_damping_n_s_per_m != 0) force -= m.back_emf_damping_n_s_per_m * (phi * phi - 1.0) * v;
+  double force;
+  if (m.HasCoilPole()) {
+    // The coil's force phi F_e, and c_p v less the coil's part c_emf v, which F_e carries (model.h).
+    force = phi * y.coil_force_n - m.stiffness_n_per_m * x - m.damping_n_s_per_m * v + m.back_emf_damping_n_s_per_m * v;
+  } else {
+    // The coil's force g phi u - c_emf phi^2 v, written as the rest's g u - c_emf v (the latter inside
+    // c_p v) plus what the force factor changes (model.h).
+    force = m.gain_n_per_v * phi * ClippedVoltage(m, drive_voltage_v) - m.stiffness_n_per_m * x - m.damping_n_s_per_m * v;
+    if (m.back_emf_damping_n_s_per_m != 0) force -= m.back_emf_damping_n_s_per_m * (phi * phi - 1.0) * v;
+  }
   if (m.quadratic_stiffness_n_per_m2 != 0) force -= m.quadratic_stiffness_n_per_m2 * x * x;
   if (m.cubic_stiffness_n_per_m3 != 0) force -= m.cubic_stiffness_n_per_m3 * x * x * x;
   if (m.friction_force_n != 0) force -= m.friction_force_n * std::tanh(v / m.friction_velocity_m_per_s);
@@ -86,15 +106,20 @@ double BlockedForce(const ActuatorModel& m, double drive_voltage_v, double x, do
   return force;
 }
 
-ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_v, double x, double v,
+ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_v, const State& y,
                                    ContactMode mode) {
+  const double x = y.x_m, v = y.v_m_per_s;
   ForceJacobian j;
-  j.force_n = BlockedForce(m, drive_voltage_v, x, v, mode);
+  j.force_n = BlockedForce(m, drive_voltage_v, y, mode);
   const double phi = ForceFactorShape(m, x);
-  const double dphi_dx = m.force_factor_b1_per_m + 2.0 * m.force_factor_b2_per_m2 * x;
   j.d_dx_n_per_m = -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x - 3.0 * m.cubic_stiffness_n_per_m3 * x * x +
-                   ForcePerForceFactorShape(m, drive_voltage_v, x, v) * dphi_dx;
-  j.d_dv_n_s_per_m = -m.damping_n_s_per_m - m.back_emf_damping_n_s_per_m * (phi * phi - 1.0);
+                   ForcePerForceFactorShape(m, drive_voltage_v, y) * ForceFactorSlope(m, x);
+  if (m.HasCoilPole()) {
+    j.d_dv_n_s_per_m = -m.damping_n_s_per_m + m.back_emf_damping_n_s_per_m;
+    j.d_dcoil = phi;
+  } else {
+    j.d_dv_n_s_per_m = -m.damping_n_s_per_m - m.back_emf_damping_n_s_per_m * (phi * phi - 1.0);
+  }
   if (m.friction_force_n != 0) {
     const double th = std::tanh(v / m.friction_velocity_m_per_s);
     j.d_dv_n_s_per_m -= m.friction_force_n / m.friction_velocity_m_per_s * (1.0 - th * th);
@@ -113,20 +138,24 @@ ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_
 }
 
 double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorModel::*parameter,
-                                       double drive_voltage_v, double x, double v, ContactMode mode) {
+                                       double drive_voltage_v, const State& y, ContactMode mode) {
   using M = ActuatorModel;
+  const double x = y.x_m, v = y.v_m_per_s;
+  const bool pole = m.HasCoilPole();
   // Each stop term enters with its sign: + F_lower(p = d - x, p' = -v), - F_upper(p = x - d_upper, p' = v).
   const double p_lower = m.lower_stop_m - x, p_upper = x - m.upper_stop_m;
   if (parameter == &M::damping_n_s_per_m) return -v;
   if (parameter == &M::stiffness_n_per_m) return -x;
   if (parameter == &M::quadratic_stiffness_n_per_m2) return -x * x;
   if (parameter == &M::cubic_stiffness_n_per_m3) return -x * x * x;
-  if (parameter == &M::gain_n_per_v) return ForceFactorShape(m, x) * ClippedVoltage(m, drive_voltage_v);
+  // With the coil's pole, g and the amplifier's limit act through F_e (CoilForceRateParameterDerivative).
+  if (parameter == &M::gain_n_per_v) return pole ? 0.0 : ForceFactorShape(m, x) * ClippedVoltage(m, drive_voltage_v);
   if (parameter == &M::force_factor_b1_per_m || parameter == &M::force_factor_b2_per_m2) {
     const double dphi = parameter == &M::force_factor_b1_per_m ? x : x * x;  // d phi / d b
-    return ForcePerForceFactorShape(m, drive_voltage_v, x, v) * dphi;
+    return ForcePerForceFactorShape(m, drive_voltage_v, y) * dphi;
   }
   if (parameter == &M::back_emf_damping_n_s_per_m) {
+    if (pole) return v;
     const double phi = ForceFactorShape(m, x);
     return -(phi * phi - 1.0) * v;
   }
@@ -136,18 +165,41 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
     const double vs = m.friction_velocity_m_per_s, th = std::tanh(v / vs);
     return m.friction_force_n * (1.0 - th * th) * v / (vs * vs);
   }
-  if (parameter == &M::amplifier_limit_v) {
-    if (drive_voltage_v > m.amplifier_limit_v) return m.gain_n_per_v * ForceFactorShape(m, x);
-    if (drive_voltage_v < -m.amplifier_limit_v) return -m.gain_n_per_v * ForceFactorShape(m, x);
-    return 0.0;
-  }
+  if (parameter == &M::amplifier_limit_v)
+    return pole ? 0.0 : m.gain_n_per_v * ForceFactorShape(m, x) * ClippedVoltagePerLimit(m, drive_voltage_v);
   if (parameter == &M::lower_stop_m) return mode.lower ? StopStiffnessNPerM(m, p_lower) : 0.0;
   if (parameter == &M::upper_stop_m) return mode.upper ? StopStiffnessNPerM(m, p_upper) : 0.0;
   if (parameter == &M::contact_stiffness)
     return (mode.lower ? StopForcePerContactStiffness(m, p_lower) : 0.0) -
            (mode.upper ? StopForcePerContactStiffness(m, p_upper) : 0.0);
   if (parameter == &M::contact_damping_n_s_per_m) return (mode.lower ? -v : 0.0) - (mode.upper ? v : 0.0);
-  return 0.0;  // the mass (see the header) and fields that are not forces
+  return 0.0;  // the mass (see the header), tau_e (it acts through F_e) and fields that are not forces
+}
+
+CoilForceRate CoilForceRateJacobian(const ActuatorModel& m, double drive_voltage_v, const State& y) {
+  const double tau = m.coil_time_constant_s, x = y.x_m, v = y.v_m_per_s;
+  const double phi = ForceFactorShape(m, x), c_emf = m.back_emf_damping_n_s_per_m;
+  CoilForceRate r;
+  r.rate_n_per_s = (m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - c_emf * phi * v - y.coil_force_n) / tau;
+  r.d_dx_n_per_m_s = -c_emf * ForceFactorSlope(m, x) * v / tau;
+  r.d_dv_n_per_m = -c_emf * phi / tau;
+  r.d_dcoil_per_s = -1.0 / tau;
+  r.d_dvoltage_n_per_v_s = std::abs(drive_voltage_v) <= m.amplifier_limit_v ? m.gain_n_per_v / tau : 0.0;
+  return r;
+}
+
+double CoilForceRateParameterDerivative(const ActuatorModel& m, double ActuatorModel::*parameter,
+                                        double drive_voltage_v, const State& y) {
+  using M = ActuatorModel;
+  const double tau = m.coil_time_constant_s, x = y.x_m, v = y.v_m_per_s;
+  const double c_emf = m.back_emf_damping_n_s_per_m;
+  if (parameter == &M::gain_n_per_v) return ClippedVoltage(m, drive_voltage_v) / tau;
+  if (parameter == &M::back_emf_damping_n_s_per_m) return -ForceFactorShape(m, x) * v / tau;
+  if (parameter == &M::force_factor_b1_per_m) return -c_emf * x * v / tau;
+  if (parameter == &M::force_factor_b2_per_m2) return -c_emf * x * x * v / tau;
+  if (parameter == &M::coil_time_constant_s) return -CoilForceRateJacobian(m, drive_voltage_v, y).rate_n_per_s / tau;
+  if (parameter == &M::amplifier_limit_v) return m.gain_n_per_v * ClippedVoltagePerLimit(m, drive_voltage_v) / tau;
+  return 0.0;
 }
 
 }  // namespace strokelab

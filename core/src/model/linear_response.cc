@@ -22,10 +22,16 @@ void RequirePositive(double value, const char* key) {
   }
 }
 
-// The dynamic stiffness of the suspension, k_p - m_p w^2 + j c_p w [N/m].
+// The dynamic stiffness of the suspension, k_p - m_p w^2 + j c_p w [N/m], seen by the drive's force g u.
+// With the coil's pole (model.h) the phasors of m_p x'' + (c_p - c_emf) x' + k_p x = F_e and
+// (1 + j w tau_e) F_e = g U - j w c_emf X give g U = [(k_p - m_p w^2 + j (c_p - c_emf) w)(1 + j w tau_e)
+// + j w c_emf] X.
 Complex DynamicStiffness(const ActuatorModel& model, double omega_rad_s) {
-  return Complex(model.stiffness_n_per_m - model.mass_kg * omega_rad_s * omega_rad_s,
-                 model.damping_n_s_per_m * omega_rad_s);
+  const double w = omega_rad_s, c_emf = model.back_emf_damping_n_s_per_m;
+  if (!model.HasCoilPole())
+    return Complex(model.stiffness_n_per_m - model.mass_kg * w * w, model.damping_n_s_per_m * w);
+  const Complex mechanical(model.stiffness_n_per_m - model.mass_kg * w * w, (model.damping_n_s_per_m - c_emf) * w);
+  return mechanical * Complex(1.0, w * model.coil_time_constant_s) + Complex(0.0, w * c_emf);
 }
 
 }  // namespace
@@ -38,10 +44,12 @@ Complex ForceFrfEq3(double natural_frequency_rad_s, double damping_ratio, double
 }
 
 Complex ForceFrf(const ActuatorModel& model, double omega_rad_s) {
+  if (model.HasCoilPole()) return -model.mass_kg * omega_rad_s * omega_rad_s * DisplacementFrf(model, omega_rad_s);
   return ForceFrfEq3(NaturalFrequencyRadS(model), DampingRatio(model), model.gain_n_per_v, omega_rad_s);
 }
 
-// -H / (m_p w^2) simplifies to g / (k_p - m_p w^2 + j c_p w), which stays finite at w = 0 (g / k_p).
+// -H / (m_p w^2) simplifies to g / (k_p - m_p w^2 + j c_p w), which stays finite at w = 0 (g / k_p);
+// with the coil's pole, g over DynamicStiffness's form.
 Complex DisplacementFrf(const ActuatorModel& model, double omega_rad_s) {
   RequirePositive(model.mass_kg, "m_p");
   return model.gain_n_per_v / DynamicStiffness(model, omega_rad_s);

@@ -63,6 +63,15 @@ std::optional<FieldError> PhysicalBoundsError(const ActuatorModel& model) {
                                  FormatDouble(ModelBounds::kMaxStiffnessRatio)};
   };
   if (auto error = frequency_error(k_p, "k_p", "suspension's")) return error;
+  if (model.HasCoilPole()) {
+    const double pole_hz = 1.0 / (two_pi * model.coil_time_constant_s);
+    const double limit_hz = ModelBounds::kMaxCoilPoleRatio * std::sqrt(k_p / mass_kg) / two_pi;
+    if (pole_hz > limit_hz)
+      return FieldError{"tau_e", "puts the coil's pole 1 / (2pi tau_e) at " + FormatDouble(pole_hz) +
+                                     " Hz, above the limit of " + FormatDouble(ModelBounds::kMaxCoilPoleRatio) +
+                                     " times the suspension's natural frequency (" + FormatDouble(limit_hz) +
+                                     " Hz; use 0 to ignore the pole)"};
+  }
   if (auto error = damping_error(model.damping_n_s_per_m, k_p, "c_p", "suspension's")) return error;
   const double length_m = LengthScaleM(model);
   if (auto error = ratio_error(model.quadratic_stiffness_n_per_m2 * length_m, "k2", "k2 L (L: the length scale)"))
@@ -95,6 +104,7 @@ std::string ActuatorModel::NonlinearTerms() const {
   if (friction_force_n != 0) add("friction_n (dry friction)");
   if (quadratic_damping_n_s2_per_m2 != 0) add("c2 (quadratic damping)");
   if (force_factor_b1_per_m != 0 || force_factor_b2_per_m2 != 0) add("b1, b2 (force factor over the stroke)");
+  if (HasCoilPole()) add("tau_e (the coil's pole, a third state)");
   return terms;
 }
 
@@ -128,6 +138,7 @@ std::optional<FieldError> ActuatorModel::IsValid() const {
   if (auto error = Finite(force_factor_b1_per_m, "b1")) return error;
   if (auto error = Finite(force_factor_b2_per_m2, "b2")) return error;
   if (auto error = NonNegative(back_emf_damping_n_s_per_m, "c_emf")) return error;
+  if (auto error = NonNegative(coil_time_constant_s, "tau_e")) return error;
   if (std::isnan(lower_stop_m) || lower_stop_m == ActuatorModel::kNoLimit)
     return FieldError{"d", "must be a finite position <= 0 or -inf (no stop), got " + FormatDouble(lower_stop_m)};
   if (lower_stop_m > 0)
@@ -167,6 +178,8 @@ const std::vector<ParameterInfo>& Parameters() {
        &ActuatorModel::force_factor_b2_per_m2},
       {"c_emf", "back_emf_damping_n_s_per_m", "N s/m", "the back-EMF part of c_p, following the force factor squared",
        &ActuatorModel::back_emf_damping_n_s_per_m},
+      {"tau_e", "coil_time_constant_s", "s", "the coil's electrical time constant L / R (0: ignored)",
+       &ActuatorModel::coil_time_constant_s},
       {"d", "lower_stop_m", "m", "lower end stop position (-inf: none)", &ActuatorModel::lower_stop_m},
       {"d_upper", "upper_stop_m", "m", "upper end stop position (+inf: none)", &ActuatorModel::upper_stop_m},
       {"k_s", "contact_stiffness", "N/m or N/m^1.5", "end-stop contact stiffness", &ActuatorModel::contact_stiffness},

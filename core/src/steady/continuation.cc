@@ -4,29 +4,49 @@
 #include <cmath>
 #include <numbers>
 
+#include <Eigen/LU>
+
 namespace strokelab {
 namespace {
 
-struct Vec3 {
-  double x = 0, v = 0, p = 0;
-  Vec3 operator+(const Vec3& o) const { return {x + o.x, v + o.v, p + o.p}; }
-  Vec3 operator-(const Vec3& o) const { return {x - o.x, v - o.v, p - o.p}; }
-  Vec3 operator*(double s) const { return {x * s, v * s, p * s}; }
-  double Dot(const Vec3& o) const { return x * o.x + v * o.v + p * o.p; }
+// A point u = (x / L, v / (w L), F_e / (k_p L), p / p_ref) of the branch's space, scaled to order one;
+// e (the coil's force) stays 0 for models without the coil's pole.
+struct Vec {
+  double x = 0, v = 0, e = 0, p = 0;
+  Vec operator+(const Vec& o) const { return {x + o.x, v + o.v, e + o.e, p + o.p}; }
+  Vec operator-(const Vec& o) const { return {x - o.x, v - o.v, e - o.e, p - o.p}; }
+  Vec operator*(double s) const { return {x * s, v * s, e * s, p * s}; }
+  double Dot(const Vec& o) const { return x * o.x + v * o.v + e * o.e + p * o.p; }
   double Norm() const { return std::sqrt(Dot(*this)); }
+  // Component i of the d + 1 that take part: x, v (, e), p.
+  double& operator()(int i, int d) { return i == 0 ? x : i == 1 ? v : i == d ? p : e; }
 };
 
-// G(u) and its Jacobian at one point, with the orbit's figures.
+// G(u) and its Jacobian at one point, with the orbit's figures; rows and state columns 0 .. d-1,
+// the parameter's column d.
 struct Evaluation {
-  double g[2];
-  double jacobian[2][3];
+  int d = 2;
+  double g[3] = {0, 0, 0};
+  double jacobian[3][4] = {};
   OrbitFigures figures;
-  double Residual() const { return std::hypot(g[0], g[1]); }
-  // The null vector of the 2x3 Jacobian: the cross product of its rows, normalised.
-  Vec3 Tangent() const {
-    const double* a = jacobian[0];
-    const double* b = jacobian[1];
-    Vec3 t{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  double Residual() const { return d == 2 ? std::hypot(g[0], g[1]) : std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]); }
+  // The null vector of the d x (d+1) Jacobian, normalised: for d = 2 the cross product of its rows;
+  // generally the signed minors, t_k = (-1)^k det(J without column k).
+  Vec Tangent() const {
+    Vec t;
+    if (d == 2) {
+      const double* a = jacobian[0];
+      const double* b = jacobian[1];
+      t = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], 0.0, a[0] * b[1] - a[1] * b[0]};
+    } else {
+      for (int k = 0; k <= 3; ++k) {
+        Eigen::Matrix3d minor;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0, col = 0; j <= 3; ++j)
+            if (j != k) minor(i, col++) = jacobian[i][j];
+        t(k, 3) = (k % 2 == 0 ? 1.0 : -1.0) * minor.determinant();
+      }
+    }
     return t * (1.0 / t.Norm());
   }
 };
@@ -63,17 +83,47 @@ class BranchProblem {
     length_m_ = LengthScaleM(model);
     const double f_ref = which == ContinuationParameter::kFrequencyHz ? p_ref : fixed_value;
     speed_m_per_s_ = length_m_ * 2.0 * std::numbers::pi * f_ref;
+    force_n_ = model.stiffness_n_per_m * length_m_;
+    d_ = model.StateSize();
   }
 
   PeriodMap MapAt(double p) const {
     return which_ == ContinuationParameter::kFrequencyHz ? PeriodMap(model_, p, fixed_) : PeriodMap(model_, fixed_, p);
   }
-  Vec3 ToScaled(double p, State y) const { return {y.x_m / length_m_, y.v_m_per_s / speed_m_per_s_, p / p_ref_}; }
-  State StateOf(const Vec3& u) const { return {u.x * length_m_, u.v * speed_m_per_s_}; }
-  double ParameterOf(const Vec3& u) const { return u.p * p_ref_; }
+  Vec ToScaled(double p, State y) const {
+    return {y.x_m / length_m_, y.v_m_per_s / speed_m_per_s_, d_ > 2 ? y.coil_force_n / force_n_ : 0.0, p / p_ref_};
+  }
+  State StateOf(const Vec& u) const { return {u.x * length_m_, u.v * speed_m_per_s_, u.e * force_n_}; }
+  double ParameterOf(const Vec& u) const { return u.p * p_ref_; }
 
   // with_figures = false: only G and its Jacobian (PeriodMap::Linearize), for Newton steps.
-  Evaluation Evaluate(const Vec3& u, bool with_figures = true) const {
+  // Solves [G'(u); t^T] step = -[G(u); constraint]: Cramer's rule for d = 2, LU otherwise.
+  std::optional<Vec> NewtonStep(const Evaluation& e, Vec tangent, double constraint) const {
+    if (d_ == 2) {
+      const double a[3][3] = {{e.jacobian[0][0], e.jacobian[0][1], e.jacobian[0][2]},
+                              {e.jacobian[1][0], e.jacobian[1][1], e.jacobian[1][2]},
+                              {tangent.x, tangent.v, tangent.p}};
+      const double r[3] = {-e.g[0], -e.g[1], -constraint};
+      double d[3];
+      if (!Solve3(a, r, d)) return std::nullopt;
+      return Vec{d[0], d[1], 0.0, d[2]};
+    }
+    Eigen::Matrix4d a;
+    Eigen::Vector4d r;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 4; ++j) a(i, j) = e.jacobian[i][j];
+      r(i) = -e.g[i];
+    }
+    for (int j = 0; j < 4; ++j) a(3, j) = tangent(j, 3);
+    r(3) = -constraint;
+    const Eigen::FullPivLU<Eigen::Matrix4d> lu(a);
+    if (!lu.isInvertible()) return std::nullopt;
+    const Eigen::Vector4d step = lu.solve(r);
+    if (!step.allFinite()) return std::nullopt;
+    return Vec{step(0), step(1), step(2), step(3)};
+  }
+
+  Evaluation Evaluate(const Vec& u, bool with_figures = true) const {
     const double p = ParameterOf(u);
     const State y = StateOf(u);
     Evaluation e;
@@ -81,31 +131,35 @@ class BranchProblem {
     const DriveParameter drive =
         which_ == ContinuationParameter::kFrequencyHz ? DriveParameter::kFrequencyHz : DriveParameter::kAmplitudeV;
     e.figures = with_figures ? map.Trace(y, 1, drive) : map.Linearize(y, 1, drive);
-    const Matrix2& m = e.figures.monodromy;
-    e.g[0] = (e.figures.end.x_m - y.x_m) / length_m_;
-    e.g[1] = (e.figures.end.v_m_per_s - y.v_m_per_s) / speed_m_per_s_;
-    e.jacobian[0][0] = m.a - 1.0;
-    e.jacobian[0][1] = m.b * speed_m_per_s_ / length_m_;
-    e.jacobian[1][0] = m.c * length_m_ / speed_m_per_s_;
-    e.jacobian[1][1] = m.d - 1.0;
-    // dG/d(p / p_ref) from the map's own drive derivative (PeriodMap::Trace).
-    e.jacobian[0][2] = e.figures.d_end_d_drive.x_m * p_ref_ / length_m_;
-    e.jacobian[1][2] = e.figures.d_end_d_drive.v_m_per_s * p_ref_ / speed_m_per_s_;
+    const StateMatrix& m = e.figures.monodromy;
+    e.d = d_;
+    const double scale[] = {length_m_, speed_m_per_s_, force_n_};
+    const double end[] = {e.figures.end.x_m, e.figures.end.v_m_per_s, e.figures.end.coil_force_n};
+    const double start[] = {y.x_m, y.v_m_per_s, y.coil_force_n};
+    const double drive_rate[] = {e.figures.d_end_d_drive.x_m, e.figures.d_end_d_drive.v_m_per_s,
+                                 e.figures.d_end_d_drive.coil_force_n};
+    for (int i = 0; i < d_; ++i) {
+      e.g[i] = (end[i] - start[i]) / scale[i];
+      for (int j = 0; j < d_; ++j) e.jacobian[i][j] = i == j ? m(i, i) - 1.0 : m(i, j) * scale[j] / scale[i];
+      // dG/d(p / p_ref) from the map's own drive derivative (PeriodMap::Trace).
+      e.jacobian[i][d_] = drive_rate[i] * p_ref_ / scale[i];
+    }
     return e;
   }
 
   struct Corrected {
-    Vec3 u;
+    Vec u;
     Evaluation evaluation;
     int iterations;
   };
   // Newton on [G(u); t . (u - u_pred)] = 0.
-  std::optional<Corrected> Correct(const Vec3& predicted, const Vec3& tangent, const ContinuationOptions& o) const {
-    Vec3 u = predicted;
+  std::optional<Corrected> Correct(const Vec& predicted, const Vec& tangent, const ContinuationOptions& o) const {
+    Vec u = predicted;
     for (int iteration = 0; iteration <= o.max_corrector_iterations; ++iteration) {
       // Newton may wander out of the physical range (a frequency <= 0): treat that as a failure.
       const double p = ParameterOf(u);
-      if (!std::isfinite(p) || !std::isfinite(u.x) || !std::isfinite(u.v) || p <= 0.0) return std::nullopt;
+      if (!std::isfinite(p) || !std::isfinite(u.x) || !std::isfinite(u.v) || !std::isfinite(u.e) || p <= 0.0)
+        return std::nullopt;
       // Newton's iterates only linearize (2-3 of them per point on a 200 x 200 sweep); the orbit it
       // lands on is traced once more for its figures.
       Evaluation e = Evaluate(u, false);
@@ -115,23 +169,19 @@ class BranchProblem {
         e.figures = MapAt(ParameterOf(u)).Trace(StateOf(u));
         return Corrected{u, e, iteration};
       }
-      const double a[3][3] = {{e.jacobian[0][0], e.jacobian[0][1], e.jacobian[0][2]},
-                              {e.jacobian[1][0], e.jacobian[1][1], e.jacobian[1][2]},
-                              {tangent.x, tangent.v, tangent.p}};
-      const double r[3] = {-e.g[0], -e.g[1], -constraint};
-      double d[3];
-      if (!Solve3(a, r, d)) return std::nullopt;
-      u = u + Vec3{d[0], d[1], d[2]};
+      const std::optional<Vec> step = NewtonStep(e, tangent, constraint);
+      if (!step) return std::nullopt;
+      u = u + *step;
     }
     return std::nullopt;
   }
 
-  BranchPoint MakePoint(const Vec3& u, const Evaluation& e, const Vec3& tangent, double arclength) const {
+  BranchPoint MakePoint(const Vec& u, const Evaluation& e, const Vec& tangent, double arclength) const {
     BranchPoint point;
     point.parameter = ParameterOf(u);
     point.start = StateOf(u);
     point.figures = e.figures;
-    point.multipliers = e.figures.monodromy.Eigenvalues();
+    point.multipliers = Eigenvalues(e.figures.monodromy);
     point.stable = point.MaxMultiplier() < 1.0;
     point.dparameter_ds = tangent.p;
     point.arclength = arclength;
@@ -145,13 +195,14 @@ class BranchProblem {
   const ActuatorModel& model_;
   ContinuationParameter which_;
   double fixed_, p_ref_;
-  double length_m_, speed_m_per_s_;
+  double length_m_, speed_m_per_s_, force_n_;  // the scales of x, v and F_e
+  int d_ = 2;                                  // the state's size
 };
 
 // A point on the branch between two accepted points, at arclength s from `from` along its tangent.
 struct SegmentProbe {
   const BranchProblem& problem;
-  Vec3 from, tangent;
+  Vec from, tangent;
   const ContinuationOptions& options;
   std::optional<BranchProblem::Corrected> At(double s) const {
     return problem.Correct(from + tangent * s, tangent, options);
@@ -206,16 +257,16 @@ bool PeriodDoublingLike(const BranchPoint& unstable) {
 // this branch never reaches.
 struct GrazingRestart {
   BranchPoint graze, point;
-  Vec3 u, tangent;
+  Vec u, tangent;
 };
 
 std::optional<GrazingRestart> RestartPastGrazing(const ActuatorModel& model, ContinuationParameter which,
                                                  double fixed_value, const BranchProblem& problem,
-                                                 const BranchPoint& last, const Vec3& travel, double reach) {
+                                                 const BranchPoint& last, const Vec& travel, double reach) {
   const std::optional<BranchPoint> graze = LocateGrazing(model, which, fixed_value, last);
   if (!graze) return std::nullopt;
   const double direction = travel.p >= 0 ? 1.0 : -1.0;
-  const Vec3 at_graze = problem.ToScaled(graze->parameter, graze->start);
+  const Vec at_graze = problem.ToScaled(graze->parameter, graze->start);
   if ((at_graze - problem.ToScaled(last.parameter, last.start)).Norm() > reach) return std::nullopt;
   for (double sign : {direction, -direction}) {
     for (double offset : {1e-6, 1e-5, 1e-4}) {
@@ -237,9 +288,11 @@ std::optional<GrazingRestart> RestartPastGrazing(const ActuatorModel& model, Con
 
 }  // namespace
 
-double BranchPoint::MaxMultiplier()
-
- const { return std::max(std::abs(multipliers[0]), std::abs(multipliers[1])); }
+double BranchPoint::MaxMultiplier() const {
+  double largest = 0.0;
+  for (const auto& mu : multipliers) largest = std::max(largest, std::abs(mu));
+  return largest;
+}
 
 const char* ToString(BranchEvent::Kind kind) {
   switch (kind) {
@@ -285,9 +338,9 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
   branch.fixed_value = fixed_value;
   const BranchProblem problem(model, which, fixed_value, p0);
 
-  Vec3 u = problem.ToScaled(p0, start);
+  Vec u = problem.ToScaled(p0, start);
   Evaluation e = problem.Evaluate(u);
-  Vec3 t = e.Tangent();
+  Vec t = e.Tangent();
   if ((t.p > 0) != increasing) t = t * -1.0;
   double arclength = 0.0;
   branch.points.push_back(problem.MakePoint(u, e, t, arclength));
@@ -303,7 +356,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
     const BranchPoint& last = branch.points.back();
     // Reject a corrector that failed or wandered far from the predictor (a jump to another branch).
     bool accepted = c && (c->u - u).Norm() <= 3.0 * h;
-    Vec3 t_new;
+    Vec t_new;
     std::optional<BranchPoint> graze;
     if (accepted) {
       // Orient the new tangent along the secant: at a grazing corner the branch can turn by more
@@ -322,7 +375,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
             last.contacting() ? problem.MakePoint(c->u, c->evaluation, t_new, 0.0) : last;
         graze = LocateGrazing(model, which, fixed_value, noncontacting_side);
         if (graze) {
-          const Vec3 g = problem.ToScaled(graze->parameter, graze->start);
+          const Vec g = problem.ToScaled(graze->parameter, graze->start);
           const double detour = (g - u).Norm() + (c->u - g).Norm();
           if (detour > 2.0 * (c->u - u).Norm() + 1e-9 && h > 1e-3) accepted = false;
           // Nor may the grazing point lie farther from either end than the ends from each other:
@@ -368,7 +421,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
         const auto located = LocateOnSegment(probe, s_end, phi0, phi1, phi);
         if (!located) return;
         BranchEvent event{kind, branch.points.size() - 1, {}, false};
-        Vec3 tangent = located->evaluation.Tangent();
+        Vec tangent = located->evaluation.Tangent();
         if (tangent.Dot(t) < 0) tangent = tangent * -1.0;
         event.point = problem.MakePoint(located->u, located->evaluation, tangent, arclength + (located->u - u).Norm());
         if (kind == BranchEvent::Kind::kStabilityChange)
@@ -381,7 +434,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
         if (previous.stable != next.stable)
           branch.events.push_back({BranchEvent::Kind::kStabilityChange, branch.points.size() - 1, *graze, false});
         // Travel away from the grazing point along the leg just reached.
-        const Vec3 from_corner = c->u - problem.ToScaled(graze->parameter, graze->start);
+        const Vec from_corner = c->u - problem.ToScaled(graze->parameter, graze->start);
         if (t_new.Dot(from_corner) < 0) t_new = t_new * -1.0;
         next.dparameter_ds = t_new.p;
       } else {
@@ -389,7 +442,7 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
         if (fold) {
           add_event(BranchEvent::Kind::kFold, previous.dparameter_ds, next.dparameter_ds,
                     [&](const BranchProblem::Corrected& k) {
-                      Vec3 tk = k.evaluation.Tangent();
+                      Vec tk = k.evaluation.Tangent();
                       if (tk.Dot(t) < 0) tk = tk * -1.0;
                       return tk.p;
                     });
@@ -405,8 +458,10 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
           } else {
             add_event(BranchEvent::Kind::kStabilityChange, previous.MaxMultiplier() - 1.0, next.MaxMultiplier() - 1.0,
                       [&](const BranchProblem::Corrected& k) {
-                        const auto mu = k.evaluation.figures.monodromy.Eigenvalues();
-                        return std::max(std::abs(mu[0]), std::abs(mu[1])) - 1.0;
+                        double largest = 0.0;
+                        for (const auto& mu : Eigenvalues(k.evaluation.figures.monodromy))
+                          largest = std::max(largest, std::abs(mu));
+                        return largest - 1.0;
                       });
           }
         }
@@ -552,9 +607,9 @@ std::vector<BranchPoint> SolutionsAt(const ActuatorModel& model, const Continued
       // Fall back on the arclength: bisection for the parameter value along the segment.
       const BranchProblem problem(model, branch.parameter, branch.fixed_value, pts[0]->parameter);
       const ContinuationOptions options;
-      const Vec3 u0 = problem.ToScaled(pts[0]->parameter, pts[0]->start);
-      const Vec3 u1 = problem.ToScaled(pts[1]->parameter, pts[1]->start);
-      const Vec3 direction = (u1 - u0) * (1.0 / (u1 - u0).Norm());
+      const Vec u0 = problem.ToScaled(pts[0]->parameter, pts[0]->start);
+      const Vec u1 = problem.ToScaled(pts[1]->parameter, pts[1]->start);
+      const Vec direction = (u1 - u0) * (1.0 / (u1 - u0).Norm());
       const SegmentProbe probe{problem, u0, direction, options};
       const auto located = LocateOnSegment(probe, (u1 - u0).Norm(), a, b, [&](const BranchProblem::Corrected& c) {
         return problem.ParameterOf(c.u) - p;

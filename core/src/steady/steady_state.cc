@@ -7,7 +7,11 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
 #include "strokelab/base/errors.h"
+#include "strokelab/model/linear_response.h"
 #include "strokelab/engines/pwl_system.h"
 #include "strokelab/engines/variational_flow.h"
 
@@ -72,7 +76,21 @@ Complex SegmentIntegral(const LinearRegion& r, double t0, State y0, double tau, 
   return rotate * (homogeneous + offset + negative) + positive;
 }
 
+// 2x2 matrix on (x, v), row-major: the closed form's monodromy (piecewise-linear models have no coil pole).
+struct Matrix2 {
+  double a = 1, b = 0, c = 0, d = 1;
+  Matrix2 operator*(const Matrix2& o) const {
+    return {a * o.a + b * o.c, a * o.b + b * o.d, c * o.a + d * o.c, c * o.b + d * o.d};
+  }
+};
+
 Matrix2 ToMatrix(const Transition& t) { return {t.xx, t.xv, t.vx, t.vv}; }
+
+StateMatrix ToStateMatrix(const Matrix2& m) {
+  StateMatrix out(2, 2);
+  out << m.a, m.b, m.c, m.d;
+  return out;
+}
 
 // Saltation matrix at a switch from region `before` to `after` across surface s (header formula).
 Matrix2 Saltation(const LinearRegion& before, const LinearRegion& after, const Surface& s, double t, State y,
@@ -88,19 +106,70 @@ Matrix2 Saltation(const LinearRegion& before, const LinearRegion& after, const S
   return {1.0, 0.0, jump * s.alpha / denominator, 1.0 + jump * s.beta / denominator};
 }
 
-double ScaledNorm(State r, double length_m, double velocity_m_per_s) {
-  const double x = r.x_m / length_m, v = r.v_m_per_s / velocity_m_per_s;
-  return std::sqrt(x * x + v * v);  // scaled to order one: hypot's care for overflow costs for nothing
+// The sizes the map's residual is measured in: the length scale L, L w, and the suspension's force at L
+// for the coil's force (0 without the coil's pole: F_e is no state then).
+struct Scales {
+  double length_m, speed_m_per_s, force_n;
+};
+
+Scales ScalesOf(const PeriodMap& map) {
+  const ActuatorModel& m = map.model();
+  const double length_m = LengthScaleM(m);
+  return {length_m, length_m * 2.0 * std::numbers::pi * map.frequency_hz(),
+          m.HasCoilPole() ? m.stiffness_n_per_m * length_m : 0.0};
 }
 
-State Minus(State a, State b) { return {a.x_m - b.x_m, a.v_m_per_s - b.v_m_per_s}; }
+double ScaledNorm(State r, const Scales& s) {
+  const double x = r.x_m / s.length_m, v = r.v_m_per_s / s.speed_m_per_s;
+  double sum = x * x + v * v;  // scaled to order one: hypot's care for overflow costs for nothing
+  if (s.force_n > 0) sum += (r.coil_force_n / s.force_n) * (r.coil_force_n / s.force_n);
+  return std::sqrt(sum);
+}
+
+State Minus(State a, State b) { return {a.x_m - b.x_m, a.v_m_per_s - b.v_m_per_s, a.coil_force_n - b.coil_force_n}; }
+
+// y + lambda step.
+State Plus(State y, double lambda, State step) {
+  return {y.x_m + lambda * step.x_m, y.v_m_per_s + lambda * step.v_m_per_s,
+          y.coil_force_n + lambda * step.coil_force_n};
+}
 
 }  // namespace
 
-std::array<std::complex<double>, 2> Matrix2::Eigenvalues() const {
-  const double trace = a + d, det = a * d - b * c;
-  const Complex root = std::sqrt(Complex(trace * trace / 4.0 - det, 0.0));
-  return {trace / 2.0 + root, trace / 2.0 - root};
+std::vector<std::complex<double>> Eigenvalues(const StateMatrix& m) {
+  if (m.rows() == 2) {
+    const double trace = m(0, 0) + m(1, 1), det = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
+    const Complex root = std::sqrt(Complex(trace * trace / 4.0 - det, 0.0));
+    return {trace / 2.0 + root, trace / 2.0 - root};
+  }
+  const Eigen::EigenSolver<StateMatrix> solver(m, false);
+  if (solver.info() != Eigen::Success) return std::vector<Complex>(m.rows(), Complex(NAN, NAN));
+  return {solver.eigenvalues().begin(), solver.eigenvalues().end()};
+}
+
+StateMatrix MonodromyFromColumns(const std::vector<State>& columns, int size) {
+  StateMatrix m(size, size);
+  for (int c = 0; c < size; ++c) {
+    m(0, c) = columns[c].x_m;
+    m(1, c) = columns[c].v_m_per_s;
+    if (size > 2) m(2, c) = columns[c].coil_force_n;
+  }
+  return m;
+}
+
+std::optional<State> SolveShiftedByIdentity(const StateMatrix& m, const State& r) {
+  if (m.rows() == 2) {
+    const double a = m(0, 0) - 1.0, b = m(0, 1), c = m(1, 0), d = m(1, 1) - 1.0;
+    const double det = a * d - b * c;
+    if (!(std::abs(det) > 0.0)) return std::nullopt;
+    return State{(d * r.x_m - b * r.v_m_per_s) / det, (-c * r.x_m + a * r.v_m_per_s) / det};
+  }
+  const Eigen::Matrix3d shifted = m - Eigen::Matrix3d::Identity();  // (fixed sizes: the only other size is 3)
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(shifted);
+  if (!lu.isInvertible()) return std::nullopt;
+  const Eigen::Vector3d step = lu.solve(Eigen::Vector3d(r.x_m, r.v_m_per_s, r.coil_force_n));
+  if (!step.allFinite()) return std::nullopt;
+  return State{step(0), step(1), step(2)};
 }
 
 // The closed-form path for piecewise-linear models, the variational flow otherwise.
@@ -161,7 +230,7 @@ State PeriodMap::Impl::ClosedFormDriveDerivative(State y0, const State& end, int
                           frequency ? this->drive.amplitude_v : value + step);
   State y = y0;
   for (int k = 0; k < periods; ++k) y = shifted.Apply(y);
-  return {(y.x_m - end.x_m) / step, (y.v_m_per_s - end.v_m_per_s) / step};
+  return {(y.x_m - end.x_m) / step, (y.v_m_per_s - end.v_m_per_s) / step};  // (no coil pole: closed form)
 }
 
 OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_figures) const {
@@ -169,6 +238,7 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_f
   const double omega = drive.AngularFrequency(), phase = drive.phase_rad;
   const double t_end = periods / drive.frequency_hz;
   OrbitFigures figures;
+  Matrix2 monodromy;
   figures.min_displacement_m = figures.max_displacement_m = y0.x_m;
   Complex integral = 0.0;
   std::vector<std::pair<double, State>> extrema;
@@ -184,7 +254,7 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_f
   auto close_segment = [&](double t_close) {
     const LinearRegion& region = sys.Region(segment_mode);
     const double tau = t_close - segment_t;
-    figures.monodromy = ToMatrix(region.Propagator(tau)) * figures.monodromy;
+    monodromy = ToMatrix(region.Propagator(tau)) * monodromy;
     if (!with_figures) return;
     integral += SegmentIntegral(region, segment_t, segment_y, tau, omega, phase);
     extrema.clear();
@@ -198,9 +268,8 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_f
   PwlMode mode = segment_mode;
   sys.Advance(&t, &y, &mode, t_end, [&](const SwitchEvent& e) {
     close_segment(e.time_s);
-    figures.monodromy =
-        Saltation(sys.Region(e.before), sys.Region(e.after), e.surface, e.time_s, e.state, omega, phase) *
-        figures.monodromy;
+    monodromy = Saltation(sys.Region(e.before), sys.Region(e.after), e.surface, e.time_s, e.state, omega, phase) *
+                monodromy;
     if ((!e.before.contact.lower && e.after.contact.lower) || (!e.before.contact.upper && e.after.contact.upper))
       ++figures.contacts;
     segment_t = e.time_s;
@@ -209,6 +278,7 @@ OrbitFigures PeriodMap::Impl::TraceClosedForm(State y0, int periods, bool with_f
   });
   close_segment(t_end);
   figures.end = y;
+  figures.monodromy = ToStateMatrix(monodromy);
   if (!with_figures) {
     figures.min_displacement_m = figures.max_displacement_m = figures.peak_force_n = NAN;  // not computed
     return figures;
@@ -230,15 +300,14 @@ OrbitFigures PeriodMap::Impl::TraceFlow(State y0, int periods, bool with_figures
   const FlowResult flow = Flow(model, drive, y0, 0.0, t_end, request);
   OrbitFigures figures;
   figures.end = flow.end;
-  figures.monodromy = {flow.columns[0].x_m, flow.columns[1].x_m, flow.columns[0].v_m_per_s, flow.columns[1].v_m_per_s};
+  const int d = model.StateSize();
+  figures.monodromy = MonodromyFromColumns(flow.columns, d);
   if (drive_parameter) {
-    figures.d_end_d_drive = flow.columns[2];
+    figures.d_end_d_drive = flow.columns[d];
     // The pass ends at t = periods / f: d/df adds the flow's rate there times dt/df = -periods / f^2.
-    if (request.drive_frequency) {
-      const double dt_df = -periods / (drive.frequency_hz * drive.frequency_hz);
-      figures.d_end_d_drive.x_m += flow.end_rate.x_m * dt_df;
-      figures.d_end_d_drive.v_m_per_s += flow.end_rate.v_m_per_s * dt_df;
-    }
+    if (request.drive_frequency)
+      figures.d_end_d_drive = Plus(figures.d_end_d_drive, -periods / (drive.frequency_hz * drive.frequency_hz),
+                                   flow.end_rate);
   }
   figures.contacts = flow.contacts;
   if (!with_figures) {
@@ -255,9 +324,18 @@ OrbitFigures PeriodMap::Impl::TraceFlow(State y0, int periods, bool with_figures
 State PeriodMap::ClippedLinearStart() const {
   const ActuatorModel& m = impl_->model;
   const double omega = impl_->drive.AngularFrequency();
-  const LinearRegion free(m.mass_kg, m.damping_n_s_per_m, m.stiffness_n_per_m, m.gain_n_per_v * amplitude_v_, 0.0,
-                          omega, 0.0);
-  State y = free.ParticularAt(0.0);
+  State y;
+  if (m.HasCoilPole()) {
+    // u = V sin(wt) = Im(V e^{jwt}): x = Im(X e^{jwt}) with X = H_p V, and F_e's phasor (model.h) at t = 0.
+    const Complex x = DisplacementFrf(m, omega) * amplitude_v_;
+    const Complex coil = (m.gain_n_per_v * amplitude_v_ - kJ * omega * m.back_emf_damping_n_s_per_m * x) /
+                         Complex(1.0, omega * m.coil_time_constant_s);
+    y = {x.imag(), omega * x.real(), coil.imag()};
+  } else {
+    const LinearRegion free(m.mass_kg, m.damping_n_s_per_m, m.stiffness_n_per_m, m.gain_n_per_v * amplitude_v_, 0.0,
+                            omega, 0.0);
+    y = free.ParticularAt(0.0);
+  }
   if (m.HasLowerStop()) y.x_m = std::max(y.x_m, m.lower_stop_m);
   if (m.HasUpperStop()) y.x_m = std::min(y.x_m, m.upper_stop_m);
   return y;
@@ -302,7 +380,11 @@ std::vector<std::complex<double>> OrbitHarmonics(const PeriodMap& map, State sta
   return integral;
 }
 
-double SteadyState::MaxMultiplier() const { return std::max(std::abs(multipliers[0]), std::abs(multipliers[1])); }
+double SteadyState::MaxMultiplier() const {
+  double largest = 0.0;
+  for (const Complex& mu : multipliers) largest = std::max(largest, std::abs(mu));
+  return largest;
+}
 
 std::complex<double> SteadyState::Frf(const PeriodMap& map) const {
   // C_1(f) = -m w^2 C_1(x); C_1(v_in) = V e^{-j pi/2} for v_in = V sin(w t).
@@ -329,8 +411,7 @@ std::optional<FieldError> ShootingOptions::IsValid() const {
 std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, const ShootingOptions& options) {
   Validate(options);
   if (period < 1) throw InputError("period", "must be >= 1");
-  const double length = LengthScaleM(map.model());
-  const double speed = length * 2.0 * std::numbers::pi * map.frequency_hz();
+  const Scales scales = ScalesOf(map);
   auto apply = [&](State y) {
     for (int k = 0; k < period; ++k) y = map.Apply(y);
     return y;
@@ -344,14 +425,14 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
   bool figures_traced = false;
   for (int iteration = 0; iteration < options.max_newton_iterations; ++iteration) {
     const State residual = Minus(figures.end, y);
-    const double error = ScaledNorm(residual, length, speed);
+    const double error = ScaledNorm(residual, scales);
     if (!std::isfinite(error)) return std::nullopt;
     if (error < options.tolerance) {
       SteadyState s;
       s.start = y;
       s.period = period;
       s.figures = figures_traced ? figures : map.Trace(y, period);
-      s.multipliers = figures.monodromy.Eigenvalues();
+      s.multipliers = Eigenvalues(figures.monodromy);
       s.stable = s.MaxMultiplier() < 1.0;
       s.newton_iterations = iteration;
       return s;
@@ -364,16 +445,13 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
       return std::nullopt;
     }
     // Solve (M - I) step = -residual.
-    const Matrix2& m = figures.monodromy;
-    const double a = m.a - 1.0, b = m.b, c = m.c, d = m.d - 1.0;
-    const double det = a * d - b * c;
-    if (!(std::abs(det) > 0.0)) return std::nullopt;
-    State step{(-d * residual.x_m + b * residual.v_m_per_s) / det, (c * residual.x_m - a * residual.v_m_per_s) / det};
+    const std::optional<State> step = SolveShiftedByIdentity(figures.monodromy, Minus(State{}, residual));
+    if (!step) return std::nullopt;
     // Damped step: halve until the residual falls. The full step is traced, not only applied: it
     // is nearly always taken, and its trace is then the next iteration's (one map per iteration).
-    const State full{y.x_m + step.x_m, y.v_m_per_s + step.v_m_per_s};
+    const State full = Plus(y, 1.0, *step);
     OrbitFigures full_figures = map.Trace(full, period);
-    if (ScaledNorm(Minus(full_figures.end, full), length, speed) < error) {
+    if (ScaledNorm(Minus(full_figures.end, full), scales) < error) {
       y = full;
       figures = full_figures;
       figures_traced = true;
@@ -381,8 +459,8 @@ std::optional<SteadyState> Shoot(const PeriodMap& map, State guess, int period, 
     }
     double lambda = 0.5;
     for (int halving = 1; halving < 8; ++halving) {
-      const State trial{y.x_m + lambda * step.x_m, y.v_m_per_s + lambda * step.v_m_per_s};
-      const double trial_error = ScaledNorm(Minus(apply(trial), trial), length, speed);
+      const State trial = Plus(y, lambda, *step);
+      const double trial_error = ScaledNorm(Minus(apply(trial), trial), scales);
       if (trial_error < error || halving == 7) {
         y = trial;
         break;
@@ -400,12 +478,11 @@ namespace {
 // The smallest p <= max_period with P^p(y) = y to within `tolerance` (scaled), from a point on an
 // attractor; 0 if none.
 int DetectPeriod(const PeriodMap& map, State y, int max_period, double tolerance) {
-  const double length = LengthScaleM(map.model());
-  const double speed = length * 2.0 * std::numbers::pi * map.frequency_hz();
+  const Scales scales = ScalesOf(map);
   State z = y;
   for (int p = 1; p <= max_period; ++p) {
     z = map.Apply(z);
-    if (ScaledNorm(Minus(z, y), length, speed) < tolerance) return p;
+    if (ScaledNorm(Minus(z, y), scales) < tolerance) return p;
   }
   return 0;
 }
@@ -427,8 +504,7 @@ std::optional<SteadyState> PeriodicOrbitOfSettled(const PeriodMap& map, State y,
 // one PeriodicOrbitOfSettled finds after all the periods (nullopt if none); *y is the last state.
 std::optional<SteadyState> SettleOntoOrbit(const PeriodMap& map, State* y, const ShootingOptions& options) {
   constexpr double kRepeatTolerance = 1e-9;
-  const double length = LengthScaleM(map.model());
-  const double speed = length * 2.0 * std::numbers::pi * map.frequency_hz();
+  const Scales scales = ScalesOf(map);
   State one_back = *y, two_back = *y;
   bool tried = false;
   for (int i = 0; i < options.settle_periods; ++i) {
@@ -436,8 +512,8 @@ std::optional<SteadyState> SettleOntoOrbit(const PeriodMap& map, State* y, const
     one_back = *y;
     *y = map.Apply(*y);
     if (tried || i < 2) continue;
-    if (ScaledNorm(Minus(*y, one_back), length, speed) < kRepeatTolerance ||
-        ScaledNorm(Minus(*y, two_back), length, speed) < kRepeatTolerance) {
+    if (ScaledNorm(Minus(*y, one_back), scales) < kRepeatTolerance ||
+        ScaledNorm(Minus(*y, two_back), scales) < kRepeatTolerance) {
       tried = true;  // once: where Newton fails here (a slow passage by a saddle), the full count follows
       if (std::optional<SteadyState> orbit = PeriodicOrbitOfSettled(map, *y, options)) return orbit;
     }
@@ -456,14 +532,17 @@ SteadyState SolveAttractor(const PeriodMap& map, State guess, const ShootingOpti
 
   // Period-1 unstable or not found: settle on the attractor by plain iteration, starting next to
   // the unstable orbit (plain iteration from exactly on it would stay there for a while).
-  y = period1 ? State{period1->start.x_m + 1e-6 * LengthScaleM(map.model()), period1->start.v_m_per_s} : y;
+  if (period1) {
+    y = period1->start;
+    y.x_m += 1e-6 * LengthScaleM(map.model());
+  }
   if (std::optional<SteadyState> orbit = SettleOntoOrbit(map, &y, options)) return *orbit;
   // No period found: aperiodic. Figures over max_period periods of the settled motion.
   SteadyState s;
   s.start = y;
   s.period = 0;
   s.figures = map.Trace(y, options.max_period);
-  s.multipliers = s.figures.monodromy.Eigenvalues();
+  s.multipliers = Eigenvalues(s.figures.monodromy);
   s.stable = true;  // it is the attractor; its multipliers describe a finite stretch only
   return s;
 }

@@ -31,19 +31,15 @@ struct MethodChoice {
 };
 MethodChoice ChooseMethod(std::string_view text, const ActuatorModel& model);
 
-struct State {
-  double x_m = 0.0;          // displacement [m]
-  double v_m_per_s = 0.0;    // velocity [m/s]
-};
-
 struct SimulationOptions {
   double duration_s = 10.0;        // record length T [s]; samples at t_n = n / fs, n = 0 .. N-1
   double sample_rate_hz = 51200.0; // fs [Hz]
   State initial;                   // state at t = 0 (rest by default)
-  // CVODE tolerances (relative, dimensionless; absolute on x [m] and v [m/s]).
+  // CVODE tolerances (relative, dimensionless; absolute on x [m], v [m/s] and the coil's force [N]).
   double cvode_relative_tolerance = 1e-10;
   double cvode_absolute_tolerance_m = 1e-14;
   double cvode_absolute_tolerance_m_per_s = 1e-11;
+  double cvode_absolute_tolerance_n = 1e-12;
   bool record_velocity = true;     // the velocity channel is optional (saves memory bandwidth)
 
   size_t SampleCount() const;

@@ -34,14 +34,14 @@
 namespace strokelab {
 
 struct FlowRequest {
-  bool monodromy = false;                           // columns d/dx0, d/dv0
+  bool monodromy = false;                           // columns d/d(initial state): x0, v0 (, F_e0)
   std::vector<double ActuatorModel::*> parameters;  // columns d/dp, in this order
   bool drive_amplitude = false;                     // then a column d/dV [per V]
   bool drive_frequency = false;                     // then a column d/df at fixed t [per Hz]
   int harmonics = 0;                                // N: int x e^{-jhwt} dt for h = 1..N
   bool harmonic_sensitivities = false;              // and the same of every column's x
   bool figures = false;                             // extrema of x, peak force
-  // Samples of (x, v) and the force m_p x'' at t = sample_start_s + k sample_interval_s, k = 0 ..
+  // Samples of the state and the force m_p x'' at t = sample_start_s + k sample_interval_s, k = 0 ..
   // sample_count - 1, all within [t0, t1], from the dense output (7th order): a record's sample grid.
   int sample_count = 0;
   double sample_start_s = 0.0, sample_interval_s = 0.0;
@@ -54,6 +54,7 @@ struct FlowOptions {
   double sensitivity_relative_tolerance = 1e-10;
   double absolute_tolerance_m = 1e-16;
   double absolute_tolerance_m_per_s = 1e-13;
+  double absolute_tolerance_n = 1e-14;  // on the coil's force F_e (models with the coil's pole)
   double initial_step_s = 0.0;   // 0: a fraction of the shortest period (drive, suspension)
   long max_steps = 2'000'000;    // work budget per flow: NumericalError when spent
   std::optional<FieldError> IsValid() const;
@@ -62,7 +63,8 @@ struct FlowOptions {
 struct FlowResult {
   State end;
   State end_rate;              // d end / dt at t1 (x', x'') in the mode there
-  // d end / d(x0, v0) when requested, then d end / d p per parameter, then d/dV, then d/df.
+  // d end / d(initial state) when requested (ActuatorModel::StateSize columns), then d end / d p per
+  // parameter, then d/dV, then d/df.
   std::vector<State> columns;
   // [h - 1]: int_t0^t1 x e^{-jhwt} dt [m s]; [c][h - 1] the same of column c's x.
   std::vector<std::complex<double>> harmonic_integrals;

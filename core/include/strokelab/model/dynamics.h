@@ -2,6 +2,8 @@
 //
 //   m_p x'' = g u(t) - k_p x - k2 x^2 - k3 x^3 - c_p x' - F_c tanh(x'/v_s) + F_lower - F_upper
 //
+// and, with the coil's pole (model.h), the coil's force F_e as a third state in place of g u.
+//
 // Paper Eq. 2 in its continuous form (its slip at contact corrected, model.h) plus the extra terms
 // of model.h.
 #pragma once
@@ -9,6 +11,14 @@
 #include "strokelab/model/model.h"
 
 namespace strokelab {
+
+// The state of the equation of motion.
+struct State {
+  double x_m = 0.0;          // displacement [m]
+  double v_m_per_s = 0.0;    // velocity [m/s]
+  double coil_force_n = 0.0; // F_e [N]: the coil's force at phi = 1, a state only with the coil's pole
+                             // (ActuatorModel::StateSize); ignored otherwise
+};
 
 // v_in(t) = V sin(w t + phi): the stepped-sine drive of the paper, section 3.
 struct SineDrive {
@@ -50,22 +60,35 @@ ContactMode StartingMode(const ActuatorModel& model, double x_m, double v_m_per_
 double ForceFactorShape(const ActuatorModel& model, double x_m);
 
 // m_p x'' [N]: the blocked force f (model.h) for a given contact mode and drive voltage.
-double BlockedForce(const ActuatorModel& model, double drive_voltage_v, double x_m, double v_m_per_s,
-                    ContactMode mode);
+double BlockedForce(const ActuatorModel& model, double drive_voltage_v, const State& y, ContactMode mode);
 
 // BlockedForce with its partial derivatives in the state, for Jacobians and variational equations.
 struct ForceJacobian {
   double force_n = 0.0;
   double d_dx_n_per_m = 0.0;
   double d_dv_n_s_per_m = 0.0;
+  double d_dcoil = 0.0;  // d f / d F_e (phi) with the coil's pole, else 0
 };
-ForceJacobian BlockedForceJacobian(const ActuatorModel& model, double drive_voltage_v, double x_m,
-                                   double v_m_per_s, ContactMode mode);
+ForceJacobian BlockedForceJacobian(const ActuatorModel& model, double drive_voltage_v, const State& y,
+                                   ContactMode mode);
 
 // d BlockedForce / d parameter at a fixed state, drive and mode, for a parameter named by its field in
 // ActuatorModel [N per the parameter's unit]. The mass gives 0: f does not depend on m_p, x'' = f / m_p does.
 double BlockedForceParameterDerivative(const ActuatorModel& model, double ActuatorModel::*parameter,
-                                       double drive_voltage_v, double x_m, double v_m_per_s, ContactMode mode);
+                                       double drive_voltage_v, const State& y, ContactMode mode);
+
+// With the coil's pole: F_e' = (g u - c_emf phi v - F_e) / tau_e [N/s] (model.h), with its partial
+// derivatives. It does not depend on the contact mode, so it never jumps at a switch.
+struct CoilForceRate {
+  double rate_n_per_s = 0.0;
+  double d_dx_n_per_m_s = 0.0;
+  double d_dv_n_per_m = 0.0;
+  double d_dcoil_per_s = 0.0;
+  double d_dvoltage_n_per_v_s = 0.0;  // d/d(unclipped drive voltage): g / tau_e, 0 where the amplifier clips
+};
+CoilForceRate CoilForceRateJacobian(const ActuatorModel& model, double drive_voltage_v, const State& y);
+double CoilForceRateParameterDerivative(const ActuatorModel& model, double ActuatorModel::*parameter,
+                                        double drive_voltage_v, const State& y);
 
 // d(stop force)/d(penetration) [N/m] at penetration p: k_s (linear) or 1.5 k_s |p|^(1/2) (Hertzian).
 double StopStiffnessNPerM(const ActuatorModel& model, double penetration_m);

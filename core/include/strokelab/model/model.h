@@ -48,6 +48,13 @@ struct ActuatorModel {
   double force_factor_b1_per_m = 0.0;
   double force_factor_b2_per_m2 = 0.0;
   double back_emf_damping_n_s_per_m = 0.0;  // c_emf [N s/m] >= 0, physically at most c_p; acts only with phi != 1
+                                            // or with the coil's pole
+  // The coil's electrical pole, tau_e = L / R [s] (0: ignored, the current follows the voltage at
+  // once). Then the coil's force at phi = 1 is a third state F_e, relaxing to what it is without the pole,
+  //   tau_e F_e' = g u - c_emf phi v - F_e,   coil force phi F_e,
+  // and c_p v keeps only the mechanical part: (c_p - c_emf) v (the lumped voice-coil model, e.g.
+  // Klippel, J. Audio Eng. Soc. 54(10), 2006, Fig. 1, with the current as F_e = Bl(0) i).
+  double coil_time_constant_s = 0.0;
   double lower_stop_m = -1e-3;                  // d [m]; -inf: no lower stop
   double upper_stop_m = kNoUpperStop;           // [m]; +inf: no upper stop
   double contact_stiffness = 1.3e6;             // k_s [N/m] (linear) or [N/m^1.5] (Hertzian)
@@ -68,6 +75,9 @@ struct ActuatorModel {
   bool HasLowerStop() const { return lower_stop_m > kNoLowerStop; }
   bool HasUpperStop() const { return upper_stop_m < kNoUpperStop; }
   bool HasAmplifierLimit() const { return amplifier_limit_v < kNoLimit; }
+  bool HasCoilPole() const { return coil_time_constant_s > 0; }
+  // Components of the state (dynamics.h): x and v, and the coil's force F_e with the coil's pole.
+  int StateSize() const { return HasCoilPole() ? 3 : 2; }
 
   // True when every region between switching surfaces is a linear ODE with sinusoidal or constant
   // forcing, which is what the closed-form engine needs.
@@ -84,6 +94,10 @@ struct ActuatorModel {
 // real actuators this tool serves (the paper's 32 g and k_s/k_p ~ 1e4, the diagnosis's extended models:
 // cubic/quadratic stiffness, Hertzian contact up to k_s ~ 1e12 N/m^1.5, contact stiffnesses of 4e10 N/m,
 // friction, clipping) and far inside where the engines stop meaning anything:
+//   coil pole      1 / (2pi tau_e) at most 1e3 times the suspension's natural frequency: real voice coils
+//                  (L 0.05-10 mH over R 2-8 Ohm) put it 10-1000 times above a proof-mass actuator's 10-50 Hz.
+//                  The pole acts all the time (a stop only during contacts), and the variational flow is
+//                  explicit: its steps are bound by stability at ~6 tau_e, ~1e4 per suspension period here.
 //   mass           a 1 mg MEMS proof mass to a 1 t building shaker.
 //   stiffness      a stop (or k2 |d|, k3 d^2) 1e9 times the suspension's: the stop's time scale is then
 //   ratios         3e4 times shorter than the suspension's, already far past any rigid stop; beyond it
@@ -101,6 +115,7 @@ struct ModelBounds {
   static constexpr double kMaxStiffnessRatio = 1e9;
   static constexpr double kMaxNaturalFrequencyHz = 1e6;
   static constexpr double kMaxDampingRatio = 1e3;
+  static constexpr double kMaxCoilPoleRatio = 1e3;
 };
 
 // A stop's stiffness as a linear one [N/m]: k_s, or a Hertzian k_s's secant k_s L^(1/2) at the length

@@ -29,7 +29,7 @@ struct BranchPoint {
   double parameter = 0.0;  // frequency [Hz] or amplitude [V]
   State start;
   OrbitFigures figures;
-  std::array<std::complex<double>, 2> multipliers;
+  std::vector<std::complex<double>> multipliers;  // one per state component
   bool stable = false;
   double dparameter_ds = 0.0;  // tangent's parameter component (sign: direction of travel)
   double arclength = 0.0;      // scaled units

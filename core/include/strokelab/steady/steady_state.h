@@ -21,25 +21,28 @@
 // and periodic).
 #pragma once
 
-#include <array>
 #include <complex>
 #include <memory>
 #include <optional>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "strokelab/engines/engine.h"
 #include "strokelab/model/model.h"
 
 namespace strokelab {
 
-// 2x2 matrix on (x, v), row-major.
-struct Matrix2 {
-  double a = 1, b = 0, c = 0, d = 1;
-  Matrix2 operator*(const Matrix2& o) const {
-    return {a * o.a + b * o.c, a * o.b + b * o.d, c * o.a + d * o.c, c * o.b + d * o.d};
-  }
-  std::array<std::complex<double>, 2> Eigenvalues() const;
-};
+// A square matrix on the state, ActuatorModel::StateSize() rows (x, v and, with the coil's pole,
+// F_e): the monodromy. At most 3 x 3, so it lives on the stack.
+using StateMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 3, 3>;
+// Its eigenvalues: the Floquet multipliers of a monodromy (2 x 2 in closed form).
+std::vector<std::complex<double>> Eigenvalues(const StateMatrix& m);
+// The monodromy from a flow's first `size` sensitivity columns (d end / d(component c of y0)).
+StateMatrix MonodromyFromColumns(const std::vector<State>& columns, int size);
+// Solves (M - I) step = rhs for the state's components; nullopt where M - I is singular (Newton on
+// P(y) - y; 2 x 2 by Cramer's rule).
+std::optional<State> SolveShiftedByIdentity(const StateMatrix& m, const State& rhs);
 
 // A drive parameter the map depends on (the continuation's parameter).
 enum class DriveParameter { kFrequencyHz, kAmplitudeV };
@@ -47,7 +50,7 @@ enum class DriveParameter { kFrequencyHz, kAmplitudeV };
 // What one pass of the map over `periods` drive periods saw.
 struct OrbitFigures {
   State end;                          // P^periods(y0)
-  Matrix2 monodromy;                  // d end / d y0
+  StateMatrix monodromy;              // d end / d y0
   State d_end_d_drive;                // d end / d(drive parameter) when asked for [per Hz or per V]
   std::complex<double> x1;            // C_1 of x over the pass [m], phase relative to the drive (t = 0)
   double min_displacement_m = 0.0;
@@ -100,7 +103,7 @@ struct ShootingOptions {
 struct SteadyState {
   State start;                        // on the orbit at phase 0
   int period = 1;                     // drive periods; 0: aperiodic (no period up to max_period)
-  std::array<std::complex<double>, 2> multipliers;  // of P^period
+  std::vector<std::complex<double>> multipliers;  // of P^period, one per state component
   bool stable = false;
   OrbitFigures figures;               // over `period` periods (or max_period for aperiodic)
   int newton_iterations = 0;
