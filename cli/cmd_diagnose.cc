@@ -32,8 +32,8 @@ Fits the base model (as strokelab fit) to all but every n-th record, measures wh
 record and harmonic, harmonic balance below the stop, resonance against amplitude, contact times,
 the residual around impacts), fits the base model extended by each candidate effect (cubic_stiffness,
 quadratic_stiffness, hertzian_contact, contact_damping, second_stop, dry_friction,
-amplifier_saturation, quadratic_damping, force_factor) and names the one that improves the held-out records beyond noise, or says
-"nothing missing".
+amplifier_saturation, quadratic_damping, force_factor, and with --coil-inductance coil_inductance)
+and names the ones that improve the held-out records beyond noise, or says "nothing missing".
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper | linear                                             [paper]
@@ -42,6 +42,8 @@ amplifier_saturation, quadratic_damping, force_factor) and names the one that im
   --heldout-every N        every N-th record is held out of the fits                  [4]
   --min-gain G             held-out chi-square drop (residual variances) to name an effect [10]
   --no-pairs               do not try pairs of effects
+  --coil-inductance        also try coil_inductance (the coil's pole, a third state: its
+                           fits take 10-40 times the others' time)
   --max-seconds T          wall-time budget; candidates past it are skipped, and the
                            report's maps are cut off once it is spent                 [600]
   --map-frequency-points N the report's saturation maps: frequencies over the

@@ -121,7 +121,7 @@ Diagnosis Named() {
   cubic.model.cubic_stiffness_n_per_m3 = 2.3456e6;
   cubic.covariance.assign(16, 0.0);  // k_p, c_p, m_p (fixed), k3
   for (size_t i = 0; i < 4; ++i) cubic.covariance[i * 4 + i] = std::pow(cubic.parameters[i].standard_error, 2);
-  d.curves = EffectCurves(cubic, d.base.model, {-1e-3, 1e-3, 0.1, 0.0, 1.0, "test ranges"});
+  d.curves = EffectCurves(cubic, d.base.model, {-1e-3, 1e-3, 0.1, 0.0, 1.0, 5.0, 20.0, "test ranges"});
   const CandidateFit quadratic = Candidate(Effect::kQuadraticStiffness, "quadratic_stiffness",
                                            Figures(0.0801, 0.0925, 1490, 600, 9.3), 1.25, 3.5,
                                            {Parameter("k2", "N/m^2", 150, 400)});

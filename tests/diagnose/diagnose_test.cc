@@ -158,7 +158,8 @@ TEST(DiagnoseOptionsTest, IsValidNamesTheFieldAndWhatIsWrong) {
 TEST(DiagnoseOptionsTest, FieldTableNamesEachOptionAsIsValidDoes) {
   EXPECT_EQ(::strokelab::testing::OptionNames(DiagnoseOptionFields()),
             "heldout_every heldout_every --heldout-every; min_heldout_gain min_heldout_gain --min-gain; "
-            "max_seconds max_seconds --max-seconds; pairs pairs --no-pairs (clears); max_passes max_passes -; "
+            "max_seconds max_seconds --max-seconds; pairs pairs --no-pairs (clears); "
+            "coil_inductance coil_inductance --coil-inductance; max_passes max_passes -; "
             "map_frequency_points map_frequency_points --map-frequency-points; "
             "map_amplitude_points map_amplitude_points --map-amplitude-points");
   ::strokelab::testing::ExpectTableFieldsAreIsValidFields<DiagnoseOptions>(DiagnoseOptionFields());

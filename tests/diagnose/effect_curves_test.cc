@@ -7,6 +7,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <string>
 #include <utility>
@@ -36,6 +37,7 @@ const std::vector<Field>& Fields() {
       {"b2", &ActuatorModel::force_factor_b2_per_m2, 0.02},
       {"d_upper", &ActuatorModel::upper_stop_m, 0.02},
       {"amplifier_limit_v", &ActuatorModel::amplifier_limit_v, 0.02},
+      {"tau_e", &ActuatorModel::coil_time_constant_s, 0.1},
   };
   return fields;
 }
@@ -59,6 +61,7 @@ CandidateFit FittedWith(std::vector<Effect> effects, ContactLaw law) {
   m.force_factor_b2_per_m2 = -5e4;
   m.upper_stop_m = 0.6e-3;
   m.amplifier_limit_v = 0.4;
+  m.coil_time_constant_s = 2e-3 / 3.0;
   const size_t p = Fields().size();
   std::vector<double> se(p);
   for (size_t i = 0; i < p; ++i) {
@@ -74,7 +77,7 @@ CandidateFit FittedWith(std::vector<Effect> effects, ContactLaw law) {
   return fit;
 }
 
-CurveRanges Ranges() { return {-1.1e-3, 1.0e-3, 0.12, 2e-5, 0.6, "test ranges"}; }
+CurveRanges Ranges() { return {-1.1e-3, 1.0e-3, 0.12, 2e-5, 0.6, 5.0, 240.0, "test ranges"}; }
 
 // The curves of `fit.model` with parameters drawn from N(values, covariance): per curve and point,
 // the sample standard deviation of y.
@@ -145,6 +148,15 @@ TEST(EffectCurves, LawsFollowTheirClosedForms) {
   EXPECT_EQ(curves[3].id, "friction");
   EXPECT_NEAR(curves[3].y.front(), -m.friction_force_n * std::tanh(0.12 / m.friction_velocity_m_per_s), 1e-15);
   EXPECT_DOUBLE_EQ(curves[3].base_y.front(), 0.0);
+  // The coil's lag atan(w tau_e), 45 degrees at its pole 1 / (2 pi tau_e) = 239 Hz, nothing without one.
+  const CandidateFit coil = FittedWith({Effect::kCoilInductance}, ContactLaw::kLinear);
+  const std::vector<EffectCurve> lag = EffectCurves(coil, base, Ranges());
+  ASSERT_EQ(lag.size(), 1u);
+  EXPECT_EQ(lag[0].id, "coil_lag");
+  EXPECT_EQ(lag[0].x.front(), 5.0);
+  EXPECT_NEAR(lag[0].y.back(), std::atan(2 * std::numbers::pi * 240.0 * 2e-3 / 3.0) * 180 / std::numbers::pi, 1e-12);
+  EXPECT_NEAR(lag[0].y.back(), 45.0, 0.2);
+  EXPECT_DOUBLE_EQ(lag[0].base_y.back(), 0.0);
 
   // A parameter without a standard error leaves the band of every curve that needs it unknown.
   CandidateFit unknown = fit;
@@ -160,10 +172,11 @@ TEST(EffectCurves, BandsMatchTheSpreadOverDrawnParameters) {
   for (const ContactLaw law : {ContactLaw::kLinear, ContactLaw::kHertzian}) {
     const CandidateFit fit =
         FittedWith({Effect::kCubicStiffness, Effect::kForceFactor, Effect::kQuadraticDamping, Effect::kDryFriction,
-                    Effect::kHertzianContact, Effect::kContactDamping, Effect::kSecondStop, Effect::kAmplifierSaturation},
+                    Effect::kHertzianContact, Effect::kContactDamping, Effect::kSecondStop, Effect::kAmplifierSaturation,
+                    Effect::kCoilInductance},
                    law);
     const std::vector<EffectCurve> curves = EffectCurves(fit, PaperModel(), Ranges());
-    ASSERT_EQ(curves.size(), 8u);
+    ASSERT_EQ(curves.size(), 9u);
     const std::vector<std::vector<double>> spread = MonteCarloSpread(fit, 4000);
     for (size_t k = 0; k < curves.size(); ++k) {
       const EffectCurve& c = curves[k];

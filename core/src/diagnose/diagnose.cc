@@ -101,12 +101,15 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
   const ActuatorModel& m = base.model;
   c.stop_distance_m = LengthScaleM(m);
   c.min_amplitude_v = kInf;
+  c.min_frequency_hz = kInf;
   std::vector<double> penetrations;
   for (const RecordAnalysis& a : analyses) {
     const double nyquist_rad_per_s = std::numbers::pi * a.sample_rate_hz;  // 2 pi (fs / 2)
     c.max_contact_stiffness_n_per_m = std::min(c.max_contact_stiffness_n_per_m, m.mass_kg * nyquist_rad_per_s * nyquist_rad_per_s);
     c.min_amplitude_v = std::min(c.min_amplitude_v, a.drive.amplitude_v);
     c.max_amplitude_v = std::max(c.max_amplitude_v, a.drive.amplitude_v);
+    c.min_frequency_hz = std::min(c.min_frequency_hz, a.drive.frequency_hz);
+    c.max_frequency_hz = std::max(c.max_frequency_hz, a.drive.frequency_hz);
     try {
       const PeriodMap map(m, a.drive.frequency_hz, a.drive.amplitude_v);
       const SteadyState s = SolveAttractor(map, map.ClippedLinearStart());
@@ -263,7 +266,8 @@ double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
 // limit from infinity; the held-out gain alone decides for them).
 bool NullIsZero(Effect e) {
   return e == Effect::kCubicStiffness || e == Effect::kQuadraticStiffness || e == Effect::kContactDamping ||
-         e == Effect::kDryFriction || e == Effect::kQuadraticDamping || e == Effect::kForceFactor;
+         e == Effect::kDryFriction || e == Effect::kQuadraticDamping || e == Effect::kForceFactor ||
+         e == Effect::kCoilInductance;
 }
 
 // Why a zero-null effect is not significant: none of its parameters lies beyond kMinSignificance
@@ -355,6 +359,7 @@ const std::vector<OptionInfo<DiagnoseOptions>>& DiagnoseOptionFields() {
       {"min_heldout_gain", "min_heldout_gain", "--min-gain", &DiagnoseOptions::min_heldout_gain},
       {"max_seconds", "max_seconds", "--max-seconds", &DiagnoseOptions::max_seconds},
       {"pairs", "pairs", "--no-pairs", &DiagnoseOptions::pairs, true},
+      {"coil_inductance", "coil_inductance", "--coil-inductance", &DiagnoseOptions::coil_inductance},
       {"max_passes", "max_passes", nullptr, &DiagnoseOptions::max_passes},
       {"map_frequency_points", "map_frequency_points", "--map-frequency-points", &DiagnoseOptions::map_frequency_points},
       {"map_amplitude_points", "map_amplitude_points", "--map-amplitude-points", &DiagnoseOptions::map_amplitude_points},
@@ -400,7 +405,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // 3. Signatures.
   std::vector<const EffectInfo*> applicable;
   for (const EffectInfo& info : EffectLibrary())
-    if (internal::Applicable(info.effect, options.fit.model, context)) applicable.push_back(&info);
+    if (internal::Applicable(info.effect, options.fit.model, context) &&
+        (info.effect != Effect::kCoilInductance || options.coil_inductance))
+      applicable.push_back(&info);
   stages = PlannedStages(applicable.size(), options);
   progress(3, "signatures of the base model's mismatch");
   d.signatures = internal::MeasureSignatures(campaign, analyses, d.before, d.base.model, kind, options.fit);
@@ -508,7 +515,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     d.missing_physics = c.effects;
     d.curves = EffectCurves(c, d.base.model,
                             {context.min_displacement_m, context.max_displacement_m, context.max_velocity_m_per_s,
-                             context.max_penetration_m, context.max_amplitude_v,
+                             context.max_penetration_m, context.max_amplitude_v, context.min_frequency_hz,
+                             context.max_frequency_hz,
                              "reached by the base model's orbits on the fit records"});
     d.fit_after = c.figures;
     d.model = c.model;

@@ -33,6 +33,7 @@ struct EffectContext {
   double penetration_m = 0;       // typical (median) stop penetration of the contacting orbits
   double max_penetration_m = 0;   // the deepest (0: no contact)
   double min_amplitude_v = 0, max_amplitude_v = 0;  // drive amplitudes of the campaign
+  double min_frequency_hz = 0, max_frequency_hz = 0;  // drive frequencies of the campaign
   bool contacts = false;          // some record reaches the stop
   // The stiffest (linear) contact the records resolve: one whose natural frequency sqrt(k_s / m_p) / 2pi
   // reaches the Nyquist frequency fs / 2 of the records sampled slowest, k_s = m_p (pi fs)^2. A stiffer

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <numbers>
 #include <string>
 
 #include "strokelab/diagnose/effect_curves.h"
@@ -157,6 +158,19 @@ std::vector<EffectCurve> EffectCurves(const CandidateFit& chosen, const Actuator
             [](const ActuatorModel& m, double v) {
               if (!m.HasAmplifierLimit() || v <= m.amplifier_limit_v) return CurvePoint{v, {}};
               return CurvePoint{m.amplifier_limit_v, {{"amplifier_limit_v", 1.0}}};
+            },
+            chosen, base));
+        break;
+      case Effect::kCoilInductance:
+        // The drive force's lag behind the voltage through the coil's pole at rest (v = 0; model.h):
+        // F_e = g u / (1 + j w tau_e), arg = -atan(w tau_e).
+        curves.push_back(MakeCurve(
+            effect, "coil_lag", "lag(f) = atan(2 pi f tau_e): the drive force's phase lag behind the voltage (coil pole)",
+            "f [Hz]", "lag [deg]", Grid(ranges.min_frequency_hz, ranges.max_frequency_hz), "the campaign's drive frequencies",
+            [](const ActuatorModel& m, double f) {
+              const double w = 2.0 * std::numbers::pi * f, degrees = 180.0 / std::numbers::pi;
+              const double wt = w * m.coil_time_constant_s;
+              return CurvePoint{std::atan(wt) * degrees, {{"tau_e", degrees * w / (1.0 + wt * wt)}}};
             },
             chosen, base));
         break;

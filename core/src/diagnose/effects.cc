@@ -1,6 +1,7 @@
 // The library of candidate effects (diagnose.h) and the refinement problems they make.
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "diagnose_internal.h"
@@ -42,6 +43,11 @@ const std::vector<EffectInfo>& EffectLibrary() {
        "(b1: even harmonics and a DC shift that follow the drive), clear of the stop or not: the coil "
        "leaves its gap's field, Bl(x) = Bl(0) (1 + b1 x + b2 x^2) (Klippel's Bl(x)), in the drive force and in "
        "the back-EMF damping alike"},
+      {Effect::kCoilInductance, "coil_inductance", {"tau_e"},
+       "a first harmonic whose phase lags the base model's more and more with frequency, in proportion at "
+       "every amplitude (a linear effect, no harmonics of its own), and a resonance damped differently below "
+       "and above it: the coil's inductance makes its current, and the drive force, lag the voltage through "
+       "the pole L / R, and the back-EMF damping lags with it"},
   };
   return library;
 }
@@ -109,6 +115,15 @@ FreeParameter ContactStiffness(std::string unit, double start, double resolved) 
   FreeParameter p = LogParameter("k_s", std::move(unit), &ActuatorModel::contact_stiffness, start, kContactRange);
   p.theta_max = std::max(1.0, std::min(p.theta_max, 1.0 + std::log(resolved / start)));
   return p;
+}
+
+// The back-EMF part of c_p, which the force factor scales and the coil's pole delays (model.h): from
+// half of c_p, within 0 .. c_p. Not an effect's own parameter (its zero is not the effect's absence).
+FreeParameter BackEmfDamping(const ActuatorModel& start) {
+  const double c_p = start.damping_n_s_per_m;
+  const double c0 = start.back_emf_damping_n_s_per_m > 0 ? start.back_emf_damping_n_s_per_m : 0.5 * c_p;
+  return LinearParameter("c_emf", "N s/m", &ActuatorModel::back_emf_damping_n_s_per_m, c0, 0.1 * c_p,
+                         -c0 / (0.1 * c_p), (c_p - c0) / (0.1 * c_p));
 }
 
 bool Has(std::span<const Effect> effects, Effect e) { return std::find(effects.begin(), effects.end(), e) != effects.end(); }
@@ -212,12 +227,22 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
                                     0.1 / x, -10.0, 10.0));
         p.push_back(LinearParameter("b2", "1/m^2", &ActuatorModel::force_factor_b2_per_m2, start.force_factor_b2_per_m2,
                                     0.1 / (x * x), -10.0, 10.0));
-        // The back-EMF part of c_p, which the force factor scales too (model.h): from half of c_p,
-        // within 0 .. c_p. Not the effect's own parameter (its zero is not the effect's absence).
-        const double c_p = start.damping_n_s_per_m;
-        const double c0 = start.back_emf_damping_n_s_per_m > 0 ? start.back_emf_damping_n_s_per_m : 0.5 * c_p;
-        p.push_back(LinearParameter("c_emf", "N s/m", &ActuatorModel::back_emf_damping_n_s_per_m, c0, 0.1 * c_p,
-                                    -c0 / (0.1 * c_p), (c_p - c0) / (0.1 * c_p)));
+        p.push_back(BackEmfDamping(start));
+        break;
+      }
+      case Effect::kCoilInductance: {
+        // tau_e = L / R from a tenth of the one that lags the drive by 1 rad at the highest drive
+        // frequency, on that scale; no shorter than the model's bound (model.h: its pole no more than
+        // 1e3 times the suspension's natural frequency; the effect is all but absent there) and no
+        // longer than the one that lags by 1 rad at the lowest.
+        const double scale = 0.1 / (2.0 * std::numbers::pi * context.max_frequency_hz);
+        const double natural_hz = std::sqrt(k / start.mass_kg) / (2.0 * std::numbers::pi);
+        const double floor = 1.01 / (2.0 * std::numbers::pi * ModelBounds::kMaxCoilPoleRatio * natural_hz);
+        const double ceiling = 1.0 / (2.0 * std::numbers::pi * context.min_frequency_hz);
+        const double t0 = start.HasCoilPole() ? start.coil_time_constant_s : std::max(scale, floor);
+        p.push_back(LinearParameter("tau_e", "s", &ActuatorModel::coil_time_constant_s, t0, scale, (floor - t0) / scale,
+                                    (std::max(ceiling, t0) - t0) / scale));
+        if (!Has(effects, Effect::kForceFactor)) p.push_back(BackEmfDamping(start));
         break;
       }
       case Effect::kSecondStop: {

@@ -1,4 +1,4 @@
-// The DOP853 integration of variational_flow.h: steps with error control on (x, v) and the
+// The DOP853 integration of variational_flow.h: steps with error control on the state and the
 // sensitivity columns, switching surfaces located on the dense output, the step cut at each switch
 // and the sensitivities' jump applied there.
 //
@@ -286,7 +286,7 @@ double FlowIntegrator::Step(double t, double h) {
   StageState(dop853::kStages, h);  // row 12 of a holds the weights b: the 8th-order solution
   y_new_.swap(stage_);
   EvaluateStage(dop853::kStages, t, h, y_new_.data(), K(dop853::kStages));  // c = 1: the step's end
-  // Error norm over (x, v) and the sensitivity columns (Hairer, Norsett and Wanner, Sec. II.10, the
+  // Error norm over the state and the sensitivity columns (Hairer, Norsett and Wanner, Sec. II.10, the
   // DOP853 estimate): a column is less smooth than the state where a force's derivative is (Hertzian
   // contact's p^(1/2) at entry), and controlling the state alone left 0.1 % errors in the monodromy.
   // Over u, time is controlled too, to the state's relative tolerance of the shortest period.

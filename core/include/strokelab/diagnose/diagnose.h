@@ -55,6 +55,7 @@ enum class Effect {
   kAmplifierSaturation,  // the drive clipped at +-limit before the gain
   kQuadraticDamping,     // c2 x'|x'|: a mechanical resistance growing with velocity
   kForceFactor,          // g (1 + b1 x + b2 x^2): the coil's force factor over the stroke
+  kCoilInductance,       // tau_e = L / R: the coil's current lags the voltage (a third state)
 };
 
 struct EffectInfo {
@@ -72,6 +73,11 @@ struct DiagnoseOptions {
   int heldout_every = 4;        // every n-th record is held out (>= 2)
   double min_heldout_gain = 10; // held-out chi-square drop (in residual variances) an effect must beat
   bool pairs = true;            // forward selection beyond one effect (pairs, triples)
+  // Whether coil_inductance is a candidate. Its fits integrate a third, fast state (the coil's pole
+  // tau_e, ~0.1-1 ms) with the explicit variational flow, whose steps then follow tau_e: each orbit
+  // costs 10-40 times a two-state model's, and a campaign's diagnosis several times as long. So it
+  // is tried on request only.
+  bool coil_inductance = false;
   int max_passes = 8;           // solves of an extended fit (sampling corrections refreshed between)
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
   // The report's saturation maps of the base and the diagnosed model (report/diagnosis_maps.h) over

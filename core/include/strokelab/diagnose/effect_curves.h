@@ -15,6 +15,7 @@ struct CurveRanges {
   double max_velocity_m_per_s = 0.0;
   double max_penetration_m = 0.0;
   double max_amplitude_v = 0.0;
+  double min_frequency_hz = 0.0, max_frequency_hz = 0.0;
   std::string source;  // where the ranges come from, in words
 };
 

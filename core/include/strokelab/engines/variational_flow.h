@@ -48,7 +48,7 @@ struct FlowRequest {
 };
 
 struct FlowOptions {
-  double relative_tolerance = 1e-11;  // on (x, v): the map's residual is driven to 1e-11 (steady_state.h)
+  double relative_tolerance = 1e-11;  // on the state: the map's residual is driven to 1e-11 (steady_state.h)
   // On the sensitivity columns (their absolute tolerances scale alike): Newton and the fits' Jacobians
   // need far fewer digits than the residual.
   double sensitivity_relative_tolerance = 1e-10;

@@ -4,8 +4,9 @@
 // Stability Analysis", 3rd ed., Springer 2010, sections 4.4-4.5).
 //
 // Unknowns u = (x0 / L, v0 / (w_ref L), p / p_ref), with (x0, v0) the orbit's state at phase 0 and p
-// the parameter; the orbit solves G(u) = P(y0; p) - y0 = 0 (steady_state.h). Predictor along the
-// tangent (the null vector of dG/du, the cross product of its two rows); corrector: Newton on
+// the parameter (and F_e0 / (k_p L), the coil's force, for models with the coil's pole: model.h); the
+// orbit solves G(u) = P(y0; p) - y0 = 0 (steady_state.h). Predictor along the tangent (the null vector
+// of dG/du: the cross product of its two rows, or the signed minors of its three); corrector: Newton on
 // [G(u); t . (u - u_pred)] = 0. Along the branch, sign changes mark events: a fold (dp/ds changes
 // sign), grazing (the orbit's contact count changes: min x crosses the stop), a change of stability
 // (a Floquet multiplier leaves the unit circle); each is located by bisection along the arclength to
