@@ -33,9 +33,11 @@ struct Derivative {
   double coil_rate_n_per_s = 0.0;
 };
 
-// y + h k.
+// y + h k (the coil's force only with kCoilPole).
+template <bool kCoilPole>
 State Advance(const State& y, double h, const Derivative& k) {
-  return {y.x_m + h * k.x_rate_m_per_s, y.v_m_per_s + h * k.v_rate_m_per_s2, y.coil_force_n + h * k.coil_rate_n_per_s};
+  return {y.x_m + h * k.x_rate_m_per_s, y.v_m_per_s + h * k.v_rate_m_per_s2,
+          kCoilPole ? y.coil_force_n + h * k.coil_rate_n_per_s : 0.0};
 }
 
 // The drive v_in = V sin(w t + phi) at the three stage times of step n: t_n, t_n + h/2, t_n + 3h/4.
@@ -109,7 +111,8 @@ class Ode3Run {
       const ContactMode mode = ModeFromState(model_, y.x_m, y.v_m_per_s);
       const double force_n = Force(drive_v.start_v, y, mode);
       EmitSample(n, y, force_n, mode);
-      Step(drive_v, force_n, &y);
+      if (model_.HasCoilPole()) Step<true>(drive_v, force_n, &y);
+      else Step<false>(drive_v, force_n, &y);
       if (!std::isfinite(y.x_m) || !std::isfinite(y.v_m_per_s) || !std::isfinite(y.coil_force_n))
         throw NumericalError("ode3 engine: the state is no longer finite at t = " + std::to_string(TimeS(n + 1)) +
                              " s (the fixed step 1/fs is unstable or the model diverges)");
@@ -141,26 +144,33 @@ class Ode3Run {
     return BlockedForce(model_, drive_v, y, mode);
   }
 
+  // F_e' with the coil's pole (a third state); nothing to integrate without it (the run's common case,
+  // kept free of it).
+  template <bool kCoilPole>
   double CoilRate(double drive_v, const State& y) const {
-    return model_.HasCoilPole() ? CoilForceRateJacobian(model_, drive_v, y).rate_n_per_s : 0.0;
+    if constexpr (kCoilPole) return CoilForceRateJacobian(model_, drive_v, y).rate_n_per_s;
+    return 0.0;
   }
 
+  template <bool kCoilPole>
   Derivative StageDerivative(double drive_v, const State& y) {
     const double force_n = Force(drive_v, y, ModeFromState(model_, y.x_m, y.v_m_per_s));
-    return {y.v_m_per_s, force_n * inverse_mass_per_kg_, CoilRate(drive_v, y)};
+    return {y.v_m_per_s, force_n * inverse_mass_per_kg_, CoilRate<kCoilPole>(drive_v, y)};
   }
 
   // One Bogacki-Shampine step from t_n; k1 from the force already evaluated there.
+  template <bool kCoilPole>
   void Step(const StageDrive::Voltages& drive_v, double force_n, State* y) {
     const double h = step_s_;
-    const Derivative k1{y->v_m_per_s, force_n * inverse_mass_per_kg_, CoilRate(drive_v.start_v, *y)};
-    const Derivative k2 = StageDerivative(drive_v.half_v, Advance(*y, 0.5 * h, k1));
-    const Derivative k3 = StageDerivative(drive_v.three_quarter_v, Advance(*y, 0.75 * h, k2));
+    const Derivative k1{y->v_m_per_s, force_n * inverse_mass_per_kg_, CoilRate<kCoilPole>(drive_v.start_v, *y)};
+    const Derivative k2 = StageDerivative<kCoilPole>(drive_v.half_v, Advance<kCoilPole>(*y, 0.5 * h, k1));
+    const Derivative k3 = StageDerivative<kCoilPole>(drive_v.three_quarter_v, Advance<kCoilPole>(*y, 0.75 * h, k2));
     y->x_m += h * (2.0 / 9.0 * k1.x_rate_m_per_s + 1.0 / 3.0 * k2.x_rate_m_per_s + 4.0 / 9.0 * k3.x_rate_m_per_s);
     y->v_m_per_s +=
         h * (2.0 / 9.0 * k1.v_rate_m_per_s2 + 1.0 / 3.0 * k2.v_rate_m_per_s2 + 4.0 / 9.0 * k3.v_rate_m_per_s2);
-    y->coil_force_n +=
-        h * (2.0 / 9.0 * k1.coil_rate_n_per_s + 1.0 / 3.0 * k2.coil_rate_n_per_s + 4.0 / 9.0 * k3.coil_rate_n_per_s);
+    if constexpr (kCoilPole)
+      y->coil_force_n +=
+          h * (2.0 / 9.0 * k1.coil_rate_n_per_s + 1.0 / 3.0 * k2.coil_rate_n_per_s + 4.0 / 9.0 * k3.coil_rate_n_per_s);
   }
 
   void EmitSample(size_t n, const State& y, double force_n, ContactMode mode) {

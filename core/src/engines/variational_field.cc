@@ -54,17 +54,22 @@ double Field::Evaluate(double t_s, const double* y, double* dy, ContactMode mode
 }
 
 double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
+  return layout_.state_size > 2 ? EvaluateWith<true>(t_s, cos_wt, sin_wt, y, dy, mode)
+                                : EvaluateWith<false>(t_s, cos_wt, sin_wt, y, dy, mode);
+}
+
+template <bool kCoilPole>
+double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
   const Layout& l = layout_;
-  const State state = StateOf(y, l.state_size);
+  const State state{y[0], y[1], kCoilPole ? y[2] : 0.0};
   const double x = state.x_m;
-  const bool pole = l.state_size > 2;
   // sin/cos of w t serve the drive (angle addition with its phase) and the quadratures.
   const double sin_drive = sin_wt * cos_phase_ + cos_wt * sin_phase_;  // sin(wt + phi)
   const double voltage_v = drive_.amplitude_v * sin_drive;
   const double m = inverse_mass_per_kg_;
   double force_n;
   CoilForceRate coil;
-  if (pole) coil = CoilForceRateJacobian(model_, voltage_v, state);
+  if constexpr (kCoilPole) coil = CoilForceRateJacobian(model_, voltage_v, state);
   if (l.columns == 0) {
     force_n = BlockedForce(model_, voltage_v, state, mode);
   } else {
@@ -72,10 +77,12 @@ double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y
     force_n = j.force_n;
     for (int c = 0; c < l.columns; ++c) {
       const int i = l.Column(c);
-      const double sx = y[i], sv = y[i + 1], se = pole ? y[i + 2] : 0.0;
+      const double sx = y[i], sv = y[i + 1], se = kCoilPole ? y[i + 2] : 0.0;
       dy[i] = sv;
-      double acceleration = (j.d_dx_n_per_m * sx + j.d_dv_n_s_per_m * sv + j.d_dcoil * se) * m;
-      double coil_rate = pole ? coil.d_dx_n_per_m_s * sx + coil.d_dv_n_per_m * sv + coil.d_dcoil_per_s * se : 0.0;
+      double force_rate = j.d_dx_n_per_m * sx + j.d_dv_n_s_per_m * sv;
+      if constexpr (kCoilPole) force_rate += j.d_dcoil * se;
+      double acceleration = force_rate * m;
+      double coil_rate = kCoilPole ? coil.d_dx_n_per_m_s * sx + coil.d_dv_n_per_m * sv + coil.d_dcoil_per_s * se : 0.0;
       if (c == l.amplitude_column || c == l.frequency_column) {
         // The drive enters as g phi u, or through F_e' with the coil's pole, with u = V sin(wt + phi)
         // while the amplifier does not clip it: du/dV = sin(wt + phi), du/df = V 2 pi t cos(wt + phi).
@@ -83,7 +90,7 @@ double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y
           const double cos_drive = cos_wt * cos_phase_ - sin_wt * sin_phase_;
           const double du = c == l.amplitude_column ? sin_drive
                                                     : drive_.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive;
-          if (pole) coil_rate += coil.d_dvoltage_n_per_v_s * du;
+          if constexpr (kCoilPole) coil_rate += coil.d_dvoltage_n_per_v_s * du;
           else acceleration += model_.gain_n_per_v * ForceFactorShape(model_, x) * m * du;
         }
       } else if (c >= l.state_columns) {
@@ -92,15 +99,15 @@ double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y
         acceleration += p == &ActuatorModel::mass_kg
                             ? -force_n * m * m
                             : BlockedForceParameterDerivative(model_, p, voltage_v, state, mode) * m;
-        if (pole) coil_rate += CoilForceRateParameterDerivative(model_, p, voltage_v, state);
+        if constexpr (kCoilPole) coil_rate += CoilForceRateParameterDerivative(model_, p, voltage_v, state);
       }
       dy[i + 1] = acceleration;
-      if (pole) dy[i + 2] = coil_rate;
+      if constexpr (kCoilPole) dy[i + 2] = coil_rate;
     }
   }
   dy[0] = state.v_m_per_s;
   dy[1] = force_n * m;
-  if (pole) dy[2] = coil.rate_n_per_s;
+  if constexpr (kCoilPole) dy[2] = coil.rate_n_per_s;
   // e^{-jhwt} by repeated multiplication with e^{-jwt}.
   double re = 1.0, im = 0.0;
   for (int k = 0; k < l.harmonics; ++k) {

@@ -49,6 +49,11 @@ class Field {
   double Force(double t_s, const double* y, ContactMode mode) const;
 
  private:
+  // Evaluate for a model with (kCoilPole) or without the coil's third state: the two-state field,
+  // which every sweep runs, keeps no test for the third component in its inner loops.
+  template <bool kCoilPole>
+  double EvaluateWith(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
+
   ActuatorModel model_;
   SineDrive drive_;
   std::vector<double ActuatorModel::*> parameters_;
