@@ -41,9 +41,18 @@ struct StudyFlags {
 
 const char kUsage[] = "usage: fit_study --effect ID --seed N | fit_study --list\n";
 
+// The diagnosis tests' cases and the study's own.
+std::vector<const EffectCase*> StudyCases() {
+  std::vector<const EffectCase*> cases;
+  for (const EffectCase& c : testing::ConcealedEffectCases()) cases.push_back(&c);
+  for (const EffectCase& c : testing::StudyOnlyEffectCases()) cases.push_back(&c);
+  return cases;
+}
+
 const EffectCase& FindCase(std::string_view id) {
   std::string known;
-  for (const EffectCase& c : testing::ConcealedEffectCases()) {
+  for (const EffectCase* p : StudyCases()) {
+    const EffectCase& c = *p;
     if (c.name == id) return c;
     known += (known.empty() ? "" : ", ") + c.name;
   }
@@ -117,7 +126,7 @@ nlohmann::ordered_json StudyCampaign(const EffectCase& effect, uint64_t seed) {
 int main(int argc, char** argv) {
   using namespace strokelab;
   if (argc == 2 && std::string_view(argv[1]) == "--list") {
-    for (const testing::EffectCase& c : testing::ConcealedEffectCases()) std::cout << c.name << "\n";
+    for (const testing::EffectCase* c : StudyCases()) std::cout << c->name << "\n";
     return 0;
   }
   StudyFlags flags;

@@ -63,7 +63,7 @@ class OrbitCost : public ceres::CostFunction {
       State start = target_->anchor.start;
       const bool same = !last_theta_.empty() && std::equal(last_theta_.begin(), last_theta_.end(), theta) &&
                         last_anchor_.start.x_m == start.x_m && last_anchor_.start.v_m_per_s == start.v_m_per_s &&
-                        last_anchor_.period == period;
+                        last_anchor_.start.coil_force_n == start.coil_force_n && last_anchor_.period == period;
       if (!same) {
         const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
         if (period > 0) {

@@ -96,7 +96,6 @@ class BranchProblem {
   State StateOf(const Vec& u) const { return {u.x * length_m_, u.v * speed_m_per_s_, u.e * force_n_}; }
   double ParameterOf(const Vec& u) const { return u.p * p_ref_; }
 
-  // with_figures = false: only G and its Jacobian (PeriodMap::Linearize), for Newton steps.
   // Solves [G'(u); t^T] step = -[G(u); constraint]: Cramer's rule for d = 2, LU otherwise.
   std::optional<Vec> NewtonStep(const Evaluation& e, Vec tangent, double constraint) const {
     if (d_ == 2) {
@@ -123,6 +122,7 @@ class BranchProblem {
     return Vec{step(0), step(1), step(2), step(3)};
   }
 
+  // with_figures = false: only G and its Jacobian (PeriodMap::Linearize), for Newton steps.
   Evaluation Evaluate(const Vec& u, bool with_figures = true) const {
     const double p = ParameterOf(u);
     const State y = StateOf(u);
