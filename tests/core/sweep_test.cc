@@ -71,6 +71,42 @@ TEST(SaturationThresholdTest, LowestContactAmplitudeAgreesWithTheTimeDomain) {
   EXPECT_FALSE(keeps_contact(lowest - 0.002));
 }
 
+// The same with the coil's pole (a third state, model.h): the grazing amplitude against the linear
+// closed form with the pole (linear_response.h), and the contacting branch's fold, which the
+// continuation finds in three state dimensions, against CVODE's time domain.
+TEST(SaturationThresholdTest, WithTheCoilsPoleTheThresholdsAgreeWithClosedFormAndTimeDomain) {
+  ActuatorModel coil = PaperModel();
+  coil.coil_time_constant_s = 2e-3 / 3.0;
+  coil.back_emf_damping_n_s_per_m = 0.8;
+  SweepSpec spec;
+  spec.model = coil;
+  spec.frequency_hz = {13.0, 13.0, 1};
+  spec.amplitude_v = {0.3, 0.3, 1};
+  const SweepResult r = RunSweep(spec);
+  ASSERT_EQ(r.saturation_threshold.size(), 1u);
+  const SaturationThreshold& t = r.saturation_threshold[0];
+  EXPECT_REL_NEAR(t.grazing_amplitude_v, LinearSaturationThresholdV(coil, Omega(13.0)), 1e-9);
+  // The pole moves the grazing amplitude by more than the tolerance: the test sees it.
+  EXPECT_GT(std::abs(LinearSaturationThresholdV(PaperModel(), Omega(13.0)) - t.grazing_amplitude_v),
+            1e-3 * t.grazing_amplitude_v);
+  const double lowest = t.lowest_contact_amplitude_v;
+  ASSERT_LT(lowest, 0.97 * t.grazing_amplitude_v);  // bistable below grazing, as without the pole
+  const PeriodMap map(coil, 13.0, lowest + 0.02);
+  const SteadyState contacting = SolveAttractor(map, {-0.9e-3, 0.0});
+  ASSERT_EQ(contacting.figures.contacts, 1);
+  ASSERT_EQ(contacting.multipliers.size(), 3u);
+  auto keeps_contact = [&](double amplitude_v) {
+    SimulationOptions options;
+    options.duration_s = 300 / 13.0;
+    options.sample_rate_hz = 13.0 * 512;
+    options.initial = contacting.start;
+    const SineDrive drive{amplitude_v, 13.0, 0.0};
+    return Summarize(MakeCvodeEngine()->Simulate(coil, drive, options), drive).contacts > 0;
+  };
+  EXPECT_TRUE(keeps_contact(lowest + 0.002));
+  EXPECT_FALSE(keeps_contact(lowest - 0.002));
+}
+
 TEST(SaturationThresholdTest, BelowResonanceAFoldCanLieJustUnderGrazing) {
   // At 5.5 Hz (about a third of the resonance) the impact rings the suspension and the contacting
   // branch folds back 1.8e-4 below grazing. Second method: a stepped-amplitude ramp down in the
