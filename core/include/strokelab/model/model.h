@@ -97,7 +97,8 @@ struct ActuatorModel {
 //   coil pole      1 / (2pi tau_e) at most 1e3 times the suspension's natural frequency: real voice coils
 //                  (L 0.05-10 mH over R 2-8 Ohm) put it 10-1000 times above a proof-mass actuator's 10-50 Hz.
 //                  The pole acts all the time (a stop only during contacts), and the variational flow is
-//                  explicit: its steps are bound by stability at ~6 tau_e, ~1e4 per suspension period here.
+//                  explicit: its steps follow tau_e (~0.5 tau_e, where the error estimate of the pole's
+//                  fast relaxation binds), ~1e4 per suspension period at this bound.
 //   mass           a 1 mg MEMS proof mass to a 1 t building shaker.
 //   stiffness      a stop (or k2 |d|, k3 d^2) 1e9 times the suspension's: the stop's time scale is then
 //   ratios         3e4 times shorter than the suspension's, already far past any rigid stop; beyond it
