@@ -278,7 +278,8 @@ def diagnose_checks(browser, args):
     seen_running = False
     while browser.evaluate("!!document.querySelector('#job-progress')"):
         job = api(server, f"/v1/jobs/{job_id}")
-        shown = browser.evaluate("document.querySelector('#job-progress').textContent")
+        # (The page drops the element when the job ends, possibly since the check above.)
+        shown = browser.evaluate("document.querySelector('#job-progress')?.textContent ?? ''")
         progress = job["progress"]
         if job["status"] not in ("queued", "running"):
             break

@@ -192,6 +192,11 @@ int PlannedStages(size_t effects, const DiagnoseOptions& options) {
   return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + MapStages(options);
 }
 
+// Whether the options let the effect be a candidate at all: coil_inductance on request only.
+bool Requested(const EffectInfo& info, const DiagnoseOptions& options) {
+  return info.effect != Effect::kCoilInductance || options.coil_inductance;
+}
+
 // Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
 // `step` (may be empty) hears where the fit is: the start values, each solve and Ceres iteration.
 CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
@@ -377,7 +382,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   const ResponseKind kind = campaign.response;
   const int orders = options.fit.harmonic_orders;
   // Progress: stage k of `stages` (diagnose.h); every effect is planned until the base fit says which apply.
-  int stages = PlannedStages(EffectLibrary().size(), options);
+  int stages = PlannedStages(std::count_if(EffectLibrary().begin(), EffectLibrary().end(),
+                                           [&](const EffectInfo& info) { return Requested(info, options); }),
+                             options);
   auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
     if (options.progress) options.progress({stage, stages, name, step});
   };
@@ -405,8 +412,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // 3. Signatures.
   std::vector<const EffectInfo*> applicable;
   for (const EffectInfo& info : EffectLibrary())
-    if (internal::Applicable(info.effect, options.fit.model, context) &&
-        (info.effect != Effect::kCoilInductance || options.coil_inductance))
+    if (internal::Applicable(info.effect, options.fit.model, context) && Requested(info, options))
       applicable.push_back(&info);
   stages = PlannedStages(applicable.size(), options);
   progress(3, "signatures of the base model's mismatch");
