@@ -1,7 +1,8 @@
 // The cvode engine: SUNDIALS CVODE (6.4 C API) with root-finding on every switching surface.
 //
 // State y = [x, v]; y' = [v, f / m_p], f = BlockedForce(...) (dynamics.h, paper Eq. 2 in its
-// continuous form); with the coil's pole (model.h) y = [x, v, F_e] and F_e' = CoilForceRate. The discrete contact mode is tracked here, not judged from the state: between
+// continuous form); with the coil's pole (model.h) y = [x, v, F_e] and F_e' = CoilForceRate. The
+// discrete contact mode is tracked here, not judged from the state: between
 // two located events the right-hand side is one smooth vector field, so the multistep method keeps
 // its order, and every mode change happens at a located root followed by CVodeReInit.
 //
