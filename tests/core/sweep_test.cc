@@ -37,6 +37,16 @@ SweepResult Sweep(GridAxis frequency, GridAxis amplitude, int threads = 1, bool 
   return RunSweep(spec);
 }
 
+// Whether 300 drive periods from `start` (on a contacting orbit) still reach the stop.
+bool KeepsContact(const Engine& engine, const ActuatorModel& model, double f_hz, double amplitude_v, State start) {
+  SimulationOptions options;
+  options.duration_s = 300 / f_hz;
+  options.sample_rate_hz = f_hz * 512;
+  options.initial = start;
+  const SineDrive drive{amplitude_v, f_hz, 0.0};
+  return Summarize(engine.Simulate(model, drive, options), drive).contacts > 0;
+}
+
 TEST(SaturationThresholdTest, GrazingAmplitudeIsTheClosedForm) {
   const SweepResult r = Sweep({8.0, 13.0, 2}, {0.3, 0.3, 1});
   ASSERT_EQ(r.saturation_threshold.size(), 2u);
@@ -60,12 +70,7 @@ TEST(SaturationThresholdTest, LowestContactAmplitudeAgreesWithTheTimeDomain) {
   const SteadyState contacting = ContactingAttractor(13.0, 0.45);
   ASSERT_EQ(contacting.figures.contacts, 1);
   auto keeps_contact = [&](double amplitude_v) {
-    SimulationOptions options;
-    options.duration_s = 300 / 13.0;
-    options.sample_rate_hz = 13.0 * 512;
-    options.initial = contacting.start;
-    const SineDrive drive{amplitude_v, 13.0, 0.0};
-    return Summarize(MakeExactEngine()->Simulate(PaperModel(), drive, options), drive).contacts > 0;
+    return KeepsContact(*MakeExactEngine(), PaperModel(), 13.0, amplitude_v, contacting.start);
   };
   EXPECT_TRUE(keeps_contact(lowest + 0.002));
   EXPECT_FALSE(keeps_contact(lowest - 0.002));
@@ -96,12 +101,7 @@ TEST(SaturationThresholdTest, WithTheCoilsPoleTheThresholdsAgreeWithClosedFormAn
   ASSERT_EQ(contacting.figures.contacts, 1);
   ASSERT_EQ(contacting.multipliers.size(), 3u);
   auto keeps_contact = [&](double amplitude_v) {
-    SimulationOptions options;
-    options.duration_s = 300 / 13.0;
-    options.sample_rate_hz = 13.0 * 512;
-    options.initial = contacting.start;
-    const SineDrive drive{amplitude_v, 13.0, 0.0};
-    return Summarize(MakeCvodeEngine()->Simulate(coil, drive, options), drive).contacts > 0;
+    return KeepsContact(*MakeCvodeEngine(), coil, 13.0, amplitude_v, contacting.start);
   };
   EXPECT_TRUE(keeps_contact(lowest + 0.002));
   EXPECT_FALSE(keeps_contact(lowest - 0.002));
