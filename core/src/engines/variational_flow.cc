@@ -264,12 +264,18 @@ void AccumulateStage(int s, double h, const double* y, const double* k, int n, i
 }
 
 void FlowIntegrator::StageState(int s, double h) {
-  // The sizes of Apply (2), Linearize with a drive column (8) and Trace (10).
-  switch (phase_.active ? 0 : n_) {
-    case 2: return AccumulateStage<2>(s, h, y_.data(), K(0), n_, width_, stage_.data());
-    case 8: return AccumulateStage<8>(s, h, y_.data(), K(0), n_, width_, stage_.data());
-    case 10: return AccumulateStage<10>(s, h, y_.data(), K(0), n_, width_, stage_.data());
-    default: return AccumulateStage<0>(s, h, y_.data(), K(0), Active(), width_, stage_.data());
+  // The harmonic integrals (from controlled_ on) feed nothing back into the field: only the step's
+  // end (row kStages, the weights b) needs them, not the stages inside it. With a fit's Jacobian
+  // they are most of the components (2 (d + P)(N + 1) of them for P parameters and N harmonics).
+  // Over u, time (the last component) is needed at every stage: all are summed.
+  const int count = phase_.active || s == dop853::kStages ? Active() : controlled_;
+  // The sizes of Apply (2), the monodromy (6), Linearize with a drive column (8) and Trace (10).
+  switch (phase_.active ? 0 : count) {
+    case 2: return AccumulateStage<2>(s, h, y_.data(), K(0), count, width_, stage_.data());
+    case 6: return AccumulateStage<6>(s, h, y_.data(), K(0), count, width_, stage_.data());
+    case 8: return AccumulateStage<8>(s, h, y_.data(), K(0), count, width_, stage_.data());
+    case 10: return AccumulateStage<10>(s, h, y_.data(), K(0), count, width_, stage_.data());
+    default: return AccumulateStage<0>(s, h, y_.data(), K(0), count, width_, stage_.data());
   }
 }
 
