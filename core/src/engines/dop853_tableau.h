@@ -7,6 +7,8 @@
 // the dense output only.
 #pragma once
 
+#include <array>
+
 namespace strokelab::dop853 {
 
 constexpr int kStages = 12;          // stages of a step
@@ -388,5 +390,19 @@ inline constexpr double kD[kDenseTerms - 3][kExtendedStages] = {
      0.96324553959188282948394950600e+2,
      -0.39177261675615439165231486172e+2,
      -0.14972683625798562581422125276e+3}};
+
+// Whether stage s's derivative is weighted anywhere: in the step's solution (b_s), as the next step's
+// first derivative (s = 12) or in the dense output (d_s). Stages 1-4 are not: they serve only the
+// stages after them, so a component nothing reads back (a quadrature) needs no derivative there.
+// A table, computed once by the compiler (the integrator's inner loops read it).
+inline constexpr auto kStageIsWeighted = [] {
+  std::array<bool, kExtendedStages> weighted{};
+  for (int s = 0; s < kExtendedStages; ++s) {
+    weighted[s] = s == kStages || kA[kStages][s] != 0.0;
+    for (int d = 0; d < kDenseTerms - 3; ++d) weighted[s] = weighted[s] || kD[d][s] != 0.0;
+  }
+  return weighted;
+}();
+static_assert(kStageIsWeighted[0] && !kStageIsWeighted[1] && !kStageIsWeighted[4] && kStageIsWeighted[5]);
 
 }  // namespace strokelab::dop853

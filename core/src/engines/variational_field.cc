@@ -50,16 +50,18 @@ void SmallAngleCosSin(double theta, double* cos_theta, double* sin_theta) {
 }
 
 double Field::Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const {
-  return Evaluate(t_s, std::cos(omega_rad_per_s_ * t_s), std::sin(omega_rad_per_s_ * t_s), y, dy, mode);
+  return Evaluate(t_s, std::cos(omega_rad_per_s_ * t_s), std::sin(omega_rad_per_s_ * t_s), y, dy, mode, true);
 }
 
-double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
-  return layout_.state_size > 2 ? EvaluateWith<true>(t_s, cos_wt, sin_wt, y, dy, mode)
-                                : EvaluateWith<false>(t_s, cos_wt, sin_wt, y, dy, mode);
+double Field::Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode,
+                       bool quadratures) const {
+  return layout_.state_size > 2 ? EvaluateWith<true>(t_s, cos_wt, sin_wt, y, dy, mode, quadratures)
+                                : EvaluateWith<false>(t_s, cos_wt, sin_wt, y, dy, mode, quadratures);
 }
 
 template <bool kCoilPole>
-double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const {
+double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode,
+                           bool quadratures) const {
   const Layout& l = layout_;
   const State state{y[0], y[1], kCoilPole ? y[2] : 0.0};
   const double x = state.x_m;
@@ -108,6 +110,7 @@ double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const doubl
   dy[0] = state.v_m_per_s;
   dy[1] = force_n * m;
   if constexpr (kCoilPole) dy[2] = coil.rate_n_per_s;
+  if (!quadratures) return force_n;
   // e^{-jhwt} by repeated multiplication with e^{-jwt}.
   double re = 1.0, im = 0.0;
   for (int k = 0; k < l.harmonics; ++k) {

@@ -43,7 +43,10 @@ class Field {
 
   // dy/dt at t in `mode`, given cos(wt) and sin(wt) (a step rotates them from its start instead of
   // calling sin and cos at every stage: they were a third of the time). Returns the blocked force [N].
-  double Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
+  // `quadratures` false leaves the harmonic integrals' derivatives unwritten (a stage whose derivative
+  // the integrator never weights: dop853::kStageIsWeighted).
+  double Evaluate(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode,
+                  bool quadratures) const;
   double Evaluate(double t_s, const double* y, double* dy, ContactMode mode) const;
   double omega_rad_per_s() const { return omega_rad_per_s_; }
   double Force(double t_s, const double* y, ContactMode mode) const;
@@ -52,7 +55,8 @@ class Field {
   // Evaluate for a model with (kCoilPole) or without the coil's third state: the two-state field,
   // which every sweep runs, keeps no test for the third component in its inner loops.
   template <bool kCoilPole>
-  double EvaluateWith(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode) const;
+  double EvaluateWith(double t_s, double cos_wt, double sin_wt, const double* y, double* dy, ContactMode mode,
+                      bool quadratures) const;
 
   ActuatorModel model_;
   SineDrive drive_;

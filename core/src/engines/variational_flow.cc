@@ -233,14 +233,16 @@ void FlowIntegrator::EvaluateStage(int s, double t, double h, const double* y, d
     return;
   }
   // One sin and cos at the step's start (Step), rotated to the stage's node.
-  const double theta = field_.omega_rad_per_s() * dop853::kC[s] * h;
+  const double t_stage = t + dop853::kC[s] * h, theta = field_.omega_rad_per_s() * dop853::kC[s] * h;
+  const bool quadratures = dop853::kStageIsWeighted[s];
   if (!(std::abs(theta) <= 0.5)) {
-    field_.Evaluate(t + dop853::kC[s] * h, y, dy, mode_);
+    const double wt = field_.omega_rad_per_s() * t_stage;
+    field_.Evaluate(t_stage, std::cos(wt), std::sin(wt), y, dy, mode_, quadratures);
     return;
   }
   double c, sn;
   variational::SmallAngleCosSin(theta, &c, &sn);
-  field_.Evaluate(t + dop853::kC[s] * h, step_cos_ * c - step_sin_ * sn, step_sin_ * c + step_cos_ * sn, y, dy, mode_);
+  field_.Evaluate(t_stage, step_cos_ * c - step_sin_ * sn, step_sin_ * c + step_cos_ * sn, y, dy, mode_, quadratures);
 }
 
 // out = y + h sum_j a_sj k_j over the nonzero a_sj (half of DOP853's are zero), k_j at k + j n.
@@ -332,7 +334,9 @@ void FlowIntegrator::PrepareDense(double t, double h) {
     DenseTerm(2)[i] = 2.0 * delta - h * (K(dop853::kStages)[i] + K(0)[i]);
     for (int d = 0; d < dop853::kDenseTerms - 3; ++d) {
       double sum = 0.0;
-      for (int j = 0; j < dop853::kExtendedStages; ++j) sum += dop853::kD[d][j] * K(j)[i];
+      // (zero coefficients skipped: a quadrature has no derivative at stages 1-4, kStageIsWeighted)
+      for (int j = 0; j < dop853::kExtendedStages; ++j)
+        if (dop853::kD[d][j] != 0.0) sum += dop853::kD[d][j] * K(j)[i];
       DenseTerm(3 + d)[i] = h * sum;
     }
   }
