@@ -74,8 +74,8 @@ are in "base_parameters" and "missing_physics" as before.
                        diagnosed, and the shifts
   jump_intervals.csv   the jump (bistable) intervals of both models
   records.csv, candidates.csv, candidate_parameters.csv, levels.csv, diagnosis.json (the JSON result)
-The maps sweep both models over the campaign's frequency x amplitude range after the diagnosis; a
-smooth model's map costs ~0.1 s per grid point today (40 x 12: a minute or two), so
+The maps sweep both models over the campaign's frequency x amplitude range after the diagnosis (a
+smooth model's 40 x 12 map with thresholds: about a second, longer with the coil's pole);
 --map-frequency-points 0 skips them.
 
 Exit codes: 0 diagnosed (including "nothing missing"), 2 bad input (the message names the file and
