@@ -46,7 +46,7 @@ std::string Table(const std::vector<std::string>& headers, const std::string& ro
 
 // One figure of the page: its SVG (or SVGs), or the sentence that replaces it.
 struct Figure {
-  std::string id;       // HTML anchor: "harmonics", "frf", "residual", "resonance", "contact", "ratios"
+  std::string id;  // HTML anchor: "harmonics", "frf", "residual", "resonance", "contact", "ratios", "missing_force"
   std::string heading;  // plain text
   std::vector<std::string> svgs;  // empty: skipped
   // Key shared by the SVGs: (CSS of a round swatch, text). Drawn by the page, as an SVG legend

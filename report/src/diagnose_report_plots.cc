@@ -320,12 +320,49 @@ Figure ResidualFigure(const Diagnosis& d) {
   return fig;
 }
 
+// What the unexplained misfit is as a force over the state (MissingForceSurface): a restoring-force
+// surface of the force the diagnosed model lacks. Only for a diagnosis with Unexplained.
+Figure MissingForceFigure(const Diagnosis& d) {
+  Figure fig{"missing_force", "Force the model lacks, over displacement and velocity", {}, {}, ""};
+  const MissingForceSurface& s = d.unexplained->missing_force;
+  if (s.force_n.empty()) {
+    fig.caption = "No surface: " + s.note + ".";
+    return fig;
+  }
+  plot::HeatMap map;
+  for (double x : s.x_m) map.x.push_back(1e3 * x);
+  for (double v : s.v_m_per_s) map.y.push_back(1e3 * v);
+  for (size_t iv = 0; iv < s.v_m_per_s.size(); ++iv) {
+    std::vector<double> row;
+    for (size_t ix = 0; ix < s.x_m.size(); ++ix) row.push_back(s.force_n[ix * s.v_m_per_s.size() + iv]);
+    map.z.push_back(std::move(row));
+  }
+  map.z_label = "missing force, mean per bin [N]";
+  plot::Axes axes;
+  axes.title = "Force the diagnosed model lacks (m_p x'' - F(u, x, v))";
+  axes.x_label = "displacement x [mm]";
+  axes.y_label = "velocity v [mm/s]";
+  axes.width_px = 620;
+  axes.height_px = 420;
+  fig.svgs.push_back(plot::HeatMapPlot(map, {}, axes));
+  fig.caption = "Per record and drive phase, the state and the acceleration from the measured harmonics, and the force "
+                "the diagnosed model lacks there, m_p x'' - F(u, x, v), less the same on the model's own harmonics (a "
+                "restoring-force surface, Masri and Caughey 1979), averaged per bin; blank bins hold fewer than 2 "
+                "samples, and phases within 5 % of the stop distance of a stop are left out. RMS " + Num(s.rms_n, 3) +
+                " N. Closest single term: " + s.term + ", " + Num(s.term_coefficient, 3) + " " + s.term_unit +
+                " (with 1, x and v it explains " + Num(100.0 * s.term_r2, 2) + " % of the variance, 1, x and v alone " +
+                Num(100.0 * s.linear_r2, 2) + " %).";
+  return fig;
+}
+
 }  // namespace
 
 std::vector<Figure> DiagnosisFigures(const Diagnosis& d) {
   const char* unit = ResponseUnit(d.base.response);
-  return {HarmonicsFigure(d, unit), FrfFigure(d, unit), CurvesFigure(d), ResidualFigure(d), ResonanceFigure(d),
-          ContactFigure(d, unit), RatiosFigure(d)};
+  std::vector<Figure> figures = {HarmonicsFigure(d, unit), FrfFigure(d, unit), CurvesFigure(d), ResidualFigure(d),
+                                 ResonanceFigure(d), ContactFigure(d, unit), RatiosFigure(d)};
+  if (d.unexplained) figures.push_back(MissingForceFigure(d));  // only an unexplained misfit has one
+  return figures;
 }
 
 }  // namespace strokelab::report::diagnose_internal

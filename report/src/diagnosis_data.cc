@@ -273,6 +273,55 @@ std::vector<EffectCurve> CurvesIn(const json& object, const char* key, const std
   });
 }
 
+// Finite numbers or nulls (NaN), within `limit` items.
+std::vector<double> NullableNumbers(const json& v, const std::string& at, size_t limit) {
+  if (!v.is_array() || v.size() > limit) throw InputError(at, "must be an array of at most " + std::to_string(limit) + " items");
+  std::vector<double> out;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const json& x = v[i];
+    if (!x.is_null() && !(x.is_number() && std::isfinite(x.get<double>())))
+      throw InputError(at + "/" + std::to_string(i), "must be a finite number or null");
+    out.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
+  }
+  return out;
+}
+
+MissingForceSurface MissingForceIn(const json& v, const std::string& at) {
+  MissingForceSurface s;
+  if (!v.contains("force_n")) {
+    s.note = Text(v, "note", at);
+    return s;
+  }
+  s.x_m = NullableNumbers(Member(v, "x_m", at), at + "/x_m", kMaxItems);
+  s.v_m_per_s = NullableNumbers(Member(v, "v_m_per_s", at), at + "/v_m_per_s", kMaxItems);
+  // Rows per x bin, each of v_m_per_s.size() columns.
+  const auto grid = [&](const char* key) {
+    std::string p;
+    const json& rows = Array(v, key, at, &p);
+    if (rows.size() != s.x_m.size()) throw InputError(p, "must have one row per x bin");
+    std::vector<double> out;
+    for (size_t r = 0; r < rows.size(); ++r) {
+      const std::vector<double> row = NullableNumbers(rows[r], p + "/" + std::to_string(r), s.v_m_per_s.size());
+      if (row.size() != s.v_m_per_s.size()) throw InputError(p + "/" + std::to_string(r), "must have one item per v bin");
+      out.insert(out.end(), row.begin(), row.end());
+    }
+    return out;
+  };
+  s.force_n = grid("force_n");
+  s.standard_error_n = grid("standard_error_n");
+  for (double count : grid("samples")) {
+    if (!(count >= 0 && count == std::floor(count))) throw InputError(at + "/samples", "must hold whole numbers >= 0");
+    s.samples.push_back(static_cast<int>(count));
+  }
+  s.rms_n = Number(v, "rms_n", at);
+  s.term = Text(v, "term", at);
+  s.term_unit = Text(v, "term_unit", at);
+  s.term_coefficient = Number(v, "term_coefficient", at);
+  s.term_r2 = Number(v, "term_r2", at);
+  s.linear_r2 = Number(v, "linear_r2", at);
+  return s;
+}
+
 std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, const std::string& at) {
   const json& v = Member(object, key, at);
   if (v.is_null()) return std::nullopt;
@@ -304,6 +353,8 @@ std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, co
     u.harmonic_chi2_per_residual.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
   }
   u.description = Text(v, "description", q);
+  // Absent from diagnoses stored before it was added.
+  if (v.contains("missing_force")) u.missing_force = MissingForceIn(Member(v, "missing_force", q), q + "/missing_force");
   return u;
 }
 

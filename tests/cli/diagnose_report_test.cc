@@ -173,6 +173,27 @@ Diagnosis NothingMissing() {
   return d;
 }
 
+// Nothing named, and the misfit unexplained with its missing-force surface (2 x 3 bins, one empty).
+Diagnosis UnexplainedMisfit() {
+  Diagnosis d = NothingMissing();
+  d.conclusion = "unexplained: the model misses something no library effect explains";
+  Unexplained u;
+  u.heldout_chi2 = 4.4e4, u.heldout_residuals = 120, u.expected_chi2 = 118, u.threshold_chi2 = 171, u.p_value = 0;
+  u.misfit_to_noise = 19.4;
+  u.harmonic_chi2_per_residual = {3.0, NAN, 2.0};
+  u.description = "misses by 19.4 x noise";
+  MissingForceSurface& s = u.missing_force;
+  s.x_m = {-1e-3, 1e-3};
+  s.v_m_per_s = {-0.05, 0.0, 0.05};
+  s.force_n = {0.01, NAN, -0.01, 0.012, 0.0, -0.012};
+  s.standard_error_n = {0.001, NAN, 0.001, 0.002, 0.001, 0.002};
+  s.samples = {5, 1, 7, 4, 9, 3};
+  s.rms_n = 0.0063, s.term = "x^2 v", s.term_unit = "N s/m^3", s.term_coefficient = -2.01e5;
+  s.term_r2 = 0.2, s.linear_r2 = 0.017;
+  d.unexplained = u;
+  return d;
+}
+
 size_t Count(const std::string& text, const std::string& what) {
   size_t n = 0;
   for (size_t i = text.find(what); i != std::string::npos; i = text.find(what, i + 1)) ++n;
@@ -350,6 +371,27 @@ TEST(DiagnoseReportTest, NothingMissingSaysSoAndSkipsPlotsWithoutData) {
   EXPECT_EQ(Count(html, "<svg"), 9u);
   EXPECT_EQ(Count(html, "class=\"skipped\""), 4u);  // and the curves and the maps, not given
   EXPECT_THAT(html, HasSubstr("Nothing was named, so there is no characteristic to draw."));
+}
+
+TEST(DiagnoseReportTest, AnUnexplainedMisfitShowsTheMissingForceSurface) {
+  const std::filesystem::path dir = FreshDir("diagnose_unexplained");
+  WriteDiagnosisReport(UnexplainedMisfit(), dir);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_EQ(CheckMarkup(html), "");
+  const size_t figure = html.find("<section id=\"missing_force\">");
+  ASSERT_NE(figure, std::string::npos);
+  const std::string section = html.substr(figure, html.find("</section>", figure) - figure);
+  EXPECT_THAT(section, HasSubstr("<svg"));
+  EXPECT_THAT(section, HasSubstr("x^2 v, -201000 N s/m^3"));
+  // Without a surface (a coil's pole), the figure says why.
+  Diagnosis coil = UnexplainedMisfit();
+  coil.unexplained->missing_force = MissingForceSurface{};
+  coil.unexplained->missing_force.note = "the model's coil force is a state of its own";
+  WriteDiagnosisReport(coil, dir);
+  EXPECT_THAT(ReadFile(dir / "index.html"), HasSubstr("No surface: the model's coil force is a state of its own."));
+  // Nothing unexplained: no such figure.
+  WriteDiagnosisReport(NothingMissing(), dir);
+  EXPECT_THAT(ReadFile(dir / "index.html"), Not(HasSubstr("id=\"missing_force\"")));
 }
 
 TEST(DiagnoseReportTest, EmptyDiagnosisSkipsEveryFigure) {
@@ -553,6 +595,7 @@ TEST(DiagnosisDataTest, TheReportFromDataIsTheReportFromTheDiagnosis) {
   same.diagnosed.reset();
   same.base->failures = {"row at 0.3 V: no periodic orbit"};
   ExpectSameReportFromData(NothingMissing(), same, "nothing");
+  ExpectSameReportFromData(UnexplainedMisfit(), same, "unexplained");
   DiagnosisMaps none;
   none.note = "no maps: map_frequency_points is 0";
   ExpectSameReportFromData(Diagnosis{}, none, "empty");

@@ -68,6 +68,12 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const Re
       m.residuals += 2;
     }
     m.model_period = p->orbit.anchor.period;
+    try {
+      m.model_mean_x_m = internal::OrbitMeanDisplacement(
+          model, SineDrive{a.drive.amplitude_v, a.drive.frequency_hz, 0.0}, p->orbit.anchor);
+    } catch (const std::exception&) {
+      // the surface (missing_force.cc) then takes the mean as 0
+    }
     m.model_contacts_per_period = p->orbit.contacts_per_period;
   });
   return matches;
@@ -508,6 +514,11 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     }
   }
   if (d.unexplained && !partial.empty()) d.unexplained->description += "; " + partial;
+  if (d.unexplained) {
+    const ActuatorModel& diagnosed = d.chosen >= 0 ? d.candidates[d.chosen].model : d.base.model;
+    d.unexplained->missing_force = internal::EstimateMissingForce(diagnosed, d.after, kind);
+    d.unexplained->description += internal::DescribeMissingForce(d.unexplained->missing_force);
+  }
   for (size_t i = 0; i < d.candidates.size(); ++i) {
     CandidateFit& c = d.candidates[i];
     if (static_cast<int>(i) == d.chosen) c.decision = "named";

@@ -44,6 +44,32 @@ nlohmann::json Complexes(const std::vector<std::complex<double>>& values) {
   return out;
 }
 
+// Rows per x bin; null where a bin holds fewer than 2 samples.
+nlohmann::json MissingForceToJson(const MissingForceSurface& s) {
+  if (s.force_n.empty()) return {{"note", s.note}};
+  const size_t columns = s.v_m_per_s.size();
+  nlohmann::json force = nlohmann::json::array(), se = nlohmann::json::array(), samples = nlohmann::json::array();
+  for (size_t r = 0; r < s.x_m.size(); ++r) {
+    const auto row = [&](const std::vector<double>& v) {
+      return JsonNumbers(std::vector<double>(v.begin() + r * columns, v.begin() + (r + 1) * columns));
+    };
+    force.push_back(row(s.force_n));
+    se.push_back(row(s.standard_error_n));
+    samples.push_back(std::vector<int>(s.samples.begin() + r * columns, s.samples.begin() + (r + 1) * columns));
+  }
+  return {{"x_m", JsonNumbers(s.x_m)},
+          {"v_m_per_s", JsonNumbers(s.v_m_per_s)},
+          {"force_n", force},
+          {"standard_error_n", se},
+          {"samples", samples},
+          {"rms_n", JsonNumber(s.rms_n)},
+          {"term", s.term},
+          {"term_unit", s.term_unit},
+          {"term_coefficient", JsonNumber(s.term_coefficient)},
+          {"term_r2", JsonNumber(s.term_r2)},
+          {"linear_r2", JsonNumber(s.linear_r2)}};
+}
+
 }  // namespace
 
 nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
@@ -67,7 +93,8 @@ nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
           {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
           {"places", places},
           {"harmonic_chi2_per_residual", JsonNumbers(u->harmonic_chi2_per_residual)},
-          {"description", u->description}};
+          {"description", u->description},
+          {"missing_force", MissingForceToJson(u->missing_force)}};
 }
 
 nlohmann::json CurvesToJson(const std::vector<EffectCurve>& curves) {

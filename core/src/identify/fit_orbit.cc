@@ -182,6 +182,19 @@ std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const Re
   return best;
 }
 
+double OrbitMeanDisplacement(const ActuatorModel& model, const SineDrive& drive, const Anchor& anchor) {
+  if (anchor.period != 1) return 0.0;
+  constexpr int kSamples = 256;
+  const double period_s = 1.0 / drive.frequency_hz;
+  FlowRequest request;
+  request.sample_count = kSamples;
+  request.sample_interval_s = period_s / kSamples;
+  const FlowResult flow = Flow(model, drive, anchor.start, 0.0, period_s, request);
+  double sum = 0.0;
+  for (const State& y : flow.samples) sum += y.x_m;
+  return flow.samples.empty() ? 0.0 : sum / static_cast<double>(flow.samples.size());
+}
+
 // What the record's sampling and least-squares fit make of the model's response, less the orbit's
 // continuous-time harmonics (see SamplingCorrection): the orbit sampled on the record's own grid over
 // its analysis window, from the orbit's state at drive phase phi (the record's first sample). The

@@ -116,6 +116,7 @@ struct RecordMatch {
   std::vector<std::complex<double>> measured, model;  // C_h, h = 1..N, response units
   int model_period = 1;
   double model_contacts_per_period = 0.0;
+  double model_mean_x_m = 0.0;  // the model orbit's mean displacement (0 unless period 1)
 };
 
 // Error figures of a model over the campaign.
@@ -194,6 +195,32 @@ struct CandidateFit {
 // held-out residuals, P the parameters, M the fit records' residuals (the prediction error of a
 // least-squares fit: Seber and Lee, "Linear Regression Analysis", 2nd ed., Wiley 2003, Sec. 5.3).
 // The test flags p < kUnexplainedP (unexplained.cc: the choice and its calibration on controls).
+// A nonparametric estimate of the force the diagnosed model lacks, over the state (x, v): a
+// restoring-force surface (S. F. Masri and T. K. Caughey, "A nonparametric identification technique
+// for nonlinear dynamic problems", J. Appl. Mech. 46 (1979) 433-447), here of the force missing
+// rather than the whole restoring force. Per record and drive phase the state and the acceleration
+// come from the measured harmonics (the response channel's, read as displacement's), and the force
+// missing there is m_p x'' - F(u, x, v) of the diagnosed model, less the same quantity on the model's
+// own harmonics: that difference cancels what cutting both at N harmonics makes. Phases where either
+// is within 5 % of the stop distance of a stop are left out (contact is seen in its own evidence, and
+// N harmonics do not resolve an impact). The records' mean position is taken as the model orbit's
+// (a force or acceleration channel does not see it).
+struct MissingForceSurface {
+  std::vector<double> x_m, v_m_per_s;       // bin centres
+  // Per bin [ix * v_m_per_s.size() + iv]: the mean missing force, its standard error (spread over
+  // sqrt(samples)) and the samples (records x phases) in it; NaN where it holds fewer than 2.
+  std::vector<double> force_n, standard_error_n;
+  std::vector<int> samples;
+  double rms_n = 0.0;  // over all samples kept
+  // The single term g(x, v) (x^2, x v, v^2, x^3, x^2 v, x v^2, v^3, x|x|, v|v|, sign v) that, fitted with
+  // 1, x and v (what the fit's k_p, c_p and offsets absorb), explains most of the samples' variance.
+  std::string term, term_unit;
+  double term_coefficient = 0.0;  // [term_unit]
+  double term_r2 = 0.0;           // variance explained by 1, x, v and the term
+  double linear_r2 = 0.0;         // by 1, x and v alone
+  std::string note;               // why there is no surface: "the model's coil force is ..."
+};
+
 struct Unexplained {
   double heldout_chi2 = 0.0;      // of the diagnosed model
   int heldout_residuals = 0;      // R
@@ -218,6 +245,7 @@ struct Unexplained {
   // Per harmonic order h over every record: chi-square per residual (1 is noise).
   std::vector<double> harmonic_chi2_per_residual;
   std::string description;  // the above in words, with a guess at its shape from the data
+  MissingForceSurface missing_force;  // over all records, at the diagnosed model
 };
 
 // A named effect's characteristic, as a transducer analyser reports it (Klippel's large-signal

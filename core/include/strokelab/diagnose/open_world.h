@@ -4,10 +4,12 @@
 
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/identify/fit.h"
+#include "strokelab/model/model.h"
 
 namespace strokelab::internal {
 
@@ -21,5 +23,12 @@ inline constexpr double kUnexplainedP = 1e-3;
 // when the held-out chi-square is within noise at kUnexplainedP.
 std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& matches,
                                            std::span<const RecordAnalysis> analyses, size_t parameters);
+
+// The force `model` lacks over (x, v) (MissingForceSurface), from every record's measured and model
+// harmonics in `matches` (response channel `kind`); missing_force.cc.
+MissingForceSurface EstimateMissingForce(const ActuatorModel& model, const std::vector<RecordMatch>& matches,
+                                         ResponseKind kind);
+// The surface in words for Unexplained::description: "; ..." (its closest single term), or its note.
+std::string DescribeMissingForce(const MissingForceSurface& surface);
 
 }  // namespace strokelab::internal

@@ -83,6 +83,10 @@ void MoveAnchor(const ActuatorModel& model, const RecordAnalysis& record, Respon
 std::optional<ModelOrbit> BestMatchingOrbit(const ActuatorModel& model, const RecordAnalysis& record,
                                             ResponseKind kind, int orders);
 
+// The mean displacement [m] over one period of a period-1 orbit at `drive` (its harmonics leave it
+// out), from 256 samples of the variational flow's dense output; 0 for orbits of another period.
+double OrbitMeanDisplacement(const ActuatorModel& model, const SineDrive& drive, const Anchor& anchor);
+
 // The model's response on the record's own sample grid over its analysis window (samples
 // window.begin .. window.end of a record of window.end samples; earlier samples are the orbit too),
 // in response units, from a period-1 orbit (the exact engine; the variational flow's dense output for
