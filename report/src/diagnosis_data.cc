@@ -343,6 +343,14 @@ std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, co
                         static_cast<int>(Integer(w, "worst_harmonic", r, 1, kMaxHarmonics)),
                         Number(w, "worst_harmonic_hz", r), Number(w, "residual_peak_phase_deg", r),
                         Number(w, "impact_phase_deg", r)});
+    // The ringing figures: absent from diagnoses stored before they were added.
+    Unexplained::Place& place = u.places.back();
+    if (w.contains("ring_frequency_hz")) {
+      place.ring_frequency_hz = Number(w, "ring_frequency_hz", r);
+      place.ring_damping_ratio = Number(w, "ring_damping_ratio", r);
+      place.ring_amplitude = Number(w, "ring_amplitude", r);
+      place.ring_to_noise = Number(w, "ring_to_noise", r);
+    }
   }
   const json& per_order = Array(v, "harmonic_chi2_per_residual", q, &p);  // null: no residual of that order
   if (per_order.size() > kMaxHarmonics) throw InputError(p, "has too many harmonics");

@@ -5,7 +5,8 @@
 // seed 1101, used nowhere else and tuned on by nothing) with a housing mode added to the measured
 // force: every impact spike rings a 180 Hz mode with 5 % damping at a fifth of the spike's height
 // (the force sensor sees the housing's ringing). No effect of the library makes a response at a
-// fixed frequency in Hz that decays after each impact.
+// fixed frequency in Hz that decays after each impact. The description finds the ring's frequency and
+// decay in the residual's time series (FindRinging).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -16,6 +17,7 @@
 
 #include "concealed_effects.h"
 #include "strokelab/diagnose/diagnose.h"
+#include "strokelab/diagnose/open_world.h"
 #include "strokelab/data/synth.h"
 #include "strokelab/signal/signal.h"
 
@@ -60,6 +62,37 @@ TEST(OpenWorldTest, AHousingModeThatRingsAfterImpactsIsUnexplainedAndNothingIsNa
   ASSERT_FALSE(d.unexplained->places.empty());
   for (const Unexplained::Place& p : d.unexplained->places) EXPECT_GT(p.amplitude_v, 0.2) << p.record;
   EXPECT_GT(d.unexplained->misfit_to_noise, 1.5);
+  // What: the residual rings at the mode's damped frequency, decaying at its rate (FindRinging), in
+  // the worst records that ring, and the description says so.
+  const double ring_hz = kRingHz * std::sqrt(1 - kRingDamping * kRingDamping);
+  int rings = 0;
+  for (size_t i = 0; i < d.unexplained->places.size() && i < 3; ++i) {
+    const Unexplained::Place& p = d.unexplained->places[i];
+    if (!std::isfinite(p.ring_frequency_hz)) continue;
+    ++rings;
+    EXPECT_NEAR(p.ring_frequency_hz, ring_hz, 0.02 * ring_hz) << p.record;
+    EXPECT_NEAR(p.ring_damping_ratio, kRingDamping, 0.2 * kRingDamping) << p.record;
+  }
+  EXPECT_GE(rings, 2);
+  EXPECT_THAT(d.conclusion, ::testing::HasSubstr("the residual rings at about"));
+}
+
+// The same campaign without the ring, against the model that made it: no ringing is found.
+TEST(OpenWorldTest, NoRingingInARecordTheModelMatches) {
+  testing::EffectCase control{"housing_mode", "", 0.0, false, 1101};
+  const Synthesis s = Synthesize(testing::WithEffect(control), testing::CampaignOptions(control.seed));
+  const FitOptions options;
+  int contacting = 0;
+  for (const Recording& r : s.campaign.records) {
+    const RecordAnalysis a = AnalyseRecord(r, s.campaign.response, options);
+    if (a.spikes.empty()) continue;
+    ++contacting;
+    Unexplained::Place place;
+    internal::FindRinging(r, a, s.model, s.campaign.response, options.harmonic_orders, &place);
+    EXPECT_TRUE(std::isnan(place.ring_frequency_hz)) << r.name << " rings at " << place.ring_frequency_hz << " Hz, "
+                                                     << place.ring_to_noise << " x noise";
+  }
+  EXPECT_GE(contacting, 8);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <span>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "strokelab/identify/extended_fit.h"
@@ -59,5 +60,9 @@ std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, cons
 Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAnalysis> analyses,
                              const std::vector<RecordMatch>& before, const ActuatorModel& base, ResponseKind kind,
                              const FitOptions& options);
+
+// Least-squares line y = a + b x over the points: (b, its standard error), NaN for fewer than 3
+// (diagnose_signatures.cc).
+std::pair<double, double> LineSlope(const std::vector<double>& x, const std::vector<double>& y);
 
 }  // namespace strokelab::internal

@@ -84,7 +84,11 @@ nlohmann::json UnexplainedToJson(const std::optional<Unexplained>& u) {
                       {"worst_harmonic", p.worst_harmonic},
                       {"worst_harmonic_hz", JsonNumber(p.worst_harmonic_hz)},
                       {"residual_peak_phase_deg", JsonNumber(p.residual_peak_phase_deg)},
-                      {"impact_phase_deg", JsonNumber(p.impact_phase_deg)}});
+                      {"impact_phase_deg", JsonNumber(p.impact_phase_deg)},
+                      {"ring_frequency_hz", JsonNumber(p.ring_frequency_hz)},
+                      {"ring_damping_ratio", JsonNumber(p.ring_damping_ratio)},
+                      {"ring_amplitude", JsonNumber(p.ring_amplitude)},
+                      {"ring_to_noise", JsonNumber(p.ring_to_noise)}});
   return {{"heldout_chi2", JsonNumber(u->heldout_chi2)},
           {"heldout_residuals", u->heldout_residuals},
           {"expected_chi2", JsonNumber(u->expected_chi2)},

@@ -21,22 +21,6 @@ constexpr double kWindowContactTimes = 2.0;  // half-width of a contact window, 
 constexpr double kMinWindowS = 0.5e-3;       // ... and at least this [s]
 
 
-// Least-squares line y = a + b x; returns (b, se(b)) or NaN for fewer than 3 points.
-std::pair<double, double> Slope(const std::vector<double>& x, const std::vector<double>& y) {
-  const size_t n = x.size();
-  if (n < 3) return {kNaN, kNaN};
-  double mx = 0, my = 0;
-  for (size_t i = 0; i < n; ++i) mx += x[i], my += y[i];
-  mx /= static_cast<double>(n), my /= static_cast<double>(n);
-  double sxx = 0, sxy = 0;
-  for (size_t i = 0; i < n; ++i) sxx += (x[i] - mx) * (x[i] - mx), sxy += (x[i] - mx) * (y[i] - my);
-  if (!(sxx > 0)) return {kNaN, kNaN};
-  const double b = sxy / sxx, a = my - b * mx;
-  double ssr = 0;
-  for (size_t i = 0; i < n; ++i) ssr += (y[i] - a - b * x[i]) * (y[i] - a - b * x[i]);
-  return {b, std::sqrt(ssr / static_cast<double>(n - 2) / sxx)};
-}
-
 Evidence Make(std::string kind, std::string summary, double value, double se, std::vector<Effect> points_to) {
   Evidence e;
   e.kind = std::move(kind);
@@ -78,6 +62,22 @@ Evidence HarmonicResidual(int h, std::span<const RecordAnalysis> analyses, const
 }
 
 }  // namespace
+
+// Least-squares line y = a + b x; returns (b, se(b)) or NaN for fewer than 3 points.
+std::pair<double, double> LineSlope(const std::vector<double>& x, const std::vector<double>& y) {
+  const size_t n = x.size();
+  if (n < 3) return {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
+  double mx = 0, my = 0;
+  for (size_t i = 0; i < n; ++i) mx += x[i], my += y[i];
+  mx /= static_cast<double>(n), my /= static_cast<double>(n);
+  double sxx = 0, sxy = 0;
+  for (size_t i = 0; i < n; ++i) sxx += (x[i] - mx) * (x[i] - mx), sxy += (x[i] - mx) * (y[i] - my);
+  if (!(sxx > 0)) return {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
+  const double b = sxy / sxx, a = my - b * mx;
+  double ssr = 0;
+  for (size_t i = 0; i < n; ++i) ssr += (y[i] - a - b * x[i]) * (y[i] - a - b * x[i]);
+  return {b, std::sqrt(ssr / static_cast<double>(n - 2) / sxx)};
+}
 
 Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAnalysis> analyses,
                              const std::vector<RecordMatch>& before, const ActuatorModel& base, ResponseKind kind,
@@ -156,7 +156,7 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
       slope = (level_f[1] - level_f[0]) / (level_v[1] - level_v[0]);
       se = std::hypot(level_w[0], level_w[1]) / std::abs(level_v[1] - level_v[0]);
     } else {
-      std::tie(slope, se) = Slope(level_v, level_f);
+      std::tie(slope, se) = LineSlope(level_v, level_f);
     }
     std::vector<Effect> points;
     if (std::abs(slope) > kSignificant * se) points = {Effect::kCubicStiffness};
@@ -178,7 +178,7 @@ Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAna
           x.push_back(std::log(std::abs(spike.peak_height))), y.push_back(std::log(spike.ContactTimeS()));
       }
     }
-    const auto [slope, se] = Slope(x, y);
+    const auto [slope, se] = LineSlope(x, y);
     if (std::isfinite(slope)) {
       std::vector<Effect> points;
       if (slope < -kSignificant * se) points = {Effect::kHertzianContact};

@@ -30,6 +30,7 @@
 
 #include <complex>
 #include <functional>
+#include <limits>
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <span>
@@ -222,6 +223,7 @@ struct MissingForceSurface {
 };
 
 struct Unexplained {
+  static constexpr double kNoRing = std::numeric_limits<double>::quiet_NaN();
   double heldout_chi2 = 0.0;      // of the diagnosed model
   int heldout_residuals = 0;      // R
   double expected_chi2 = 0.0;     // (1 + P / M) R: noise and parameter error alone
@@ -240,6 +242,11 @@ struct Unexplained {
     double worst_harmonic_hz = 0.0;
     double residual_peak_phase_deg = 0.0;  // [0, 360)
     double impact_phase_deg = 0.0;         // circular mean of the record's impact spikes; NaN: none
+    // The residual's ringing after the impacts, above the fitted harmonics (ringing.cc): its frequency,
+    // damping ratio (NaN: it does not decay measurably), first swing [response units] and that swing
+    // over its noise. All NaN when the residual does not ring (or the record has no impact).
+    double ring_frequency_hz = kNoRing, ring_damping_ratio = kNoRing, ring_amplitude = kNoRing,
+           ring_to_noise = kNoRing;
   };
   std::vector<Place> places;
   // Per harmonic order h over every record: chi-square per residual (1 is noise).

@@ -28,6 +28,13 @@ std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& match
 // harmonics in `matches` (response channel `kind`); missing_force.cc.
 MissingForceSurface EstimateMissingForce(const ActuatorModel& model, const std::vector<RecordMatch>& matches,
                                          ResponseKind kind);
+// The ringing of `record`'s residual after its impacts (Unexplained::Place's ring_* figures): the
+// record less `model`'s steady state on the record's own grid, less its offset, mains hum and drive
+// harmonics 1..orders, averaged over the drive periods; after the impacts, the strongest frequency
+// above harmonic `orders` and the decay of its amplitude, cycle pair by cycle pair (ringing.cc).
+void FindRinging(const Recording& record, const RecordAnalysis& analysis, const ActuatorModel& model, ResponseKind kind,
+                 int orders, Unexplained::Place* place);
+
 // The surface in words for Unexplained::description: "; ..." (its closest single term), or its note.
 std::string DescribeMissingForce(const MissingForceSurface& surface);
 
