@@ -18,6 +18,7 @@ constexpr double kRingTwoPi = 2.0 * std::numbers::pi;
 constexpr int kHumOvertones = 3;          // as the analysis fits them (fit.h, RecordAnalysis)
 constexpr double kMaxRingShareOfFs = 0.125;  // ring frequencies searched up to fs / 8
 constexpr int kZeroPadding = 4;           // frequency grid: 1 / (4 T) over a segment of T
+constexpr double kMaxGridPoints = 4096;   // ... at most this many
 constexpr double kFirstSwingToNoise = 5;  // a ring's first cycle pair this far above its noise
 constexpr double kSwingToNoise = 3;       // the cycle pairs whose amplitude enters the decay fit
 constexpr int kMinSwings = 3;             // cycle pairs above noise for a ring
@@ -117,7 +118,10 @@ void FindRinging(const Recording& record, const RecordAnalysis& a, const Actuato
   std::vector<double> windowed(segment.size());
   for (size_t k = 0; k < segment.size(); ++k)
     windowed[k] = segment[k] * 0.5 * (1.0 - std::cos(kRingTwoPi * static_cast<double>(k) / static_cast<double>(segment.size())));
-  const double f_low = (orders + 0.5) * f, f_high = kMaxRingShareOfFs * fs, df = 1.0 / (kZeroPadding * duration_s);
+  // (At most kMaxGridPoints frequencies: a slow drive's long segment would otherwise scan ~1e4 of them;
+  // the phase drift below refines the frequency anyway.)
+  const double f_low = (orders + 0.5) * f, f_high = kMaxRingShareOfFs * fs;
+  const double df = std::max(1.0 / (kZeroPadding * duration_s), (f_high - f_low) / kMaxGridPoints);
   double ring_hz = 0.0, best = 0.0;
   for (double fr = f_low; fr <= f_high; fr += df) {
     const double amplitude = std::abs(ProjectionAt(windowed, 0, windowed.size(), kRingTwoPi * fr, dt));
