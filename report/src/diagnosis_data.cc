@@ -17,6 +17,7 @@ using nlohmann::json;
 
 constexpr size_t kMaxItems = 100'000;   // any array: records, points, candidates, ...
 constexpr size_t kMaxHarmonics = 64;    // complex coefficients per record and model
+constexpr size_t kMaxSurfaceBins = 64;  // per axis of the missing-force surface (it has 12)
 constexpr size_t kMaxTextBytes = 64 << 10;
 
 // ---- Writing ----
@@ -292,12 +293,12 @@ MissingForceSurface MissingForceIn(const json& v, const std::string& at) {
     s.note = Text(v, "note", at);
     return s;
   }
-  s.x_m = NullableNumbers(Member(v, "x_m", at), at + "/x_m", kMaxItems);
-  s.v_m_per_s = NullableNumbers(Member(v, "v_m_per_s", at), at + "/v_m_per_s", kMaxItems);
+  s.x_m = NullableNumbers(Member(v, "x_m", at), at + "/x_m", kMaxSurfaceBins);
+  s.v_m_per_s = NullableNumbers(Member(v, "v_m_per_s", at), at + "/v_m_per_s", kMaxSurfaceBins);
   // Rows per x bin, each of v_m_per_s.size() columns.
   const auto grid = [&](const char* key) {
     std::string p;
-    const json& rows = Array(v, key, at, &p);
+    const json& rows = Array(v, key, at, &p, kMaxSurfaceBins);
     if (rows.size() != s.x_m.size()) throw InputError(p, "must have one row per x bin");
     std::vector<double> out;
     for (size_t r = 0; r < rows.size(); ++r) {
@@ -310,7 +311,8 @@ MissingForceSurface MissingForceIn(const json& v, const std::string& at) {
   s.force_n = grid("force_n");
   s.standard_error_n = grid("standard_error_n");
   for (double count : grid("samples")) {
-    if (!(count >= 0 && count == std::floor(count))) throw InputError(at + "/samples", "must hold whole numbers >= 0");
+    if (!(count >= 0 && count <= kMaxItems * kMaxHarmonics && count == std::floor(count)))
+      throw InputError(at + "/samples", "must hold whole numbers from 0 to " + std::to_string(kMaxItems * kMaxHarmonics));
     s.samples.push_back(static_cast<int>(count));
   }
   s.rms_n = Number(v, "rms_n", at);

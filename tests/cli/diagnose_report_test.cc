@@ -619,6 +619,34 @@ TEST(DiagnosisDataTest, AWorkersMarkupIsRenderedAsText) {
 }
 
 // Each damaged document is refused naming the member, as the server answers a worker's completion.
+// The missing-force surface a worker sends is checked as the rest: sizes bounded, numbers finite.
+TEST(DiagnosisDataTest, ABadMissingForceSurfaceIsRefusedNamingTheMember) {
+  const nlohmann::json good = DiagnosisDataToJson(UnexplainedMisfit(), MapsOf());
+  ASSERT_NO_THROW(DiagnosisDataFromJson(good));
+  const auto field_of = [&](const std::function<void(nlohmann::json&)>& spoil) {
+    nlohmann::json bad = good;
+    spoil(bad);
+    try {
+      DiagnosisDataFromJson(bad);
+    } catch (const InputError& e) {
+      return e.field();
+    }
+    return std::string("(accepted)");
+  };
+  using nlohmann::json;
+  const std::string at = "/diagnosis/unexplained/missing_force";
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["missing_force"]["x_m"] = std::vector<double>(65, 0.0); }),
+            at + "/x_m");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["missing_force"]["force_n"][1][0] = "big"; }),
+            at + "/force_n/1/0");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["missing_force"]["force_n"][1].push_back(1.0); }),
+            at + "/force_n/1");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["missing_force"]["samples"][0][0] = 1e300; }),
+            at + "/samples");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["places"] = json::array(); j["diagnosis"]["unexplained"]["missing_force"] = 3; }),
+            at);
+}
+
 TEST(DiagnosisDataTest, BadDataIsRefusedNamingTheMember) {
   const nlohmann::json good = DiagnosisDataToJson(Named(), MapsOf());
   ASSERT_NO_THROW(DiagnosisDataFromJson(good));
