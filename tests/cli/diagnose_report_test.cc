@@ -618,21 +618,24 @@ TEST(DiagnosisDataTest, AWorkersMarkupIsRenderedAsText) {
   EXPECT_THAT(html, HasSubstr("&lt;script&gt;alert(1)&lt;/script&gt;"));
 }
 
-// Each damaged document is refused naming the member, as the server answers a worker's completion.
+// The JSON pointer of the member that DiagnosisDataFromJson refuses in `good` spoiled by `spoil`, or
+// "(accepted)".
+std::string RefusedMember(const nlohmann::json& good, const std::function<void(nlohmann::json&)>& spoil) {
+  nlohmann::json bad = good;
+  spoil(bad);
+  try {
+    DiagnosisDataFromJson(bad);
+  } catch (const InputError& e) {
+    return e.field();
+  }
+  return "(accepted)";
+}
+
 // The missing-force surface a worker sends is checked as the rest: sizes bounded, numbers finite.
 TEST(DiagnosisDataTest, ABadMissingForceSurfaceIsRefusedNamingTheMember) {
   const nlohmann::json good = DiagnosisDataToJson(UnexplainedMisfit(), MapsOf());
   ASSERT_NO_THROW(DiagnosisDataFromJson(good));
-  const auto field_of = [&](const std::function<void(nlohmann::json&)>& spoil) {
-    nlohmann::json bad = good;
-    spoil(bad);
-    try {
-      DiagnosisDataFromJson(bad);
-    } catch (const InputError& e) {
-      return e.field();
-    }
-    return std::string("(accepted)");
-  };
+  const auto field_of = [&](const std::function<void(nlohmann::json&)>& spoil) { return RefusedMember(good, spoil); };
   using nlohmann::json;
   const std::string at = "/diagnosis/unexplained/missing_force";
   EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["missing_force"]["x_m"] = std::vector<double>(65, 0.0); }),
@@ -647,19 +650,11 @@ TEST(DiagnosisDataTest, ABadMissingForceSurfaceIsRefusedNamingTheMember) {
             at);
 }
 
+// Each damaged document is refused naming the member, as the server answers a worker's completion.
 TEST(DiagnosisDataTest, BadDataIsRefusedNamingTheMember) {
   const nlohmann::json good = DiagnosisDataToJson(Named(), MapsOf());
   ASSERT_NO_THROW(DiagnosisDataFromJson(good));
-  const auto field_of = [&](const std::function<void(nlohmann::json&)>& spoil) {
-    nlohmann::json bad = good;
-    spoil(bad);
-    try {
-      DiagnosisDataFromJson(bad);
-    } catch (const InputError& e) {
-      return e.field();
-    }
-    return std::string("(accepted)");
-  };
+  const auto field_of = [&](const std::function<void(nlohmann::json&)>& spoil) { return RefusedMember(good, spoil); };
   using nlohmann::json;
   EXPECT_EQ(field_of([](json& j) { j["diagnosis"].erase("conclusion"); }), "/diagnosis/conclusion");
   EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["before"][2]["nrmse"] = "small"; }), "/diagnosis/before/2/nrmse");
