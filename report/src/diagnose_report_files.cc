@@ -50,16 +50,6 @@ std::string EffectIds(const std::vector<Effect>& effects) {
   return text.empty() ? "-" : text;
 }
 
-const char* ResponseUnit(ResponseKind kind) {
-  switch (kind) {
-    case ResponseKind::kForce: return "N";
-    case ResponseKind::kAcceleration: return "m/s^2";
-    case ResponseKind::kVelocity: return "m/s";
-    case ResponseKind::kDisplacement: return "m";
-  }
-  return "";
-}
-
 AmplitudeLevels GroupAmplitudes(const std::vector<RecordMatch>& records) {
   // Amplitudes within 3 % of a level's smallest belong to it: the estimated drive scatters by far less,
   // and stepped-sine levels are far more apart.

@@ -26,8 +26,6 @@ std::string ValueSe(double value, double standard_error);
 const char* EffectId(Effect effect);
 std::string EffectIds(const std::vector<Effect>& effects);  // "a + b", "-" when empty
 
-// Unit of the response's harmonics: "N", "m/s^2", "m/s", "m".
-const char* ResponseUnit(ResponseKind kind);
 
 // The records' amplitudes grouped into levels (a stepped-sine campaign drives a few amplitudes at
 // many frequencies): the level of each record, and each level's mean amplitude [V], ascending.

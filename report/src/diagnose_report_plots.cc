@@ -358,7 +358,7 @@ Figure MissingForceFigure(const Diagnosis& d) {
 }  // namespace
 
 std::vector<Figure> DiagnosisFigures(const Diagnosis& d) {
-  const char* unit = ResponseUnit(d.base.response);
+  const char* unit = UnitOf(d.base.response);
   std::vector<Figure> figures = {HarmonicsFigure(d, unit), FrfFigure(d, unit), CurvesFigure(d), ResidualFigure(d),
                                  ResonanceFigure(d), ContactFigure(d, unit), RatiosFigure(d)};
   if (d.unexplained) figures.push_back(MissingForceFigure(d));  // only an unexplained misfit has one

@@ -274,9 +274,8 @@ std::vector<EffectCurve> CurvesIn(const json& object, const char* key, const std
   });
 }
 
-// Finite numbers or nulls (NaN), within `limit` items.
-std::vector<double> NullableNumbers(const json& v, const std::string& at, size_t limit) {
-  if (!v.is_array() || v.size() > limit) throw InputError(at, "must be an array of at most " + std::to_string(limit) + " items");
+// The items of array `v` (at pointer `at`): finite numbers, or null read as NaN.
+std::vector<double> NullableNumbers(const json& v, const std::string& at) {
   std::vector<double> out;
   for (size_t i = 0; i < v.size(); ++i) {
     const json& x = v[i];
@@ -293,17 +292,20 @@ MissingForceSurface MissingForceIn(const json& v, const std::string& at) {
     s.note = Text(v, "note", at);
     return s;
   }
-  s.x_m = NullableNumbers(Member(v, "x_m", at), at + "/x_m", kMaxSurfaceBins);
-  s.v_m_per_s = NullableNumbers(Member(v, "v_m_per_s", at), at + "/v_m_per_s", kMaxSurfaceBins);
+  std::string p;
+  s.x_m = NullableNumbers(Array(v, "x_m", at, &p, kMaxSurfaceBins), p);
+  s.v_m_per_s = NullableNumbers(Array(v, "v_m_per_s", at, &p, kMaxSurfaceBins), p);
   // Rows per x bin, each of v_m_per_s.size() columns.
   const auto grid = [&](const char* key) {
-    std::string p;
-    const json& rows = Array(v, key, at, &p, kMaxSurfaceBins);
-    if (rows.size() != s.x_m.size()) throw InputError(p, "must have one row per x bin");
+    std::string rows_at;
+    const json& rows = Array(v, key, at, &rows_at, kMaxSurfaceBins);
+    if (rows.size() != s.x_m.size()) throw InputError(rows_at, "must have one row per x bin");
     std::vector<double> out;
     for (size_t r = 0; r < rows.size(); ++r) {
-      const std::vector<double> row = NullableNumbers(rows[r], p + "/" + std::to_string(r), s.v_m_per_s.size());
-      if (row.size() != s.v_m_per_s.size()) throw InputError(p + "/" + std::to_string(r), "must have one item per v bin");
+      const std::string row_at = rows_at + "/" + std::to_string(r);
+      if (!rows[r].is_array() || rows[r].size() != s.v_m_per_s.size())
+        throw InputError(row_at, "must be an array of one item per v bin");
+      const std::vector<double> row = NullableNumbers(rows[r], row_at);
       out.insert(out.end(), row.begin(), row.end());
     }
     return out;
@@ -356,12 +358,7 @@ std::optional<Unexplained> UnexplainedIn(const json& object, const char* key, co
   }
   const json& per_order = Array(v, "harmonic_chi2_per_residual", q, &p);  // null: no residual of that order
   if (per_order.size() > kMaxHarmonics) throw InputError(p, "has too many harmonics");
-  for (size_t h = 0; h < per_order.size(); ++h) {
-    const json& x = per_order[h];
-    if (!x.is_null() && !(x.is_number() && std::isfinite(x.get<double>())))
-      throw InputError(p + "/" + std::to_string(h), "must be a finite number or null");
-    u.harmonic_chi2_per_residual.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
-  }
+  u.harmonic_chi2_per_residual = NullableNumbers(per_order, p);
   u.description = Text(v, "description", q);
   // Absent from diagnoses stored before it was added.
   if (v.contains("missing_force")) u.missing_force = MissingForceIn(Member(v, "missing_force", q), q + "/missing_force");

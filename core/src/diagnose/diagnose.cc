@@ -204,35 +204,7 @@ void RingingOfWorstPlaces(const Campaign& campaign, std::span<const RecordAnalys
       // no ringing figures for this record
     }
   }
-  const char* unit = kind == ResponseKind::kForce          ? " N"
-                     : kind == ResponseKind::kAcceleration ? " m/s^2"
-                     : kind == ResponseKind::kVelocity     ? " m/s"
-                                                           : " m";
-  // A mode rings at one frequency in Hz whatever the drive: the words need two records of different
-  // drive frequencies ringing within kSameRing of each other (one record's ring may be its own misfit).
-  constexpr double kSameRing = 0.05;
-  auto confirmed = [&](const Unexplained::Place& p) {
-    for (size_t j = 0; j < u->places.size() && j < kPlaces; ++j) {
-      const Unexplained::Place& q = u->places[j];
-      if (&q != &p && std::abs(q.frequency_hz - p.frequency_hz) > kSameRing * p.frequency_hz &&
-          std::abs(q.ring_frequency_hz - p.ring_frequency_hz) <= kSameRing * p.ring_frequency_hz)
-        return true;
-    }
-    return false;
-  };
-  for (size_t i = 0; i < u->places.size() && i < kPlaces; ++i) {
-    const Unexplained::Place& p = u->places[i];
-    if (!std::isfinite(p.ring_frequency_hz) || !confirmed(p)) continue;
-    u->description += "; in " + p.record + " the residual rings at about " + Format(p.ring_frequency_hz, 3) +
-                      " Hz after the impacts (first swing " + Format(p.ring_amplitude, 3) + unit + ", " + Format(p.ring_to_noise, 3) +
-                      " x its noise" +
-                      (std::isfinite(p.ring_damping_ratio)
-                           ? ", decaying with damping ratio " + Format(p.ring_damping_ratio, 2) + ", time constant " +
-                                 Format(1e3 / (p.ring_damping_ratio * 2.0 * std::numbers::pi * p.ring_frequency_hz), 2) + " ms)"
-                           : ", not decaying measurably)") +
-                      ": a mode near " + Format(p.ring_frequency_hz, 3) + " Hz that the impacts excite and the model lacks";
-    break;  // once: the worst ringing record
-  }
+  u->description += internal::DescribeRinging(*u, kind, kPlaces);
 }
 
 // The report's maps, when the options ask for them: the diagnosis's last two progress stages.

@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "diagnose_internal.h"
+#include "strokelab/identify/fit_orbit.h"
 #include "strokelab/model/dynamics.h"
 
 namespace strokelab::internal {
@@ -21,20 +22,9 @@ constexpr int kSurfaceBins = 12;             // per axis of the surface
 constexpr double kStopMargin = 0.05;  // of the stop distance: phases this near a stop are left out
 constexpr size_t kMinSamples = 32;    // fewer phases clear of the stops: no surface
 
-// X_h from the response's C_h: the inverse of ResponseHarmonic (fit_orbit.cc; f = m_p x'', paper-notes).
+// X_h from the response's C_h: ResponseHarmonic (fit_orbit.h) is C_h = k(h) X_h, so X_h = C_h / k(h).
 Complex DisplacementHarmonic(Complex c, int h, double omega, ResponseKind kind, double mass_kg) {
-  const double w = h * omega;
-  switch (kind) {
-    case ResponseKind::kForce:
-      return -c / (mass_kg * w * w);
-    case ResponseKind::kAcceleration:
-      return -c / (w * w);
-    case ResponseKind::kVelocity:
-      return c / Complex(0.0, w);
-    case ResponseKind::kDisplacement:
-      return c;
-  }
-  return c;
+  return c / ResponseHarmonic(1.0, h, omega, kind, mass_kg);
 }
 
 struct Motion {

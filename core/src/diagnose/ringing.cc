@@ -4,6 +4,7 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <string>
 #include <vector>
 
 #include "diagnose_internal.h"
@@ -25,6 +26,7 @@ constexpr int kMinSwings = 3;             // cycle pairs above noise for a ring
 constexpr double kDecayedShare = 0.1;     // cycle pairs below this share of the first are left out
 constexpr double kSameImpact = 0.02;      // impacts this close in drive phase [periods] are one
 constexpr double kBeforeNextImpact = 0.9;  // the segment ends this share of the way to the next impact
+constexpr double kSameRing = 0.05;         // rings within this share of one frequency are one mode's
 
 // x minus its least-squares fit of `orders` harmonics of `frequency_hz` (and the offset) over `window`.
 void RemoveHarmonics(std::vector<double>& x, double fs, double frequency_hz, SampleWindow window, int orders) {
@@ -163,6 +165,35 @@ void FindRinging(const Recording& record, const RecordAnalysis& a, const Actuato
   // ln A = c - sigma t; sigma = zeta w_n (w_d ~ w_n for light damping).
   const double sigma_per_s = -LineSlope(times, values).first;
   if (sigma_per_s > 0) place->ring_damping_ratio = sigma_per_s / (kRingTwoPi * ring_hz);
+}
+
+std::string DescribeRinging(const Unexplained& u, ResponseKind kind, size_t places) {
+  const size_t n = std::min(places, u.places.size());
+  // A mode rings at one frequency in Hz whatever the drive: the words need two records of different
+  // drive frequencies ringing within kSameRing of each other (one record's ring may be its own misfit).
+  auto confirmed = [&](const Unexplained::Place& p) {
+    for (size_t j = 0; j < n; ++j) {
+      const Unexplained::Place& q = u.places[j];
+      if (&q != &p && std::abs(q.frequency_hz - p.frequency_hz) > kSameRing * p.frequency_hz &&
+          std::abs(q.ring_frequency_hz - p.ring_frequency_hz) <= kSameRing * p.ring_frequency_hz)
+        return true;
+    }
+    return false;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const Unexplained::Place& p = u.places[i];
+    if (!std::isfinite(p.ring_frequency_hz) || !confirmed(p)) continue;
+    const std::string decay =
+        std::isfinite(p.ring_damping_ratio)
+            ? ", decaying with damping ratio " + FormatFigure(p.ring_damping_ratio, 2) + ", time constant " +
+                  FormatFigure(1e3 / (p.ring_damping_ratio * kRingTwoPi * p.ring_frequency_hz), 2) + " ms)"
+            : ", not decaying measurably)";
+    return "; in " + p.record + " the residual rings at about " + FormatFigure(p.ring_frequency_hz, 3) +
+           " Hz after the impacts (first swing " + FormatFigure(p.ring_amplitude, 3) + " " + UnitOf(kind) + ", " +
+           FormatFigure(p.ring_to_noise, 3) + " x its noise" + decay + ": a mode near " +
+           FormatFigure(p.ring_frequency_hz, 3) + " Hz that the impacts excite and the model lacks";
+  }
+  return "";
 }
 
 }  // namespace strokelab::internal

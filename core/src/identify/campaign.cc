@@ -14,6 +14,16 @@ const char* ToString(ResponseKind kind) {
   return "?";
 }
 
+const char* UnitOf(ResponseKind kind) {
+  switch (kind) {
+    case ResponseKind::kForce: return "N";
+    case ResponseKind::kAcceleration: return "m/s^2";
+    case ResponseKind::kVelocity: return "m/s";
+    case ResponseKind::kDisplacement: return "m";
+  }
+  return "";
+}
+
 ResponseKind ParseResponseKind(const std::string& text) {
   if (text == "force") return ResponseKind::kForce;
   if (text == "acceleration") return ResponseKind::kAcceleration;

@@ -35,6 +35,10 @@ MissingForceSurface EstimateMissingForce(const ActuatorModel& model, const std::
 void FindRinging(const Recording& record, const RecordAnalysis& analysis, const ActuatorModel& model, ResponseKind kind,
                  int orders, Unexplained::Place* place);
 
+// The first `places` places' ringing in words for Unexplained::description: "; in rec rings at about
+// N Hz ..." for the worst ringing record confirmed by another of a different drive frequency, or "".
+std::string DescribeRinging(const Unexplained& unexplained, ResponseKind kind, size_t places);
+
 // The surface in words for Unexplained::description: "; ..." (its closest single term), or its note.
 std::string DescribeMissingForce(const MissingForceSurface& surface);
 

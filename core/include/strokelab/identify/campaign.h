@@ -11,6 +11,7 @@ namespace strokelab {
 // What the response channel measures (of the moving mass, or the blocked force).
 enum class ResponseKind { kForce, kAcceleration, kVelocity, kDisplacement };
 const char* ToString(ResponseKind kind);
+const char* UnitOf(ResponseKind kind);  // of the response: "N", "m/s^2", "m/s", "m"
 ResponseKind ParseResponseKind(const std::string& text);  // "force", ...; throws InputError("channels")
 
 struct Recording {
