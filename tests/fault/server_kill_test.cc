@@ -23,9 +23,10 @@ TEST(ServerKill, RandomKillsAcrossSeveralSweeps) {
   const fs::path db = dir.path() / "jobs.db";
   const std::vector<std::string> serve_args = {"--workers", "2", "--db", db.string(), "--quiet"};
   constexpr int kKills = 24, kJobEvery = 6;
-  // Jobs of ~1-2 s on 2 idle cores: longer than the longest kill delay, so that kills find work
-  // in progress on a fast machine too (with 100 x 8 only 11 of 24 did on an idle machine).
-  SweepWorkload work(/*first_frequency_points=*/300, /*amplitude_points=*/8, /*thresholds=*/true);
+  // Jobs of ~0.5 s of sweeping on 2 cores (1500 x 8 with thresholds), more than the longest kill
+  // delay, so that kills find work in progress on a fast machine too: with 100 x 8 only 11 of 24 did
+  // on an idle machine, and with 300 x 8 (0.1 s) 10 of 24 once the continuation got 1.5x faster.
+  SweepWorkload work(/*first_frequency_points=*/1500, /*amplitude_points=*/8, /*thresholds=*/true);
 
   Server server = StartServer(dir.path(), "serve-0", serve_args);
   int kills_mid_sweep = 0, restarts = 0, kills_with_lease = 0;

@@ -23,6 +23,7 @@
 
 #include "dop853_tableau.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/illinois.h"
 #include "variational_field.h"
 
 namespace strokelab {
@@ -63,9 +64,9 @@ std::vector<double> ClippingKinks(const ActuatorModel& model, const SineDrive& d
   return kinks;
 }
 
-// A root of g on the step's [0, 1] by the Illinois method, g(1) of the sign after the crossing and g(0)
-// of the other sign or 0. Returns the end of the final bracket on g(1)'s side: the state there has
-// crossed, so the new mode holds.
+// A root of g on the step's [0, 1] by the Illinois method (illinois.h), g(1) of the sign after the
+// crossing and g(0) of the other sign or 0. Returns the end of the final bracket on g(1)'s side: the
+// state there has crossed, so the new mode holds.
 //
 // g(0) = 0 happens where the step starts on the surface (a switch's state can be exactly on it, at the
 // resolution of x). The crossing then is where g leaves the side it takes first: e.g. right after a
@@ -86,24 +87,14 @@ double LocateRootOnStep(const G& g, double g_start, double g_end) {
     }
     if (ga == 0.0) return 0.0;
   }
-  int side = 0;
-  for (int iteration = 0; iteration < 200 && b - a > 1e-15; ++iteration) {
-    const double c = (a * gb - b * ga) / (gb - ga);
+  IllinoisBracket bracket{a, b, ga, gb};
+  for (int iteration = 0; iteration < 200 && bracket.Width() > 1e-15; ++iteration) {
+    const double c = bracket.Next();
     const double gc = g(c);
-    if (gc == 0.0 || (gc > 0) == (gb > 0)) {
-      b = c;
-      gb = gc;
-      if (side == 1) ga *= 0.5;
-      side = 1;
-      if (gc == 0.0) break;
-    } else {
-      a = c;
-      ga = gc;
-      if (side == -1) gb *= 0.5;
-      side = -1;
-    }
+    bracket.Update(c, gc);
+    if (gc == 0.0) break;
   }
-  return b;
+  return bracket.b;
 }
 
 // p' = dp/dt of a stop's penetration in the state y: -v for the lower stop, v for the upper.

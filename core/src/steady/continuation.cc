@@ -6,6 +6,8 @@
 
 #include <Eigen/LU>
 
+#include "strokelab/base/illinois.h"
+
 namespace strokelab {
 namespace {
 
@@ -76,6 +78,12 @@ double StopClearanceM(const ActuatorModel& model, const OrbitFigures& f) {
   return clearance;
 }
 
+// How far above the corrector's tolerance a residual that has stopped falling is taken as the map's
+// own error. An integrated map (variational_flow.h, relative tolerance 1e-11 = the corrector's) errs
+// by about its tolerance times the orbit's scaled size (up to ~3) times the growth of an error over
+// a period (the monodromy's norm, up to tens on contacting orbits): a factor of 100 covers that.
+constexpr double kResidualFloor = 100.0;
+
 class BranchProblem {
  public:
   BranchProblem(const ActuatorModel& model, ContinuationParameter which, double fixed_value, double p_ref)
@@ -122,15 +130,16 @@ class BranchProblem {
     return Vec{step(0), step(1), step(2), step(3)};
   }
 
-  // with_figures = false: only G and its Jacobian (PeriodMap::Linearize), for Newton steps.
-  Evaluation Evaluate(const Vec& u, bool with_figures = true) const {
+  // G and its Jacobian (PeriodMap::Linearize): the orbit's contact count and monodromy come with
+  // them; its extrema and harmonics are not traced (SolutionsAt's points carry those).
+  Evaluation Evaluate(const Vec& u) const {
     const double p = ParameterOf(u);
     const State y = StateOf(u);
     Evaluation e;
     const PeriodMap map = MapAt(p);
     const DriveParameter drive =
         which_ == ContinuationParameter::kFrequencyHz ? DriveParameter::kFrequencyHz : DriveParameter::kAmplitudeV;
-    e.figures = with_figures ? map.Trace(y, 1, drive) : map.Linearize(y, 1, drive);
+    e.figures = map.Linearize(y, 1, drive);
     const StateMatrix& m = e.figures.monodromy;
     e.d = d_;
     const double scale[] = {length_m_, speed_m_per_s_, force_n_};
@@ -152,23 +161,29 @@ class BranchProblem {
     Evaluation evaluation;
     int iterations;
   };
-  // Newton on [G(u); t . (u - u_pred)] = 0.
+  // Newton on [G(u); t . (u - u_pred)] = 0. Converged: the residual below the tolerance, or at the
+  // floor of an integrated map's own error (kResidualFloor), where it stops falling and further
+  // steps only stir the integration's noise (seen on contacting orbits of smooth models: 1e-11,
+  // 2e-11, 1e-11, 9e-12 over four more iterations).
   std::optional<Corrected> Correct(const Vec& predicted, const Vec& tangent, const ContinuationOptions& o) const {
     Vec u = predicted;
+    double last_residual = INFINITY, residual_before_last = INFINITY;
     for (int iteration = 0; iteration <= o.max_corrector_iterations; ++iteration) {
       // Newton may wander out of the physical range (a frequency <= 0): treat that as a failure.
       const double p = ParameterOf(u);
       if (!std::isfinite(p) || !std::isfinite(u.x) || !std::isfinite(u.v) || !std::isfinite(u.e) || p <= 0.0)
         return std::nullopt;
-      // Newton's iterates only linearize (2-3 of them per point on a 200 x 200 sweep); the orbit it
-      // lands on is traced once more for its figures.
-      Evaluation e = Evaluate(u, false);
-      if (!std::isfinite(e.Residual())) return std::nullopt;
+      Evaluation e = Evaluate(u);
+      const double residual = e.Residual();
+      if (!std::isfinite(residual)) return std::nullopt;
       const double constraint = tangent.Dot(u - predicted);
-      if (e.Residual() < o.tolerance && std::abs(constraint) < 1e-9) {
-        e.figures = MapAt(ParameterOf(u)).Trace(StateOf(u));
-        return Corrected{u, e, iteration};
-      }
+      const bool at_floor = residual < kResidualFloor * o.tolerance && residual > 0.5 * last_residual;
+      if ((residual < o.tolerance || at_floor) && std::abs(constraint) < 1e-9) return Corrected{u, e, iteration};
+      // Cycling (across a grazing point the iterates swap sides) or stagnation: no better in two
+      // iterations. Newton near an orbit gains orders of magnitude per iteration.
+      if (iteration >= 2 && residual > 0.5 * residual_before_last) return std::nullopt;
+      residual_before_last = last_residual;
+      last_residual = residual;
       const std::optional<Vec> step = NewtonStep(e, tangent, constraint);
       if (!step) return std::nullopt;
       u = u + *step;
@@ -210,36 +225,34 @@ struct SegmentProbe {
 };
 
 // Locates where `phi` (evaluated on corrected points) changes sign between s = 0 and s = s_end by
-// the Illinois variant of regula falsi (bisection where a corrector fails), to 1e-10 relative in the
-// parameter. Returns the corrected point found last on the far side of the sign change.
+// the Illinois variant of regula falsi (illinois.h; bisection where a corrector fails), until the
+// corrected points on either side of it lie within 1e-10 relative in the parameter (the points'
+// own parameters: next to a grazing corner they move far more or less than the tangent's share of s).
+// Returns the corrected point found last on the far side of the sign change.
 template <class Phi>
 std::optional<BranchProblem::Corrected> LocateOnSegment(const SegmentProbe& probe, double s_end, double phi_at_0,
                                                         double phi_at_end, Phi&& phi) {
-  double lo = 0.0, hi = s_end, f_lo = phi_at_0, f_hi = phi_at_end;
+  IllinoisBracket bracket{0.0, s_end, phi_at_0, phi_at_end};  // b: the far side
   std::optional<BranchProblem::Corrected> best;
+  double near_p = probe.from.p;  // scaled, as the corrected points' u.p
   for (int iteration = 0; iteration < 60; ++iteration) {
-    double s = (f_hi != f_lo) ? lo - f_lo * (hi - lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
-    if (!(s > std::min(lo, hi) && s < std::max(lo, hi))) s = 0.5 * (lo + hi);
+    const double s = bracket.Next();
     const auto c = probe.At(s);
     if (!c) {
       // No point on the branch there: shrink toward the near end by bisection.
-      hi = 0.5 * (lo + hi);
+      bracket.b = 0.5 * (bracket.a + bracket.b);
       continue;
     }
     const double f = phi(*c);
-    if ((f > 0) == (f_lo > 0)) {
-      lo = s;
-      f_lo = f;
-      f_hi *= 0.5;  // Illinois: halve the retained end's value so that both ends move
-    } else {
-      hi = s;
-      f_hi = f;
-      f_lo *= 0.5;
+    if (bracket.OnSideOfB(f)) {
       best = c;
+    } else {
+      near_p = c->u.p;
     }
-    if (std::abs(hi - lo) * std::abs(probe.tangent.p) <= 1e-10 * std::abs(probe.from.p) || f == 0.0) break;
+    bracket.Update(s, f);
+    if (f == 0.0 || (best && std::abs(best->u.p - near_p) <= 1e-10 * std::abs(near_p))) break;
   }
-  if (!best) best = probe.At(hi);
+  if (!best) best = probe.At(bracket.b);
   return best;
 }
 
@@ -483,6 +496,9 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
     u = c->u;
     t = t_new;
     h = c->iterations <= 3 ? std::min(options.max_step, h * 1.5) : (c->iterations > 5 ? h * 0.6 : h);
+    // Past a grazing point the stride starts afresh, as after a restart there, rather than growing
+    // back from the short one that found it.
+    if (graze) h = std::max(h, options.initial_step);
     const double p = next.parameter;
     if (options.on_point) options.on_point(p);
     if (p > p_max || p < p_min) {
@@ -531,22 +547,16 @@ std::optional<BranchPoint> LocateGrazing(const ActuatorModel& model, Continuatio
     }
   }
   if ((cb > 0.0) == positive) return std::nullopt;
-  for (int i = 0; i < 200 && std::abs(pb - pa) > 1e-12 * std::abs(pa); ++i) {
-    const double pm = pa - ca * (pb - pa) / (cb - ca);
-    const double mid = (pm > std::min(pa, pb) && pm < std::max(pa, pb)) ? pm : 0.5 * (pa + pb);
-    const std::optional<double> c = clearance(mid);
+  IllinoisBracket bracket{pa, pb, ca, cb};
+  for (int i = 0; i < 200 && bracket.Width() > 1e-12 * std::abs(bracket.a); ++i) {
+    const double p = bracket.Next();
+    const std::optional<double> c = clearance(p);
     if (!c) return std::nullopt;
-    if ((*c > 0.0) == (ca > 0.0)) {
-      pa = mid;
-      ca = *c;
-      cb *= 0.5;
-    } else {
-      pb = mid;
-      cb = *c;
-      ca *= 0.5;
-    }
+    bracket.Update(p, *c);
+    if (*c == 0.0) break;
   }
-  std::optional<BranchPoint> point = SolveAt(free_model, which, fixed_value, 0.5 * (pa + pb), guess);
+  const double p_graze = bracket.gb == 0.0 ? bracket.b : 0.5 * (bracket.a + bracket.b);
+  std::optional<BranchPoint> point = SolveAt(free_model, which, fixed_value, p_graze, guess);
   if (point && noncontacting.figures.contacts == 0) point->stable = noncontacting.stable;
   return point;
 }

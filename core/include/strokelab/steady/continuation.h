@@ -29,6 +29,9 @@ enum class ContinuationParameter { kFrequencyHz, kAmplitudeV };
 struct BranchPoint {
   double parameter = 0.0;  // frequency [Hz] or amplitude [V]
   State start;
+  // The branch's own points, folds and stability changes carry the contact count and the monodromy
+  // only (no extrema or harmonics: continuation linearizes); SolveAt's, SolutionsAt's and grazing
+  // points carry all figures.
   OrbitFigures figures;
   std::vector<std::complex<double>> multipliers;  // one per state component
   bool stable = false;
