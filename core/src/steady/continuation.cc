@@ -78,12 +78,6 @@ double StopClearanceM(const ActuatorModel& model, const OrbitFigures& f) {
   return clearance;
 }
 
-// How far above the corrector's tolerance a residual that has stopped falling is taken as the map's
-// own error. An integrated map (variational_flow.h, relative tolerance 1e-11 = the corrector's) errs
-// by about its tolerance times the orbit's scaled size (up to ~3) times the growth of an error over
-// a period (the monodromy's norm, up to tens on contacting orbits): a factor of 100 covers that.
-constexpr double kResidualFloor = 100.0;
-
 class BranchProblem {
  public:
   BranchProblem(const ActuatorModel& model, ContinuationParameter which, double fixed_value, double p_ref)
@@ -161,13 +155,10 @@ class BranchProblem {
     Evaluation evaluation;
     int iterations;
   };
-  // Newton on [G(u); t . (u - u_pred)] = 0. Converged: the residual below the tolerance, or at the
-  // floor of an integrated map's own error (kResidualFloor), where it stops falling and further
-  // steps only stir the integration's noise (seen on contacting orbits of smooth models: 1e-11,
-  // 2e-11, 1e-11, 9e-12 over four more iterations).
+  // Newton on [G(u); t . (u - u_pred)] = 0. The point is the orbit of the linearization it converged
+  // on: nothing reads a branch point's extrema or harmonics, so it is not traced again for them.
   std::optional<Corrected> Correct(const Vec& predicted, const Vec& tangent, const ContinuationOptions& o) const {
     Vec u = predicted;
-    double last_residual = INFINITY, residual_before_last = INFINITY;
     for (int iteration = 0; iteration <= o.max_corrector_iterations; ++iteration) {
       // Newton may wander out of the physical range (a frequency <= 0): treat that as a failure.
       const double p = ParameterOf(u);
@@ -177,13 +168,7 @@ class BranchProblem {
       const double residual = e.Residual();
       if (!std::isfinite(residual)) return std::nullopt;
       const double constraint = tangent.Dot(u - predicted);
-      const bool at_floor = residual < kResidualFloor * o.tolerance && residual > 0.5 * last_residual;
-      if ((residual < o.tolerance || at_floor) && std::abs(constraint) < 1e-9) return Corrected{u, e, iteration};
-      // Cycling (across a grazing point the iterates swap sides) or stagnation: no better in two
-      // iterations. Newton near an orbit gains orders of magnitude per iteration.
-      if (iteration >= 2 && residual > 0.5 * residual_before_last) return std::nullopt;
-      residual_before_last = last_residual;
-      last_residual = residual;
+      if (residual < o.tolerance && std::abs(constraint) < 1e-9) return Corrected{u, e, iteration};
       const std::optional<Vec> step = NewtonStep(e, tangent, constraint);
       if (!step) return std::nullopt;
       u = u + *step;
@@ -496,9 +481,6 @@ ContinuedBranch ContinueBranch(const ActuatorModel& model, ContinuationParameter
     u = c->u;
     t = t_new;
     h = c->iterations <= 3 ? std::min(options.max_step, h * 1.5) : (c->iterations > 5 ? h * 0.6 : h);
-    // Past a grazing point the stride starts afresh, as after a restart there, rather than growing
-    // back from the short one that found it.
-    if (graze) h = std::max(h, options.initial_step);
     const double p = next.parameter;
     if (options.on_point) options.on_point(p);
     if (p > p_max || p < p_min) {
