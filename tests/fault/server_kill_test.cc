@@ -25,7 +25,7 @@ TEST(ServerKill, RandomKillsAcrossSeveralSweeps) {
   constexpr int kKills = 24, kJobEvery = 6;
   // Jobs of ~0.5 s of sweeping on 2 cores (1500 x 8 with thresholds), more than the longest kill
   // delay, so that kills find work in progress on a fast machine too: with 100 x 8 only 11 of 24 did
-  // on an idle machine, and with 300 x 8 (0.1 s) 10 of 24 once the continuation got 1.5x faster.
+  // on an idle machine, and with 300 x 8 (0.1 s) 10 of 24 once the continuation got faster.
   SweepWorkload work(/*first_frequency_points=*/1500, /*amplitude_points=*/8, /*thresholds=*/true);
 
   Server server = StartServer(dir.path(), "serve-0", serve_args);

@@ -26,8 +26,9 @@ using Clock = std::chrono::steady_clock;
 
 constexpr int64_t kShortLeaseMs = 200;
 
-// A one-task job that takes 0.5-0.7 s of CPU in Release (CVODE, 60 s at 51.2 kHz); the test that runs
-// it sets the lease from its measured time, so that it is several leases long on any machine.
+// A one-task job that takes ~0.85 s of CPU in Release (CVODE, 60 s at 51.2 kHz, the coil's pole as a
+// third state); the test that runs it sets the lease from its measured time, so that it is several
+// leases long on any machine.
 const char* kLongSimulate =
     R"({"kind": "simulate", "model": {"preset": "paper", "k3": 4e7, "tau_e": 1e-4, "c_emf": 1}, "frequency_hz": 13,
         "amplitude_v": 0.5, "duration_s": 60, "sample_rate_hz": 51200, "method": "cvode"})";
