@@ -16,7 +16,6 @@ namespace strokelab::internal {
 namespace {
 
 constexpr double kRingTwoPi = 2.0 * std::numbers::pi;
-constexpr int kHumOvertones = 3;          // as the analysis fits them (fit.h, RecordAnalysis)
 constexpr double kMaxRingShareOfFs = 0.125;  // ring frequencies searched up to fs / 8
 constexpr int kZeroPadding = 4;           // frequency grid: 1 / (4 T) over a segment of T
 constexpr double kMaxGridPoints = 4096;   // ... at most this many
@@ -131,7 +130,7 @@ void FindRinging(const Recording& record, const RecordAnalysis& a, const Actuato
   }
   if (!(ring_hz > 0)) return;
   // A steady hum overtone is no ring: near one, the swing must stand well clear of the hum.
-  for (int k = 1; k <= kHumOvertones && a.hum_frequency_hz > 0; ++k)
+  for (int k = 1; k <= kHumOrders && a.hum_frequency_hz > 0; ++k)
     if (std::abs(ring_hz - k * a.hum_frequency_hz) < 2 * df && best < kFirstSwingToNoise * a.hum_amplitude) return;
 
   // Over successive pairs of cycles: the phase's drift refines the frequency (the grid's and the

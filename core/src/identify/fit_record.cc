@@ -22,7 +22,6 @@ namespace {
 constexpr double kMadToSigma = 1.4826;  // sigma / MAD for normal noise
 
 // Mains hum.
-constexpr int kHumOrders = 3;                    // 50, 100, 150 Hz
 constexpr int kHumPasses = 3;                    // alternating drive-harmonic / hum fits
 constexpr double kHumSeparationPerWindow = 0.5;  // hum within half a bin (1/T) of a drive harmonic: inseparable
 

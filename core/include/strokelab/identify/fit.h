@@ -132,6 +132,9 @@ struct DriveEstimate {
 // "voltage" (too short, constant, non-finite) or "nominal_frequency_hz".
 DriveEstimate EstimateDrive(std::span<const double> voltage, double sample_rate_hz, double nominal_frequency_hz);
 
+// Mains hum is fitted as its fundamental and this many orders in all (50, 100, 150 Hz).
+constexpr int kHumOrders = 3;
+
 // What one stepped-sine record shows. Response units are those of the campaign's ResponseKind.
 struct RecordAnalysis {
   std::string name;
@@ -140,7 +143,7 @@ struct RecordAnalysis {
   DriveEstimate drive;
   SampleWindow window;           // whole periods of the estimated drive, the record's end
   double response_offset = 0.0;  // DC of the response (removed)
-  // Mains hum (50 and 60 Hz with 2 overtones each, unless a drive harmonic masks them) is fitted and
+  // Mains hum (50 and 60 Hz, kHumOrders orders each, unless a drive harmonic masks them) is fitted and
   // removed; the stronger fundamental found [Hz] and its amplitude [response units] (0: none fitted).
   double hum_frequency_hz = 0.0;
   double hum_amplitude = 0.0;
