@@ -17,15 +17,20 @@ Layout::Layout(const FlowRequest& request, int d)
   size = d * (1 + columns) + 2 * harmonics + (harmonic_sensitivities ? 2 * columns * harmonics : 0);
 }
 
-Field::Field(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request)
+std::string Drive::Describe() const {
+  if (sampled) return "sampled at " + std::to_string(sampled->sample_rate_hz) + " Hz";
+  return std::to_string(sine.frequency_hz) + " Hz, " + std::to_string(sine.amplitude_v) + " V";
+}
+
+Field::Field(const ActuatorModel& model, const Drive& drive, const FlowRequest& request)
     : model_(model),
       drive_(drive),
       parameters_(request.parameters),
       layout_(request, model.StateSize()),
       inverse_mass_per_kg_(1.0 / model.mass_kg),
       omega_rad_per_s_(drive.AngularFrequency()),
-      cos_phase_(std::cos(drive.phase_rad)),
-      sin_phase_(std::sin(drive.phase_rad)) {}
+      cos_phase_(std::cos(drive.sine.phase_rad)),
+      sin_phase_(std::sin(drive.sine.phase_rad)) {}
 
 State StateOf(const double* y, int state_size) { return {y[0], y[1], state_size > 2 ? y[2] : 0.0}; }
 
@@ -67,7 +72,7 @@ double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const doubl
   const double x = state.x_m;
   // sin/cos of w t serve the drive (angle addition with its phase) and the quadratures.
   const double sin_drive = sin_wt * cos_phase_ + cos_wt * sin_phase_;  // sin(wt + phi)
-  const double voltage_v = drive_.amplitude_v * sin_drive;
+  const double voltage_v = drive_.sampled ? drive_.sampled->Voltage(t_s) : drive_.sine.amplitude_v * sin_drive;
   const double m = inverse_mass_per_kg_;
   double force_n;
   CoilForceRate coil;
@@ -91,7 +96,7 @@ double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const doubl
         if (std::abs(voltage_v) <= model_.amplifier_limit_v) {
           const double cos_drive = cos_wt * cos_phase_ - sin_wt * sin_phase_;
           const double du = c == l.amplitude_column ? sin_drive
-                                                    : drive_.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive;
+                                                    : drive_.sine.amplitude_v * 2.0 * std::numbers::pi * t_s * cos_drive;
           if constexpr (kCoilPole) coil_rate += coil.d_dvoltage_n_per_v_s * du;
           else acceleration += model_.gain_n_per_v * ForceFactorShape(model_, x) * m * du;
         }

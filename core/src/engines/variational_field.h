@@ -11,6 +11,7 @@
 // The state and the columns take part in the error control.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "strokelab/engines/variational_flow.h"
@@ -18,6 +19,17 @@
 #include "strokelab/model/model.h"
 
 namespace strokelab::variational {
+
+// The drive as the flow sees it: the paper's sine, or a record's sampled voltage (dynamics.h).
+struct Drive {
+  SineDrive sine;                        // when `sampled` is null
+  const SampledDrive* sampled = nullptr;  // not owned
+
+  double Voltage(double t_s) const { return sampled ? sampled->Voltage(t_s) : sine.Voltage(t_s); }
+  double AngularFrequency() const { return sampled ? 0.0 : sine.AngularFrequency(); }
+  double PeakV() const { return sampled ? sampled->PeakV() : sine.amplitude_v; }
+  std::string Describe() const;  // "12 Hz, 0.3 V" or "sampled at 51200 Hz"
+};
 
 struct Layout {
   int state_size = 2;     // d
@@ -37,7 +49,7 @@ struct Layout {
 
 class Field {
  public:
-  Field(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request);
+  Field(const ActuatorModel& model, const Drive& drive, const FlowRequest& request);
   const Layout& layout() const { return layout_; }
   const ActuatorModel& model() const { return model_; }
 
@@ -59,7 +71,7 @@ class Field {
                       bool quadratures) const;
 
   ActuatorModel model_;
-  SineDrive drive_;
+  Drive drive_;
   std::vector<double ActuatorModel::*> parameters_;
   Layout layout_;
   double inverse_mass_per_kg_;

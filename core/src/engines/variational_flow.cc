@@ -44,7 +44,7 @@ constexpr double kFlowMaxStepFraction = 1.0 / 20.0;
 // too brief for the change of variable to pay (and p' may turn at once), so it stays over t.
 constexpr double kGrazingRate = 1e-3;
 
-// Instants in (t0, t1) where the drive crosses the amplifier's limit: sin(w t + phi) = +-r, r = limit / V.
+// Instants in (t0, t1) where the sine crosses the amplifier's limit: sin(w t + phi) = +-r, r = limit / V.
 std::vector<double> ClippingKinks(const ActuatorModel& model, const SineDrive& drive, double t0, double t1) {
   std::vector<double> kinks;
   if (!model.HasAmplifierLimit() || drive.amplitude_v <= model.amplifier_limit_v) return kinks;
@@ -62,6 +62,29 @@ std::vector<double> ClippingKinks(const ActuatorModel& model, const SineDrive& d
     if (past_end) break;
   }
   return kinks;
+}
+
+// The instants in (t0, t1) where a sampled drive is not smooth, in order: its samples t_k (the
+// first-order hold's corners) and, between them, the straight line's crossings of +-limit.
+std::vector<double> SampledDriveCorners(const ActuatorModel& model, const SampledDrive& drive, double t0, double t1) {
+  std::vector<double> corners;
+  const double fs = drive.sample_rate_hz;
+  const size_t last = drive.voltage_v.size() - 1;
+  const double first = std::max(0.0, std::floor(t0 * fs));
+  for (size_t k = static_cast<size_t>(first); k <= last; ++k) {
+    const double tk = static_cast<double>(k) / fs;
+    if (tk >= t1) break;
+    if (tk > t0) corners.push_back(tk);
+    if (k == last || !model.HasAmplifierLimit()) continue;
+    const double a = drive.voltage_v[k], b = drive.voltage_v[k + 1];
+    for (const double level : {-model.amplifier_limit_v, model.amplifier_limit_v}) {
+      if ((a - level) * (b - level) >= 0.0) continue;  // no crossing strictly inside
+      const double t = tk + (level - a) / (b - a) / fs;
+      if (t > t0 && t < t1) corners.push_back(t);
+    }
+  }
+  std::sort(corners.begin(), corners.end());
+  return corners;
 }
 
 // A root of g on the step's [0, 1] by the Illinois method (illinois.h), g(1) of the sign after the
@@ -102,8 +125,8 @@ double PenetrationRate(const variational::StopSurface& stop, const double* y) { 
 
 class FlowIntegrator {
  public:
-  FlowIntegrator(const ActuatorModel& model, const SineDrive& drive, const FlowRequest& request,
-             const FlowOptions& options)
+  FlowIntegrator(const ActuatorModel& model, const variational::Drive& drive, const FlowRequest& request,
+                 const FlowOptions& options)
       : field_(model, drive, request),
         drive_(drive),
         request_(request),
@@ -115,7 +138,10 @@ class FlowIntegrator {
     y_new_.assign(width_, 0.0);
     stage_.assign(width_, 0.0);
     dense_.assign(static_cast<size_t>(dop853::kDenseTerms) * width_, 0.0);
-    double shortest_s = 1.0 / drive.frequency_hz;
+    // A sampled drive has no period: its steps end at every sample, and the suspension's period (or,
+    // without one, the record) bounds them.
+    double shortest_s = drive.sampled ? std::max(drive.sampled->DurationS(), 1.0 / drive.sampled->sample_rate_hz)
+                                      : 1.0 / drive.sine.frequency_hz;
     if (model.stiffness_n_per_m > 0)
       shortest_s = std::min(shortest_s, 2.0 * std::numbers::pi * std::sqrt(model.mass_kg / model.stiffness_n_per_m));
     max_step_s_ = kFlowMaxStepFraction * shortest_s;
@@ -126,15 +152,15 @@ class FlowIntegrator {
     const variational::Layout& l = field_.layout();
     d_ = l.state_size;
     controlled_ = d_ * (1 + l.columns);
-    const double length_m = LengthScaleM(model), speed_m_per_s = length_m * drive.AngularFrequency();
+    const double length_m = LengthScaleM(model), speed_m_per_s = length_m * 2.0 * std::numbers::pi / shortest_s;
     const double state_tolerance[] = {options.absolute_tolerance_m, options.absolute_tolerance_m_per_s,
                                       options.absolute_tolerance_n};
-    const double state_size[] = {length_m, speed_m_per_s, std::abs(model.gain_n_per_v) * drive.amplitude_v};
+    const double state_size[] = {length_m, speed_m_per_s, std::abs(model.gain_n_per_v) * drive.PeakV()};
     absolute_tolerance_.assign(state_tolerance, state_tolerance + d_);
     for (int c = 0; c < l.columns; ++c) {
       double size = c < l.state_columns                      ? state_size[c]
-                    : c == l.amplitude_column                ? drive.amplitude_v
-                    : c == l.frequency_column                ? drive.frequency_hz
+                    : c == l.amplitude_column                ? drive.sine.amplitude_v
+                    : c == l.frequency_column                ? drive.sine.frequency_hz
                                                              : std::abs(model.*request.parameters[c - l.state_columns]);
       if (!(size > 0) || !std::isfinite(size)) size = 1.0;
       const double looser = options.sensitivity_relative_tolerance / options.relative_tolerance;
@@ -181,7 +207,7 @@ class FlowIntegrator {
   bool HandleEvents(double t, double h);
 
   variational::Field field_;
-  SineDrive drive_;
+  variational::Drive drive_;
   const FlowRequest& request_;
   const FlowOptions& options_;
   int n_;
@@ -586,7 +612,8 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   Note(t0, start);
   field_.Evaluate(t0, y_.data(), K(0), mode_);
 
-  std::vector<double> boundaries = ClippingKinks(model(), drive_, t0, t1);
+  std::vector<double> boundaries = drive_.sampled ? SampledDriveCorners(model(), *drive_.sampled, t0, t1)
+                                                 : ClippingKinks(model(), drive_.sine, t0, t1);
   boundaries.push_back(t1);
   size_t next_boundary = 0;
   double t = t0;
@@ -600,8 +627,7 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
     if (++result_.steps > options_.max_steps)
       throw NumericalError("the variational flow spent its budget of " + std::to_string(options_.max_steps) +
                            " steps at t = " + std::to_string(t) + " s of " + std::to_string(t1) + " s (drive " +
-                           std::to_string(drive_.frequency_hz) + " Hz, " + std::to_string(drive_.amplitude_v) +
-                           " V; from x = " + std::to_string(start.x_m) + " m, v = " + std::to_string(start.v_m_per_s) +
+                           drive_.Describe() + "; from x = " + std::to_string(start.x_m) + " m, v = " + std::to_string(start.v_m_per_s) +
                            " m/s)");
     if (!(h_try > 1e-14 * std::max(std::abs(t), max_step_s_)))
       throw NumericalError("the variational flow's step fell below the resolution of t at t = " + std::to_string(t) +
@@ -665,12 +691,9 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   return result_;
 }
 
-}  // namespace
-
-FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start, double t0_s, double t1_s,
-                const FlowRequest& request, const FlowOptions& options) {
+FlowResult FlowOver(const ActuatorModel& model, const variational::Drive& drive, State start, double t0_s,
+                    double t1_s, const FlowRequest& request, const FlowOptions& options) {
   Validate(model);
-  Validate(drive);
   Validate(options);
   if (!std::isfinite(start.x_m) || !std::isfinite(start.v_m_per_s) || !std::isfinite(start.coil_force_n))
     throw InputError("initial", "must be finite");
@@ -684,6 +707,24 @@ FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start,
       throw InputError("sample_start_s", "the samples must lie within [t0, t1] at a positive interval");
   }
   return FlowIntegrator(model, drive, request, options).Run(start, t0_s, t1_s);
+}
+
+}  // namespace
+
+FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start, double t0_s, double t1_s,
+                const FlowRequest& request, const FlowOptions& options) {
+  Validate(drive);
+  return FlowOver(model, variational::Drive{drive, nullptr}, start, t0_s, t1_s, request, options);
+}
+
+FlowResult Flow(const ActuatorModel& model, const SampledDrive& drive, State start, double t0_s, double t1_s,
+                const FlowRequest& request, const FlowOptions& options) {
+  Validate(drive);
+  // Harmonics and the drive's amplitude and frequency belong to a sine.
+  if (request.harmonics > 0) throw InputError("harmonics", "a sampled drive has no drive frequency: must be 0");
+  if (request.drive_amplitude || request.drive_frequency)
+    throw InputError("drive_amplitude", "a sampled drive has no amplitude or frequency to take derivatives by");
+  return FlowOver(model, variational::Drive{SineDrive{}, &drive}, start, t0_s, t1_s, request, options);
 }
 
 std::optional<FieldError> FlowOptions::IsValid() const {

@@ -1,7 +1,9 @@
 #include "strokelab/model/dynamics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <string>
 
 namespace strokelab {
 
@@ -17,6 +19,35 @@ std::optional<FieldError> SineDrive::IsValid() const {
   if (!std::isfinite(frequency_hz) || frequency_hz <= 0)
     return FieldError{"frequency_hz", "must be a finite number > 0"};
   if (!std::isfinite(phase_rad)) return FieldError{"phase_rad", "must be finite"};
+  return std::nullopt;
+}
+
+double SampledDrive::Voltage(double time_s) const {
+  const double position = time_s * sample_rate_hz;
+  if (!(position > 0.0)) return voltage_v.front();
+  const size_t last = voltage_v.size() - 1;
+  if (position >= static_cast<double>(last)) return voltage_v.back();
+  const size_t k = static_cast<size_t>(position);
+  const double fraction = position - static_cast<double>(k);
+  return voltage_v[k] + fraction * (voltage_v[k + 1] - voltage_v[k]);
+}
+
+double SampledDrive::DurationS() const {
+  return voltage_v.empty() ? 0.0 : static_cast<double>(voltage_v.size() - 1) / sample_rate_hz;
+}
+
+double SampledDrive::PeakV() const {
+  double peak = 0.0;
+  for (double v : voltage_v) peak = std::max(peak, std::abs(v));
+  return peak;
+}
+
+std::optional<FieldError> SampledDrive::IsValid() const {
+  if (!std::isfinite(sample_rate_hz) || sample_rate_hz <= 0)
+    return FieldError{"sample_rate_hz", "must be a finite number > 0"};
+  if (voltage_v.size() < 2) return FieldError{"voltage_v", "needs at least 2 samples"};
+  for (size_t k = 0; k < voltage_v.size(); ++k)
+    if (!std::isfinite(voltage_v[k])) return FieldError{"voltage_v", "sample " + std::to_string(k) + " is not finite"};
   return std::nullopt;
 }
 

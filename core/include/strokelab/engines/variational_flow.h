@@ -82,5 +82,9 @@ struct FlowResult {
 // drive or options, NumericalError when the solution is not finite or the step budget is spent.
 FlowResult Flow(const ActuatorModel& model, const SineDrive& drive, State start, double t0_s, double t1_s,
                 const FlowRequest& request, const FlowOptions& options = {});
+// The same driven by a record's sampled voltage (a broadband record): steps end at every sample. A
+// sampled drive has no frequency, so `request` may ask for no harmonics and no drive columns.
+FlowResult Flow(const ActuatorModel& model, const SampledDrive& drive, State start, double t0_s, double t1_s,
+                const FlowRequest& request, const FlowOptions& options = {});
 
 }  // namespace strokelab

@@ -8,6 +8,8 @@
 // of model.h.
 #pragma once
 
+#include <vector>
+
 #include "strokelab/model/model.h"
 
 namespace strokelab {
@@ -29,6 +31,20 @@ struct SineDrive {
   double AngularFrequency() const;           // [rad/s]
   double Voltage(double time_s) const;       // unclipped v_in(t) [V]
   std::optional<FieldError> IsValid() const;  // names amplitude_v / frequency_hz / phase_rad
+};
+
+// v_in(t) from a record's measured voltage: samples v_k at t_k = k / fs, k = 0 .. N-1, joined by straight
+// lines (a first-order hold) and held at their ends outside [0, (N-1) / fs]. The drive of a broadband
+// record (noise, multisine, sweep), whose voltage channel is the truth. The flow cuts its steps at the
+// t_k, so that the drive is a polynomial within each step and the integrator keeps its order.
+struct SampledDrive {
+  double sample_rate_hz = 0.0;   // fs [Hz]
+  std::vector<double> voltage_v;  // v_k [V]
+
+  double Voltage(double time_s) const;        // unclipped v_in(t) [V]
+  double DurationS() const;                   // (N - 1) / fs [s]
+  double PeakV() const;                       // max |v_k| [V]
+  std::optional<FieldError> IsValid() const;  // names sample_rate_hz / voltage_v (and the sample)
 };
 
 // Which stops currently push on the mass. A stop pushes while the penetration is positive and the

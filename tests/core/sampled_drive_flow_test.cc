@@ -1,0 +1,197 @@
+// The variational flow driven by a record's sampled voltage (dynamics.h's SampledDrive: a first-order
+// hold), against the closed form of a linear oscillator driven by straight lines, the sine it samples
+// (the hold's error falls as the square of the sample interval), and central differences of itself.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "strokelab/base/errors.h"
+#include "strokelab/engines/variational_flow.h"
+#include "strokelab/model/dynamics.h"
+#include "strokelab/model/model.h"
+
+namespace strokelab {
+namespace {
+
+SampledDrive Sampled(double sample_rate_hz, double duration_s, auto voltage_at) {
+  SampledDrive drive{sample_rate_hz, {}};
+  const int count = static_cast<int>(std::lround(duration_s * sample_rate_hz)) + 1;
+  for (int k = 0; k < count; ++k) drive.voltage_v.push_back(voltage_at(k / sample_rate_hz));
+  return drive;
+}
+
+// m x'' + c x' + k x = g b t from rest: x = (g b / k) t - g b c / k^2 plus the free motion that meets
+// x(0) = x'(0) = 0 (underdamped: e^{-zeta wn t} (A cos wd t + B sin wd t)). [m]
+State RampResponse(const ActuatorModel& m, double slope_v_per_s, double t) {
+  if (t <= 0) return {};
+  const double k = m.stiffness_n_per_m, c = m.damping_n_s_per_m, force_rate = m.gain_n_per_v * slope_v_per_s;
+  const double sigma = c / (2 * m.mass_kg), wd = std::sqrt(k / m.mass_kg - sigma * sigma);
+  const double a = force_rate * c / (k * k), b = (-force_rate / k + sigma * a) / wd;
+  const double e = std::exp(-sigma * t), cs = std::cos(wd * t), sn = std::sin(wd * t);
+  const double x = force_rate / k * t - force_rate * c / (k * k) + e * (a * cs + b * sn);
+  const double v = force_rate / k + e * (-sigma * (a * cs + b * sn) + wd * (-a * sn + b * cs));
+  return {x, v};
+}
+
+// A triangle (up at b for t1, then down at b) is exact in the hold when t1 is a sample instant, and
+// the linear oscillator's response is the ramp's, R(t) - 2 R(t - t1) by superposition. End state and
+// every sample to 1e-9 of the largest |x| and |v|: the flow's tolerance 1e-11 after ~10^3 steps.
+TEST(SampledDriveFlowTest, ATriangleDriveIsTheLinearOscillatorsClosedForm) {
+  ActuatorModel linear = PaperModel();
+  linear.lower_stop_m = ActuatorModel::kNoLowerStop;
+  const double slope = 2.0, corner_s = 0.1, fs = 1000.0, duration_s = 0.25;
+  const SampledDrive drive =
+      Sampled(fs, duration_s, [&](double t) { return slope * (t <= corner_s ? t : 2 * corner_s - t); });
+  auto exact = [&](double t) {
+    const State up = RampResponse(linear, slope, t), down = RampResponse(linear, slope, t - corner_s);
+    return State{up.x_m - 2 * down.x_m, up.v_m_per_s - 2 * down.v_m_per_s};
+  };
+  FlowRequest request;
+  request.sample_count = 240;
+  request.sample_start_s = 0.0;
+  request.sample_interval_s = 1.0 / 960.0;  // not the drive's grid: samples fall inside its intervals
+  const FlowResult flow = Flow(linear, drive, State{}, 0.0, duration_s, request);
+  double peak_x = 0, peak_v = 0;
+  for (int n = 0; n < request.sample_count; ++n) {
+    peak_x = std::max(peak_x, std::abs(exact(n / 960.0).x_m));
+    peak_v = std::max(peak_v, std::abs(exact(n / 960.0).v_m_per_s));
+  }
+  ASSERT_GT(peak_x, 1e-4);
+  EXPECT_NEAR(flow.end.x_m, exact(duration_s).x_m, 1e-9 * peak_x);
+  EXPECT_NEAR(flow.end.v_m_per_s, exact(duration_s).v_m_per_s, 1e-9 * peak_v);
+  ASSERT_EQ(flow.samples.size(), 240u);
+  for (int n = 0; n < request.sample_count; ++n) {
+    EXPECT_NEAR(flow.samples[n].x_m, exact(n / 960.0).x_m, 1e-9 * peak_x) << n;
+    EXPECT_NEAR(flow.samples[n].v_m_per_s, exact(n / 960.0).v_m_per_s, 1e-9 * peak_v) << n;
+  }
+}
+
+struct SineCase {
+  std::string name;
+  ActuatorModel model;
+};
+
+// A sine sampled at fs: the hold misses it by at most V (w / fs)^2 / 8, so the motion it drives
+// departs from the sine's by O(fs^-2): halving the interval quarters the difference (3 to 5 allows
+// for the next order). Through contacts of a linear stop, a Hertzian stop (integrated over sqrt(p) at
+// its ends, where steps now also end at samples), and the amplifier's clipping (whose corners the flow
+// locates on the hold's straight lines).
+TEST(SampledDriveFlowTest, ASampledSineConvergesToTheSineAtSecondOrder) {
+  std::vector<SineCase> cases;
+  cases.push_back({"paper", PaperModel()});
+  ActuatorModel hertz = PaperModel();
+  hertz.contact_law = ContactLaw::kHertzian;
+  hertz.contact_stiffness = 2.65e8;
+  cases.push_back({"hertzian", hertz});
+  ActuatorModel clipped = PaperModel();
+  clipped.amplifier_limit_v = 0.35;
+  cases.push_back({"clipped", clipped});
+  const SineDrive sine{0.5, 10.0, 0.3};
+  const double duration_s = 0.3;
+  for (const SineCase& c : cases) {
+    const FlowResult reference = Flow(c.model, sine, State{}, 0.0, duration_s, {});
+    ASSERT_GT(reference.contacts, 0) << c.name;
+    double error[2];
+    for (int i = 0; i < 2; ++i) {
+      const double fs = 2000.0 * (1 << i);
+      const FlowResult flow =
+          Flow(c.model, Sampled(fs, duration_s, [&](double t) { return sine.Voltage(t); }), State{}, 0.0,
+               duration_s, {});
+      error[i] = std::hypot((flow.end.x_m - reference.end.x_m) / LengthScaleM(c.model),
+                            (flow.end.v_m_per_s - reference.end.v_m_per_s) /
+                                (LengthScaleM(c.model) * sine.AngularFrequency()));
+      EXPECT_EQ(flow.contacts, reference.contacts) << c.name << " at " << fs << " Hz";
+    }
+    EXPECT_GT(error[1], 1e-9) << c.name << ": the hold's error must stand above the integrator's";
+    EXPECT_GT(error[0] / error[1], 3.0) << c.name;
+    EXPECT_LT(error[0] / error[1], 5.0) << c.name;
+  }
+}
+
+// A multisine-like voltage (random phases, 5..200 Hz, amplitudes falling as 1 / f) at 5 kHz into
+// paper + k3 with a damped stop: the columns d/d(initial state) and d/dp against central differences
+// of the flow's end at a relative step of 1e-4 (truncation ~1e-8), flows run at 1e-13 so that their
+// error over the step, 10 * 1e-13 / step in the sweep's scaling, is the quotient's noise. Agreement to
+// 1e-6 of the column's size, or within that noise for a column that is nearly zero.
+TEST(SampledDriveFlowTest, SensitivitiesAreTheFlowsFiniteDifferences) {
+  using M = ActuatorModel;
+  ActuatorModel model = PaperModel();
+  model.cubic_stiffness_n_per_m3 = 4e7;
+  model.contact_damping_n_s_per_m = 15.0;
+  std::mt19937 random(20261127);
+  std::uniform_real_distribution<double> phase(0.0, 2 * std::numbers::pi);
+  std::vector<double> phases;
+  for (int h = 1; h <= 40; ++h) phases.push_back(phase(random));
+  const double duration_s = 0.3;
+  const SampledDrive drive = Sampled(5000.0, duration_s, [&](double t) {
+    double u = 0;
+    for (int h = 1; h <= 40; ++h) u += 1.0 / h * std::sin(2 * std::numbers::pi * 5.0 * h * t + phases[h - 1]);
+    return u;
+  });
+  const std::vector<double M::*> parameters = {&M::mass_kg,      &M::damping_n_s_per_m,
+                                               &M::stiffness_n_per_m, &M::gain_n_per_v,
+                                               &M::lower_stop_m, &M::contact_stiffness,
+                                               &M::contact_damping_n_s_per_m, &M::cubic_stiffness_n_per_m3};
+  FlowRequest request;
+  request.monodromy = true;
+  request.parameters = parameters;
+  const State start{2e-4, -0.01};
+  const FlowResult flow = Flow(model, drive, start, 0.0, duration_s, request);
+  ASSERT_GT(flow.contacts, 2);
+  FlowOptions tight;
+  tight.relative_tolerance = 1e-13;
+  tight.absolute_tolerance_m = 1e-17;
+  tight.absolute_tolerance_m_per_s = 1e-14;
+  const double length = LengthScaleM(model), speed = length * 2 * std::numbers::pi * 10.0;
+  auto norm = [&](State s) { return std::hypot(s.x_m / length, s.v_m_per_s / speed); };
+  auto check = [&](const std::string& what, State analytic, const ActuatorModel& plus, const ActuatorModel& minus,
+                   State start_plus, State start_minus, double step) {
+    const State a = Flow(plus, drive, start_plus, 0.0, duration_s, {}, tight).end;
+    const State b = Flow(minus, drive, start_minus, 0.0, duration_s, {}, tight).end;
+    const State quotient{(a.x_m - b.x_m) / (2 * step), (a.v_m_per_s - b.v_m_per_s) / (2 * step)};
+    const State difference{analytic.x_m - quotient.x_m, analytic.v_m_per_s - quotient.v_m_per_s};
+    EXPECT_LT(norm(difference), 1e-6 * norm(quotient) + 10 * 1e-13 / step) << what;
+  };
+  const double dx = 1e-4 * length, dv = 1e-4 * speed;
+  check("x0", flow.columns[0], model, model, {start.x_m + dx, start.v_m_per_s}, {start.x_m - dx, start.v_m_per_s}, dx);
+  check("v0", flow.columns[1], model, model, {start.x_m, start.v_m_per_s + dv}, {start.x_m, start.v_m_per_s - dv}, dv);
+  for (size_t p = 0; p < parameters.size(); ++p) {
+    const double step = 1e-4 * std::abs(model.*parameters[p]);
+    ActuatorModel plus = model, minus = model;
+    plus.*parameters[p] += step;
+    minus.*parameters[p] -= step;
+    check("parameter " + std::to_string(p), flow.columns[2 + p], plus, minus, start, start, step);
+  }
+}
+
+TEST(SampledDriveFlowTest, BadDrivesAndRequestsNameTheField) {
+  const ActuatorModel model = PaperModel();
+  auto field_of = [&](const SampledDrive& drive, const FlowRequest& request) -> std::string {
+    try {
+      Flow(model, drive, State{}, 0.0, 0.01, request);
+    } catch (const InputError& e) {
+      return e.field();
+    }
+    return "";
+  };
+  const SampledDrive good{1000.0, std::vector<double>(20, 0.1)};
+  EXPECT_EQ(field_of(good, {}), "");
+  FlowRequest harmonics;
+  harmonics.harmonics = 2;
+  EXPECT_EQ(field_of(good, harmonics), "harmonics");
+  FlowRequest amplitude;
+  amplitude.drive_amplitude = true;
+  EXPECT_EQ(field_of(good, amplitude), "drive_amplitude");
+  SampledDrive nan = good;
+  nan.voltage_v[7] = std::nan("");
+  EXPECT_EQ(field_of(nan, {}), "voltage_v");
+  EXPECT_EQ(field_of(SampledDrive{1000.0, {0.1}}, {}), "voltage_v");
+  EXPECT_EQ(field_of(SampledDrive{0.0, good.voltage_v}, {}), "sample_rate_hz");
+}
+
+}  // namespace
+}  // namespace strokelab
