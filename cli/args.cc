@@ -74,4 +74,21 @@ int Args::Integer(const std::string& flag, int fallback) const {
   return static_cast<int>(value);
 }
 
+std::pair<double, double> Args::Range(const std::string& flag, double from, double to) const {
+  const auto text = Get(flag);
+  if (!text) return {from, to};
+  const size_t colon = text->find(':');
+  if (colon == std::string::npos) {
+    const double v = ParseNumber(*text, flag);
+    if (!std::isfinite(v)) throw InputError(flag, "must be finite, got '" + *text + "'");
+    return {v, v};
+  }
+  if (colon == 0 || colon + 1 == text->size())
+    throw InputError(flag, "expected FROM:TO or one value, e.g. 5:50 or 8, got '" + *text + "'");
+  const double a = ParseNumber(text->substr(0, colon), flag);
+  const double b = ParseNumber(text->substr(colon + 1), flag);
+  if (!std::isfinite(a) || !std::isfinite(b)) throw InputError(flag, "must be finite, got '" + *text + "'");
+  return {a, b};
+}
+
 }  // namespace strokelab::cli

@@ -6,6 +6,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace strokelab::cli {
@@ -24,6 +25,8 @@ class Args {
   // A number; throws InputError("--flag", ...) if it does not parse or is not finite.
   double Number(const std::string& flag, double fallback) const;
   int Integer(const std::string& flag, int fallback) const;
+  // "A:B" -> {A, B}, a single value "V" -> {V, V}; {from, to} when the flag is absent. Errors name it.
+  std::pair<double, double> Range(const std::string& flag, double from, double to) const;
   const std::vector<std::string>& Positional() const { return positional_; }
 
  private:

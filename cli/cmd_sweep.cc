@@ -161,24 +161,6 @@ class ProgressLine {
   bool drawn_ = false;
 };
 
-// "A:B" -> {A, B}, a single value "V" -> {V, V}; errors name `flag`.
-std::pair<double, double> ParseRange(const Args& args, const std::string& flag, double from, double to) {
-  const auto text = args.Get(flag);
-  if (!text) return {from, to};
-  const size_t colon = text->find(':');
-  if (colon == std::string::npos) {
-    const double v = ParseNumber(*text, flag);
-    if (!std::isfinite(v)) throw InputError(flag, "must be finite, got '" + *text + "'");
-    return {v, v};
-  }
-  if (colon == 0 || colon + 1 == text->size())
-    throw InputError(flag, "expected FROM:TO or one value, e.g. 5:50 or 8, got '" + *text + "'");
-  const double a = ParseNumber(text->substr(0, colon), flag);
-  const double b = ParseNumber(text->substr(colon + 1), flag);
-  if (!std::isfinite(a) || !std::isfinite(b)) throw InputError(flag, "must be finite, got '" + *text + "'");
-  return {a, b};
-}
-
 // The points of an axis: `points_flag`, or 1 where `range_flag` gives one value (a FROM:TO range
 // takes `fallback`); one value with more points is refused naming the points flag.
 int AxisPoints(const Args& args, const std::string& range_flag, const std::string& points_flag, int fallback) {
@@ -243,10 +225,10 @@ SweepSpec SpecFromArgs(const Args& args) {
     // (N < 1 keeps a valid range so that Validate names --frequency-points.)
     spec.frequency_hz = GridAxis{5.0, 5.0 * std::pow(1.02, std::max(frequency_points, 1) - 1), frequency_points, true};
   } else {
-    const auto [from, to] = ParseRange(args, "--frequency-hz", 5.0, 50.0);
+    const auto [from, to] = args.Range("--frequency-hz", 5.0, 50.0);
     spec.frequency_hz = GridAxis{from, to, frequency_points, grid == "geometric"};
   }
-  const auto [v_from, v_to] = ParseRange(args, "--amplitude-v", 0.1, 0.6);
+  const auto [v_from, v_to] = args.Range("--amplitude-v", 0.1, 0.6);
   spec.amplitude_v = GridAxis{v_from, v_to, AxisPoints(args, "--amplitude-v", "--amplitude-points", 6), false};
   spec.threads = args.Integer("--threads", static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
   spec.thresholds = !args.Has("--no-thresholds");

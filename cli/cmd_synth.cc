@@ -5,6 +5,7 @@
 #include <map>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <vector>
 
 #include "commands.h"
@@ -18,10 +19,10 @@ namespace {
 
 constexpr const char* kSynthHelp = R"(usage: strokelab synth --out DIR [options]
 
-Writes a stepped-sine campaign as the test rig exports it (manifest.json + rec_NNN.csv, or with --format
-UFF 58 or WAV files + mapping.json) from a model,
-and the truth (model used, perturbations, noise, seed) apart in truth.json, which the manifest does
-not mention. Each record is simulated from rest for settle + duration and the last duration kept.
+Writes a stepped-sine or broadband campaign as the test rig exports it (manifest.json + rec_NNN.csv,
+or with --format UFF 58 or WAV files + mapping.json) from a model, and the truth (model used,
+perturbations, noise, seed) apart in truth.json, which the manifest does not mention. Each record is
+simulated from rest for settle + duration and the last duration kept.
 
   --out DIR                campaign directory (created)                              (required)
   --truth FILE             where truth.json goes                                     [DIR/truth.json]
@@ -29,6 +30,13 @@ not mention. Each record is simulated from rest for settle + duration and the la
   --set KEY=VALUE          override a model parameter (repeatable), e.g. --set k3=4e7
   --frequencies-hz LIST    drive frequencies [Hz], inner loop                        [6,7,8,9,11,13]
   --amplitudes-v LIST      drive amplitudes [V], outer loop                          [0.1,0.3,0.4,0.5]
+  --excitation KIND        stepped-sine, or a broadband drive: multisine (random phases, equal
+                           amplitudes, period = duration), noise (Gaussian, band-limited) or sweep
+                           (logarithmic over the band in one duration)               [stepped-sine]
+  --levels-v-rms LIST      broadband: one record per drive level [V rms]             [0.05,0.15,0.3]
+  --band-hz LOW:HIGH       broadband: the drive's band [Hz]                           [2:200]
+  --grid odd|full          multisine: odd multiples of 1 / duration only (the even lines show
+                           even-order distortion), or every line                      [odd]
   --duration-s T           kept record length [s]                                    [1]
   --settle-s S             simulated before the kept part [s]                        [10]
   --sample-rate-hz FS      [Hz]                                                      [51200]
@@ -45,6 +53,7 @@ not mention. Each record is simulated from rest for settle + duration and the la
                            the seed; keys: model parameters or 'sensitivity' (true sensor vs written)
   --seed N                 random seed (perturbations, noise, hum phases)            [1]
   --method M               auto | exact | cvode | ode3           [auto: exact if piecewise linear, else cvode]
+                           (stepped sines; broadband records are the variational flow's, any model)
   --actuator TEXT          the manifest's actuator description
   --threads N              records simulated side by side; 0: one per core           [0]
   --format F               csv | uff58 (UFF dataset 58, ASCII) | uff58b (binary) | wav; UFF and WAV
@@ -93,6 +102,10 @@ int RunSynth(const std::vector<std::string>& argv) {
                    "--set",
                    "--frequencies-hz",
                    "--amplitudes-v",
+                   "--excitation",
+                   "--levels-v-rms",
+                   "--band-hz",
+                   "--grid",
                    "--duration-s",
                    "--settle-s",
                    "--sample-rate-hz",
@@ -122,6 +135,24 @@ int RunSynth(const std::vector<std::string>& argv) {
   SynthOptions options;
   if (const auto list = args.Get("--frequencies-hz")) options.frequencies_hz = NumberList(*list, "--frequencies-hz");
   if (const auto list = args.Get("--amplitudes-v")) options.amplitudes_v = NumberList(*list, "--amplitudes-v");
+  try {
+    options.excitation = ParseExcitation(args.GetOr("--excitation", "stepped-sine"));
+  } catch (const InputError& e) {
+    throw InputError("--excitation", e.bare_message());
+  }
+  const bool broadband = options.excitation != Excitation::kSteppedSine;
+  for (const char* flag : {"--levels-v-rms", "--band-hz", "--grid"})
+    if (args.Has(flag) && !broadband) throw InputError(flag, "applies to a broadband --excitation only");
+  for (const char* flag : {"--frequencies-hz", "--amplitudes-v"})
+    if (args.Has(flag) && broadband) throw InputError(flag, "applies to --excitation stepped-sine only");
+  if (const auto list = args.Get("--levels-v-rms")) options.levels_v_rms = NumberList(*list, "--levels-v-rms");
+  std::tie(options.broadband.band_low_hz, options.broadband.band_high_hz) =
+      args.Range("--band-hz", options.broadband.band_low_hz, options.broadband.band_high_hz);
+  const std::string grid = args.GetOr("--grid", "odd");
+  if (grid != "odd" && grid != "full") throw InputError("--grid", "expected odd or full, got '" + grid + "'");
+  if (args.Has("--grid") && options.excitation != Excitation::kMultisine)
+    throw InputError("--grid", "applies to --excitation multisine only");
+  options.broadband.odd_grid = grid == "odd";
   options.duration_s = args.Number("--duration-s", options.duration_s);
   options.settle_s = args.Number("--settle-s", options.settle_s);
   options.sample_rate_hz = args.Number("--sample-rate-hz", options.sample_rate_hz);
@@ -169,6 +200,9 @@ int RunSynth(const std::vector<std::string>& argv) {
   } catch (const InputError& e) {
     static const std::map<std::string, std::string> kFlags = {{"frequencies_hz", "--frequencies-hz"},
                                                               {"amplitudes_v", "--amplitudes-v"},
+                                                              {"levels_v_rms", "--levels-v-rms"},
+                                                              {"band_low_hz", "--band-hz"},
+                                                              {"band_high_hz", "--band-hz"},
                                                               {"duration_s", "--duration-s"},
                                                               {"settle_s", "--settle-s"},
                                                               {"sample_rate_hz", "--sample-rate-hz"},
@@ -191,7 +225,10 @@ int RunSynth(const std::vector<std::string>& argv) {
   std::cout << "wrote " << synthesis.campaign.records.size() << " records ("
             << (format == CampaignFormat::kCsv ? "" : std::string(ToString(format)) + ", ")
             << ToString(synthesis.campaign.response)
-            << ", method " << ToString(synthesis.method) << ") to " << *out_dir << "; truth in " << truth_path.string()
+            << (synthesis.campaign.records.empty() || !synthesis.campaign.records[0].broadband
+                    ? ""
+                    : std::string(", ") + ToString(options.excitation))
+            << ", method " << synthesis.engine << ") to " << *out_dir << "; truth in " << truth_path.string()
             << "\n";
   return 0;
 }

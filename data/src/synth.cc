@@ -12,6 +12,7 @@
 #include "strokelab/base/json_number.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/parallel_for.h"
+#include "strokelab/engines/variational_flow.h"
 #include "strokelab/model/dynamics.h"
 #include "strokelab/model/model_json.h"
 #include "format_number.h"
@@ -60,14 +61,46 @@ std::optional<FieldError> FiniteError(double value, const char* field, bool posi
   return std::nullopt;
 }
 
-double ResponseSample(const Record& record, const ActuatorModel& model, ResponseKind kind, size_t n) {
+// The response r in physical units from the state and the blocked force at one instant.
+double Response(ResponseKind kind, const ActuatorModel& model, double x_m, double v_m_per_s, double force_n) {
   switch (kind) {
-    case ResponseKind::kForce: return record.force_n[n];
-    case ResponseKind::kAcceleration: return record.force_n[n] / model.mass_kg;
-    case ResponseKind::kVelocity: return record.velocity_m_per_s[n];
-    case ResponseKind::kDisplacement: return record.displacement_m[n];
+    case ResponseKind::kForce: return force_n;
+    case ResponseKind::kAcceleration: return force_n / model.mass_kg;
+    case ResponseKind::kVelocity: return v_m_per_s;
+    case ResponseKind::kDisplacement: return x_m;
   }
   return 0.0;
+}
+
+// The samples first .. first + kept - 1 of a broadband record: the drive's samples over the whole
+// simulated span (0 .. total / fs, settling included) and the response there, from rest.
+struct BroadbandRun {
+  std::vector<double> voltage_v;  // total + 1 samples, sample first at the kept part's t = 0
+  std::vector<double> response;   // kept samples, physical units
+};
+BroadbandRun SimulateBroadband(const ActuatorModel& model, const SynthOptions& options, double level_v_rms,
+                               size_t total, size_t first, Random* random) {
+  const double fs = options.sample_rate_hz;
+  BroadbandSignal signal = options.broadband;
+  signal.excitation = options.excitation;
+  signal.level_v_rms = level_v_rms;
+  signal.period_s = options.duration_s;
+  BroadbandRun run;
+  run.voltage_v = BroadbandVoltage(signal, fs, -static_cast<double>(first) / fs, total + 1,
+                                   static_cast<double>(total + 1) / fs, [random] { return random->Uniform(); });
+  const SampledDrive drive{fs, run.voltage_v};
+  FlowRequest request;
+  request.sample_count = static_cast<int>(total - first);
+  request.sample_start_s = static_cast<double>(first) / fs;
+  request.sample_interval_s = 1.0 / fs;
+  FlowOptions flow_options;
+  flow_options.max_steps = std::max<long>(flow_options.max_steps, 20 * static_cast<long>(total));
+  const FlowResult flow = Flow(model, drive, State{}, 0.0, static_cast<double>(total) / fs, request, flow_options);
+  run.response.resize(flow.samples.size());
+  for (size_t n = 0; n < flow.samples.size(); ++n)
+    run.response[n] = Response(options.response, model, flow.samples[n].x_m, flow.samples[n].v_m_per_s,
+                               flow.sample_force_n[n]);
+  return run;
 }
 
 }  // namespace
@@ -122,6 +155,19 @@ std::optional<FieldError> SynthOptions::IsValid() const {
   if (sensitivity_error != 0 && keys.count("sensitivity") != 0)
     return FieldError{"sensitivity_error", "and a 'sensitivity' perturbation do not go together: give one"};
   if (threads < 0) return FieldError{"threads", "must be >= 0"};
+  if (excitation != Excitation::kSteppedSine) {
+    if (method) return FieldError{"method", "a broadband campaign is simulated by the variational flow: give no method"};
+    if (levels_v_rms.empty()) return FieldError{"levels_v_rms", "needs at least one level"};
+    for (double level : levels_v_rms)
+      if (auto error = FiniteError(level, "levels_v_rms", true)) return error;
+    BroadbandSignal signal = broadband;
+    signal.excitation = excitation;
+    signal.period_s = duration_s;
+    if (auto error = signal.IsValid(sample_rate_hz)) {
+      if (error->field == "period_s") error->field = "duration_s";
+      return error;
+    }
+  }
   return std::nullopt;
 }
 
@@ -164,6 +210,8 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
     throw InputError("perturb", "the perturbed model is not valid: " + std::string(e.what()));
   }
   out.method = ChooseMethod(options.method ? ToString(*options.method) : "auto", out.model).method;
+  const bool broadband = options.excitation != Excitation::kSteppedSine;
+  out.engine = broadband ? "flow" : ToString(out.method);
 
   SimulationOptions simulation;
   simulation.duration_s = options.settle_s + options.duration_s;
@@ -176,7 +224,7 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   const size_t first = total - kept;
 
   const size_t frequencies = options.frequencies_hz.size();
-  const size_t count = frequencies * options.amplitudes_v.size();
+  const size_t count = broadband ? options.levels_v_rms.size() : frequencies * options.amplitudes_v.size();
   Campaign& campaign = out.campaign;
   campaign.actuator = options.actuator;
   campaign.response = options.response;
@@ -189,33 +237,43 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
     Random random(options.seed, 1 + k);
     const double hum_phase = 2.0 * std::numbers::pi * random.Uniform();
     hum_phases[k] = hum_phase;
-    const double nominal_hz = options.frequencies_hz[k % frequencies];
-    SineDrive drive;
-    drive.frequency_hz = nominal_hz * (1.0 + options.drive_frequency_error);
-    drive.amplitude_v = options.amplitudes_v[k / frequencies];
-    if (options.random_drive_phase) drive.phase_rad = 2.0 * std::numbers::pi * random.Uniform() - std::numbers::pi;
-    drive_phases[k] = drive.phase_rad;
-    const auto engine = MakeEngine(out.method);
-    Record record;
-    engine->Simulate(out.model, drive, simulation, &record);
     Recording& rec = campaign.records[k];
+    std::vector<double> voltage(kept), response(kept);
+    if (broadband) {
+      const BroadbandRun run = SimulateBroadband(out.model, options, options.levels_v_rms[k], total, first, &random);
+      std::copy_n(run.voltage_v.begin() + static_cast<long>(first), kept, voltage.begin());
+      response = run.response;
+      rec.broadband = true;
+    } else {
+      const double nominal_hz = options.frequencies_hz[k % frequencies];
+      SineDrive drive;
+      drive.frequency_hz = nominal_hz * (1.0 + options.drive_frequency_error);
+      drive.amplitude_v = options.amplitudes_v[k / frequencies];
+      if (options.random_drive_phase) drive.phase_rad = 2.0 * std::numbers::pi * random.Uniform() - std::numbers::pi;
+      drive_phases[k] = drive.phase_rad;
+      Record record;
+      MakeEngine(out.method)->Simulate(out.model, drive, simulation, &record);
+      for (size_t n = 0; n < kept; ++n) {
+        voltage[n] = drive.Voltage(static_cast<double>(first + n) / options.sample_rate_hz);
+        response[n] = Response(options.response, out.model, record.displacement_m[first + n],
+                               record.velocity_m_per_s.empty() ? 0.0 : record.velocity_m_per_s[first + n],
+                               record.force_n[first + n]);
+      }
+      rec.nominal_frequency_hz = nominal_hz;
+      rec.nominal_amplitude_v = drive.amplitude_v;
+    }
     char name[32];
     std::snprintf(name, sizeof name, "rec_%03zu.csv", k + 1);
     rec.name = name;
     rec.sample_rate_hz = options.sample_rate_hz;
-    rec.nominal_frequency_hz = nominal_hz;
-    rec.nominal_amplitude_v = drive.amplitude_v;
     rec.voltage_v.resize(kept);
     rec.response.resize(kept);
     const double hum_omega = 2.0 * std::numbers::pi * options.hum_hz;
     for (size_t n = 0; n < kept; ++n) {
       const double t_kept = static_cast<double>(n) / options.sample_rate_hz;
-      const double t_simulated = static_cast<double>(first + n) / options.sample_rate_hz;
-      rec.voltage_v[n] =
-          drive.Voltage(t_simulated) + options.voltage_offset_v + options.voltage_noise_rms_v * random.Normal();
-      const double volts = true_sensitivity * ResponseSample(record, out.model, options.response, first + n) +
-                           options.offset_v + options.hum_v * std::sin(hum_omega * t_kept + hum_phase) +
-                           options.noise_rms_v * random.Normal();
+      rec.voltage_v[n] = voltage[n] + options.voltage_offset_v + options.voltage_noise_rms_v * random.Normal();
+      const double volts = true_sensitivity * response[n] + options.offset_v +
+                           options.hum_v * std::sin(hum_omega * t_kept + hum_phase) + options.noise_rms_v * random.Normal();
       rec.response[n] = volts / written_sensitivity;
     }
   }, static_cast<size_t>(options.threads));  // 0: one thread per core
@@ -223,6 +281,12 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   out.write.sensitivity = written_sensitivity;
   nlohmann::json records = nlohmann::json::array();
   for (size_t k = 0; k < count; ++k) {
+    if (broadband) {
+      records.push_back({{"file", campaign.records[k].name},
+                         {"level_v_rms", options.levels_v_rms[k]},
+                         {"hum_phase_rad", hum_phases[k]}});
+      continue;
+    }
     records.push_back({{"file", campaign.records[k].name},
                        {"frequency_hz", campaign.records[k].nominal_frequency_hz},
                        {"amplitude_v", campaign.records[k].nominal_amplitude_v},
@@ -234,7 +298,7 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
       {"model", ModelToJson(out.model)},
       {"nominal_model", ModelToJson(nominal_model)},
       {"perturbations", perturbations},
-      {"method", ToString(out.method)},
+      {"method", out.engine},
       {"response", ToString(options.response)},
       {"sensitivity_written", written_sensitivity},
       {"sensitivity_true", true_sensitivity},
@@ -254,6 +318,13 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
   if (options.voltage_offset_v != 0) out.truth["voltage_offset_v"] = options.voltage_offset_v;
   if (options.drive_frequency_error != 0) out.truth["drive_frequency_error"] = options.drive_frequency_error;
   if (options.sensitivity_error != 0) out.truth["sensitivity_error"] = options.sensitivity_error;
+  if (broadband) {
+    out.truth["excitation"] = {{"kind", ToString(options.excitation)},
+                               {"band_low_hz", options.broadband.band_low_hz},
+                               {"band_high_hz", options.broadband.band_high_hz},
+                               {"period_s", options.duration_s}};
+    if (options.excitation == Excitation::kMultisine) out.truth["excitation"]["odd_grid"] = options.broadband.odd_grid;
+  }
   return out;
 }
 

@@ -5,7 +5,12 @@
 // Each record is one stepped-sine step (amplitudes outer, frequencies inner: record k is amplitude
 // k / F, frequency k % F), simulated from rest for settle_s + duration_s with the drive
 // v_in = V sin(2 pi f (1 + drive_frequency_error) t + theta_k) starting at t = 0; the last duration_s
-// are kept and re-timed from 0. The channels, in sensor volts as written:
+// are kept and re-timed from 0. With a broadband excitation (excitation.h) each record is one level of
+// levels_v_rms instead: the signal's own random numbers per record, the multisine's period and the
+// sweep's length are duration_s (the kept part starts a period, or the sweep, at t = 0; the settling
+// part before it repeats the multisine, or holds the sweep's first frequency), and the motion is the
+// variational flow's (variational_flow.h) driven by the first-order hold of the generated samples. The
+// channels, in sensor volts as written:
 //
 //   voltage   v_in(t) + voltage_offset_v + N(0, voltage_noise_rms_v^2)   (before the amplifier: unclipped)
 //   response  s_true r(t) + offset_v + hum_v sin(2 pi hum_hz t + phi_k) + N(0, noise_rms_v^2)
@@ -28,6 +33,7 @@
 #include "strokelab/identify/campaign.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/model/model.h"
+#include "strokelab/data/excitation.h"
 #include "strokelab/data/mapping.h"
 #include "strokelab/data/recordings.h"
 
@@ -36,6 +42,11 @@ namespace strokelab {
 struct SynthOptions {
   std::vector<double> frequencies_hz = {6, 7, 8, 9, 11, 13};  // drive frequencies [Hz] (inner loop)
   std::vector<double> amplitudes_v = {0.1, 0.3, 0.4, 0.5};    // drive amplitudes [V] (outer loop)
+  // A broadband campaign when not kSteppedSine: one record per level [V rms], band and grid from
+  // `broadband` (its level and period are set per record).
+  Excitation excitation = Excitation::kSteppedSine;
+  BroadbandSignal broadband;
+  std::vector<double> levels_v_rms = {0.05, 0.15, 0.3};
   double duration_s = 1.0;                                    // kept length of each record [s]
   double settle_s = 10.0;                                     // simulated from rest before the kept part [s]
   double sample_rate_hz = 51200.0;                            // fs [Hz]
@@ -61,13 +72,15 @@ struct SynthOptions {
   // [dimensionless]. A zero or infinite parameter stays so.
   std::vector<std::pair<std::string, double>> perturb;
   std::uint64_t seed = 1;
-  std::optional<Method> method;  // none: ChooseMethod's auto (exact for piecewise-linear models, else cvode)
+  std::optional<Method> method;  // none: ChooseMethod's auto (exact for piecewise-linear models, else cvode);
+                                 // broadband campaigns take none (the variational flow drives any model)
   std::string actuator = "inertial actuator, test rig";
   int threads = 0;  // records simulated side by side; 0: one thread per core
 
   // Nothing, or the offending field (frequencies_hz, amplitudes_v, duration_s, settle_s, sample_rate_hz,
   // sensitivity, noise_rms_v, voltage_noise_rms_v, offset_v, hum_v, hum_hz, voltage_offset_v,
-  // drive_frequency_error, sensitivity_error, perturb, threads).
+  // drive_frequency_error, sensitivity_error, perturb, threads; broadband: levels_v_rms, method and
+  // BroadbandSignal's fields).
   std::optional<FieldError> IsValid() const;
 };
 
@@ -75,7 +88,8 @@ struct Synthesis {
   Campaign campaign;    // response in physical units of the written sensitivity (WriteCampaign's inverse)
   WriteOptions write;   // the written sensitivity
   ActuatorModel model;  // the model actually simulated (after perturbation)
-  Method method = Method::kExact;
+  Method method = Method::kExact;  // the stepped sines' engine
+  std::string engine;              // what simulated the records: ToString(method), or the flow for broadband
   // truth.json: model, nominal model, perturbations, sensitivities, noise, seed; the voltage offset,
   // frequency error and each record's drive phase only when set (so that older truths stay as they were)
   nlohmann::json truth;
