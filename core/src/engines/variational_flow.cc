@@ -138,6 +138,7 @@ class FlowIntegrator {
     y_new_.assign(width_, 0.0);
     stage_.assign(width_, 0.0);
     dense_.assign(static_cast<size_t>(dop853::kDenseTerms) * width_, 0.0);
+    sample_y_.assign(width_, 0.0);
     // A sampled drive has no period: its steps end at every sample, and the suspension's period (or,
     // without one, the record) bounds them.
     double shortest_s = drive.sampled ? std::max(drive.sampled->DurationS(), 1.0 / drive.sampled->sample_rate_hz)
@@ -192,6 +193,9 @@ class FlowIntegrator {
   // The requested samples at instants up to t_until within the step just taken from t (size h; over
   // u, t and h are the independent variable's and the instants are found on time's dense output).
   void Sample(double t, double h, double t_until);
+  // Appends the sample at ts from the packed components y (the state, and the columns when the
+  // request asks for their values at the samples).
+  void RecordSample(double ts, const double* y);
   double ThetaAt(double t, double h, double time_s);
   // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
   // release.
@@ -214,6 +218,7 @@ class FlowIntegrator {
   int width_;  // n_ and time (over u)
   int d_ = 2;  // the state's size (Layout::state_size)
   std::vector<double> k_, y_, y_new_, stage_, dense_;
+  std::vector<double> sample_y_, sample_dy_;  // a sample's interpolated components and the field there
   double max_step_s_ = 0.0, shortest_period_s_ = 0.0;
   int controlled_ = 2;                      // components under error control: the state and the columns
   std::vector<double> absolute_tolerance_;  // per controlled component
@@ -393,11 +398,34 @@ void FlowIntegrator::Sample(double t, double h, double t_until) {
     const double ts = request_.sample_start_s + next_sample_ * request_.sample_interval_s;
     if (ts > t_until) return;
     PrepareDense(t, h);
-    const State y = InterpolateState(ThetaAt(t, h, ts));
-    const double packed[] = {y.x_m, y.v_m_per_s, y.coil_force_n};
-    result_.samples.push_back(y);
-    result_.sample_force_n.push_back(field_.Force(ts, packed, mode_));
+    const double theta = ThetaAt(t, h, ts);
+    const int components = request_.sample_sensitivities ? controlled_ : d_;
+    for (int i = 0; i < components; ++i) sample_y_[i] = Interpolate(i, theta);
+    RecordSample(ts, sample_y_.data());
     ++next_sample_;
+  }
+}
+
+void FlowIntegrator::RecordSample(double ts, const double* y) {
+  result_.samples.push_back(variational::StateOf(y, d_));
+  if (!request_.sample_sensitivities) {
+    result_.sample_force_n.push_back(field_.Force(ts, y, mode_));
+    return;
+  }
+  // The field at the sample gives x'' and each column's x'' (variational_field.h): the force m_p x''
+  // and its derivatives, d(m_p x'')/d m_p = x'' + m_p dx''/dm_p for the mass.
+  sample_dy_.assign(width_, 0.0);
+  field_.Evaluate(ts, y, sample_dy_.data(), mode_);
+  const variational::Layout& l = field_.layout();
+  const double mass = model().mass_kg;
+  result_.sample_force_n.push_back(mass * sample_dy_[1]);
+  for (int c = 0; c < l.columns; ++c) {
+    const int i = l.Column(c);
+    const bool is_mass = c >= l.state_columns && c - l.state_columns < l.parameter_columns &&
+                         request_.parameters[c - l.state_columns] == &ActuatorModel::mass_kg;
+    result_.sample_slopes.push_back(y[i]);
+    result_.sample_slopes.push_back(y[i + 1]);
+    result_.sample_slopes.push_back(mass * sample_dy_[i + 1] + (is_mass ? sample_dy_[1] : 0.0));
   }
 }
 
@@ -673,10 +701,7 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   }
   result_.end = variational::StateOf(y_.data(), d_);
   Note(t1, result_.end);
-  for (; next_sample_ < request_.sample_count; ++next_sample_) {  // the last instant's rounding past t1
-    result_.samples.push_back(result_.end);
-    result_.sample_force_n.push_back(field_.Force(t1, y_.data(), mode_));
-  }
+  for (; next_sample_ < request_.sample_count; ++next_sample_) RecordSample(t1, y_.data());  // rounding past t1
   result_.end_rate = variational::StateOf(K(0), d_);  // f(t1, y(t1)): the last step's first-same-as-last stage
   for (int c = 0; c < l.columns; ++c) result_.columns.push_back(variational::StateOf(&y_[l.Column(c)], d_));
   for (int k = 0; k < l.harmonics; ++k) result_.harmonic_integrals.emplace_back(y_[l.Quadrature(k)], y_[l.Quadrature(k) + 1]);

@@ -45,6 +45,7 @@ struct FlowRequest {
   // sample_count - 1, all within [t0, t1], from the dense output (7th order): a record's sample grid.
   int sample_count = 0;
   double sample_start_s = 0.0, sample_interval_s = 0.0;
+  bool sample_sensitivities = false;  // and every column's x, v and force there (an output-error fit's Jacobian)
 };
 
 struct FlowOptions {
@@ -74,6 +75,9 @@ struct FlowResult {
   int contacts = 0;           // stop entries after t0
   std::vector<State> samples;           // FlowRequest's sample instants
   std::vector<double> sample_force_n;   // m_p x'' there
+  // With sample_sensitivities: [(n * columns + c) * 3 + {0, 1, 2}] = d x, d v, d(m_p x'') at sample n
+  // per unit of column c (the columns' order above).
+  std::vector<double> sample_slopes;
   long steps = 0, rejected_steps = 0;
   double last_step_s = 0.0;   // a good initial step for the next flow of the same orbit
 };
