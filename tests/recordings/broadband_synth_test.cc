@@ -1,6 +1,7 @@
 // Broadband drives (data/excitation.h) and broadband campaigns from the synthesiser (data/synth.h):
 // each signal's spectrum and level, a multisine through a linear actuator against paper Eq. 3 line by
-// line, its even lines lit by the stop's distortion, and `strokelab synth --excitation` end to end.
+// line, its even lines lit by the stop's distortion, and `strokelab synth --excitation` and `strokelab
+// fit` on a broadband campaign end to end.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -253,6 +254,31 @@ TEST(SynthCli, WritesABroadbandCampaignThatReadsBack) {
   EXPECT_EQ(recordings_test::ReadText(dir / "rec_002.csv"), recordings_test::ReadText(again / "rec_002.csv"));
   fs::remove_all(dir);
   fs::remove_all(again);
+}
+
+// `strokelab fit` on a broadband campaign fits it by its time series: the text report says so and the
+// JSON carries the parameters with their standard errors (the stop is not fitted: no record reaches it).
+TEST(FitCli, FitsABroadbandCampaignByItsTimeSeries) {
+  const fs::path dir = recordings_test::TempDir("fit_broadband");
+  const auto synth = testing::RunCli("synth --out " + dir.string() +
+                                     " --excitation multisine --levels-v-rms 0.1 --duration-s 1 --settle-s 2"
+                                     " --sample-rate-hz 8192 --noise-rms 2e-4 --seed 12");
+  ASSERT_EQ(synth.exit_code, 0) << synth.stderr_text;
+  const auto text = testing::RunCli("fit --data " + dir.string());
+  ASSERT_EQ(text.exit_code, 0) << text.stderr_text;
+  EXPECT_THAT(text.stdout_text, HasSubstr("1 broadband records fitted by their time series"));
+  EXPECT_THAT(text.stdout_text, HasSubstr("converged"));
+  EXPECT_THAT(text.stdout_text, HasSubstr("no record shows an impact"));
+  const auto json = testing::RunCli("fit --json --data " + dir.string());
+  ASSERT_EQ(json.exit_code, 0) << json.stderr_text;
+  const nlohmann::json result = nlohmann::json::parse(json.stdout_text);
+  EXPECT_EQ(result["kind"], "broadband");
+  EXPECT_TRUE(result["converged"].get<bool>());
+  EXPECT_FALSE(result["rejected"].get<bool>());
+  EXPECT_NEAR(result["parameters"]["k_p"]["value"].get<double>(), 124.0,
+              4.0 * result["parameters"]["k_p"]["standard_error"].get<double>());
+  EXPECT_FALSE(result["parameters"].contains("d"));
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -81,34 +81,6 @@ constexpr double kContactRange = 1000.0;
 constexpr double kStopStarts[] = {0.95, 0.85, 0.75, 0.65};
 constexpr double kClipStarts[] = {0.95, 0.85, 0.75, 0.6};
 
-FreeParameter LogParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
-                           double range) {
-  FreeParameter p;
-  p.name = std::move(name);
-  p.unit = std::move(unit);
-  p.field = field;
-  p.log_scale = true;
-  p.start = start;
-  p.theta_min = 1.0 - std::log(range);
-  p.theta_max = 1.0 + std::log(range);
-  return p;
-}
-
-// value = start + scale (theta - 1), theta in [1 + low, 1 + high].
-FreeParameter LinearParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
-                              double scale, double low, double high) {
-  FreeParameter p;
-  p.name = std::move(name);
-  p.unit = std::move(unit);
-  p.field = field;
-  p.log_scale = false;
-  p.start = start;
-  p.scale = scale;
-  p.theta_min = 1.0 + low;
-  p.theta_max = 1.0 + high;
-  return p;
-}
-
 // The contact stiffness k_s from `start`, within kContactRange and at most `resolved` [N/m] as a
 // linear stop's stiffness (a Hertzian one's at the typical penetration p: k_s,H p^(1/2)).
 FreeParameter ContactStiffness(std::string unit, double start, double resolved) {

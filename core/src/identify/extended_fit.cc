@@ -219,6 +219,42 @@ ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_var
 
 }  // namespace
 
+FreeParameter LogParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
+                           double range) {
+  FreeParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.field = field;
+  p.log_scale = true;
+  p.start = start;
+  p.theta_min = 1.0 - std::log(range);
+  p.theta_max = 1.0 + std::log(range);
+  return p;
+}
+
+FreeParameter LinearParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
+                              double scale, double low, double high) {
+  FreeParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.field = field;
+  p.log_scale = false;
+  p.start = start;
+  p.scale = scale;
+  p.theta_min = 1.0 + low;
+  p.theta_max = 1.0 + high;
+  return p;
+}
+
+FitParameter FreeParameter::Reported(double theta, double theta_variance) const {
+  FitParameter out;
+  out.name = name;
+  out.unit = unit;
+  out.value = Value(theta);
+  out.standard_error = StandardError(theta, theta_variance);
+  return out;
+}
+
 double FreeParameter::Value(double theta) const {
   return log_scale ? start * std::exp(theta - 1.0) : start + scale * (theta - 1.0);
 }
@@ -443,11 +479,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   result.model = problem.Decode(theta.data());
   for (int i = 0; i < p; ++i) {
     const FreeParameter& fp = problem.parameters[i];
-    FitParameter out;
-    out.name = fp.name;
-    out.unit = fp.unit;
-    out.value = fp.Value(theta[i]);
-    out.standard_error = fp.StandardError(theta[i], errors.covariance(i, i));
+    FitParameter out = fp.Reported(theta[i], errors.covariance(i, i));
     out.identifiable = errors.identifiable[i] && !held[i];
     if (held[i]) out.note = "held at a bound of its range (the records push it beyond): no standard error";
     else if (!out.identifiable) out.note = "not identifiable from these records";

@@ -42,7 +42,16 @@ struct FreeParameter {
   double Value(double theta) const;
   double ValuePerTheta(double theta) const;  // d Value / d theta
   double StandardError(double theta, double theta_variance) const;  // delta method
+  // Its name, unit, value and standard error (NaN: not identifiable) at theta.
+  FitParameter Reported(double theta, double theta_variance) const;
 };
+
+// Log-scaled from `start`, within a factor `range` either way.
+FreeParameter LogParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
+                           double range);
+// value = start + scale (theta - 1), theta in [1 + low, 1 + high].
+FreeParameter LinearParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
+                              double scale, double low, double high);
 
 struct ExtendedProblem {
   ActuatorModel base;  // everything not free (contact law, stop sides, m_p, ...)

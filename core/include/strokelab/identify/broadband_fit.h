@@ -1,0 +1,84 @@
+// Output-error fit of a model to broadband records (noise, multisine, sweep, any measured voltage) by
+// their time series, with multiple shooting:
+//
+//   each record is cut into segments of segment_s; each segment's initial state is an unknown, and
+//   the model is flowed over the segment driven by the first-order hold of the measured voltage
+//   (variational_flow.h, SampledDrive), with its exact sensitivities at every sample. Residuals, one
+//   per sample, are (y_n - offset - hum(t_n) - r(t_n)) / sigma, r the model's response of the
+//   campaign's kind (blocked force m_p x'', acceleration, velocity or displacement) and sigma the
+//   record's white-noise level; the segments join through continuity residuals (end state of one
+//   segment minus the start of the next) weighted so that a gap of 1e-6 of the model's length scale
+//   costs as much as one noise standard error. Offset and mains hum (50 and 60 Hz, kHumOrders orders
+//   each) are per-record unknowns, as for stepped sines.
+//
+// Multiple shooting keeps a long record's problem well posed: a segment's sensitivities do not grow
+// over the record, and a poor start value cannot send the orbit into another attractor for the rest
+// of it (H. G. Bock and K. J. Plitt, "A multiple shooting algorithm for direct solution of optimal
+// control problems", IFAC Proceedings 17(2), 1984; for output-error identification, e.g. A. H.
+// Ribeiro et al., "On the smoothness of nonlinear system identification", Automatica 121, 2020).
+//
+// One nonlinear least-squares problem (Ceres, Levenberg-Marquardt, sparse normal equations): converged
+// means Ceres' own convergence test. Standard errors are from the true Jacobian at the solution,
+// (J^T J)^-1 restricted to the model's parameters (the segments' states, offsets and hum eliminated),
+// scaled by the residual variance SSR / (M - P_total).
+//
+// Known limit: records with hard impacts (force spikes hundreds of noise levels high) make the misfit
+// rugged, and a start 10 % from the truth in the stop's parameters can end in a valley away from the
+// optimum. Such a fit is reported as rejected (its chi-square far beyond the noise), never as a result.
+//
+// The voltage channel is taken as the drive (its DC offset, if any, is part of it), and the response's
+// sensitivity as written: with a nominal sensitivity only ratios are identifiable (fit.h).
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "strokelab/identify/campaign.h"
+#include "strokelab/identify/extended_fit.h"
+
+namespace strokelab::internal {
+
+struct BroadbandFitOptions {
+  double segment_s = 0.25;     // shooting segment length [s]; a record shorter than one is one segment
+  int max_iterations = 100;    // Ceres iterations
+  double max_seconds = 120.0;  // wall time [s]
+  int threads = 0;             // Ceres' evaluation threads; 0: one per core
+};
+
+// How the fitted model matches one record.
+struct BroadbandRecordFit {
+  std::string name;
+  double noise_rms = 0.0;      // sigma [response units]: the white-noise level estimated from the record
+  double offset = 0.0;         // fitted response offset [response units]
+  double hum_amplitude = 0.0;  // the largest fitted hum component [response units]
+  double nrmse_initial = 0.0;  // rms(residual) / rms(response - offset) at the start model
+  double nrmse = 0.0;          // the same at the fitted model
+  double chi2_per_sample = 0.0;  // sum (residual / sigma)^2 / samples: ~1 when only noise remains
+  size_t segments = 0;
+};
+
+struct BroadbandFitResult {
+  ExtendedFitResult fit;  // parameters, covariance, convergence, chi-square (M: the samples)
+  // The records reject the fitted model: chi-square beyond its 1e-3 upper tail, the spread of the noise
+  // levels it is scaled by included (the report says so).
+  bool rejected = false;
+  std::vector<BroadbandRecordFit> records;
+};
+
+// White-noise rms of a record's channel from its second differences, which remove a signal whose band
+// lies far below the sample rate: 1.4826 MAD(y[n+1] - 2 y[n] + y[n-1]) / sqrt(6) (the median absolute
+// deviation is blind to the few samples of an impact).
+double SecondDifferenceNoiseRms(std::span<const double> samples);
+
+// The samples of an impact: where the response's fourth difference stands out of its noise (70 sigma^2
+// for white noise of rms sigma) by more than 8 standard deviations, and the two samples either side.
+std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
+
+// Fits problem.parameters to the broadband `records` of a campaign whose response is of `kind`.
+// Throws InputError naming a record that is not broadband, too short (fewer than 16 samples) or not
+// finite, or bad options.
+BroadbandFitResult FitBroadband(std::span<const Recording* const> records, ResponseKind kind,
+                                const ExtendedProblem& problem, const BroadbandFitOptions& options = {});
+
+}  // namespace strokelab::internal

@@ -1,0 +1,220 @@
+// The fit of a broadband campaign with start values from its records (identify/broadband_campaign.h).
+#include "strokelab/identify/broadband_campaign.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <unsupported/Eigen/FFT>
+
+#include "strokelab/base/errors.h"
+#include "strokelab/base/json_number.h"
+
+namespace strokelab {
+namespace {
+
+using internal::LogParameter;
+
+// The H1 estimate S_yu / S_uu of one record over one Hann window of the whole record (the finest
+// resolution: a lightly damped resonance is a few tenths of a hertz wide), at the frequencies where the
+// drive's power is within 20 dB of its largest (at most ~200 of them, evenly taken).
+std::vector<FrfSample> WholeRecordFrf(const Recording& record) {
+  const size_t n = record.size();
+  const size_t length = n;
+  if (n < 256) throw InputError(record.name, "is too short for a spectral estimate (fewer than 256 samples)");
+  const size_t hop = length;
+  std::vector<double> window(length);
+  for (size_t k = 0; k < length; ++k) window[k] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * k / length);
+  auto mean = [](const std::vector<double>& v) {
+    double sum = 0.0;
+    for (double x : v) sum += x;
+    return sum / static_cast<double>(v.size());
+  };
+  const double u_mean = mean(record.voltage_v), y_mean = mean(record.response);
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> suu(length / 2 + 1, 0.0), syu(length / 2 + 1, 0.0), u_bins, y_bins;
+  std::vector<double> u(length), y(length);
+  for (size_t start = 0; start + length <= n; start += hop) {
+    for (size_t k = 0; k < length; ++k) {
+      u[k] = (record.voltage_v[start + k] - u_mean) * window[k];
+      y[k] = (record.response[start + k] - y_mean) * window[k];
+    }
+    fft.fwd(u_bins, u);
+    fft.fwd(y_bins, y);
+    for (size_t k = 0; k < suu.size(); ++k) {
+      suu[k] += std::norm(u_bins[k]);
+      syu[k] += y_bins[k] * std::conj(u_bins[k]);
+    }
+  }
+  double peak = 0.0;
+  for (size_t k = 1; k < suu.size(); ++k) peak = std::max(peak, suu[k].real());
+  std::vector<size_t> bins;
+  for (size_t k = 1; k < suu.size(); ++k)
+    if (suu[k].real() >= 0.01 * peak) bins.push_back(k);
+  const size_t stride = std::max<size_t>(1, bins.size() / 200);
+  std::vector<FrfSample> samples;
+  for (size_t i = 0; i < bins.size(); i += stride) {
+    const size_t k = bins[i];
+    samples.push_back({static_cast<double>(k) * record.sample_rate_hz / static_cast<double>(length), syu[k] / suu[k]});
+  }
+  return samples;
+}
+
+double RmsOf(const std::vector<double>& v) {
+  double sum = 0.0, mean = 0.0;
+  for (double x : v) mean += x;
+  mean /= static_cast<double>(v.size());
+  for (double x : v) sum += (x - mean) * (x - mean);
+  return std::sqrt(sum / static_cast<double>(v.size()));
+}
+
+}  // namespace
+
+BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  Validate(options);
+  BroadbandCampaignFit out;
+  out.model_kind = options.model;
+  out.response = campaign.response;
+  out.absolute_scale = campaign.absolute_scale;
+  std::vector<const Recording*> records;
+  for (const Recording& r : campaign.records) {
+    if (r.broadband) records.push_back(&r);
+    else out.warnings.push_back("record " + r.name + " is a stepped sine: not used (broadband records only)");
+  }
+  if (records.empty()) throw InputError("records", "the campaign holds no broadband record");
+
+  // 1. The linear start from the record with the smallest drive.
+  const Recording* quiet = *std::min_element(records.begin(), records.end(), [](const Recording* a, const Recording* b) {
+    return RmsOf(a->voltage_v) < RmsOf(b->voltage_v);
+  });
+  out.start_record = quiet->name;
+  std::vector<FrfSample> frf = WholeRecordFrf(*quiet);
+  for (FrfSample& s : frf) s.h = EquivalentForceFrf(s.h, campaign.response, s.frequency_hz, options.mass_kg);
+  FrfFitOptions frf_options;
+  frf_options.mass_kg = options.mass_kg;
+  out.linear_start = FitLinearFrf(frf, frf_options);
+  if (!out.linear_start.converged)
+    out.warnings.push_back("the linear start (paper Eq. 3 on " + quiet->name + "'s FRF) did not converge: " +
+                           out.linear_start.report);
+
+  // The linear part refined by the time series of the quiet record, where it shows no impact: a linear
+  // model's fit has one valley, and the start it gives the full fit is within a few standard errors.
+  const FrfFitSummary& l = out.linear_start;
+  const bool linear_ok = l.converged && l.stiffness_n_per_m > 0 && l.damping_n_s_per_m > 0 && l.gain_n_per_v != 0;
+  if (!linear_ok) out.warnings.push_back("the linear part starts at the data sheet's values (paper Table 2)");
+  ActuatorModel linear = PaperModel();
+  linear.mass_kg = options.mass_kg;
+  linear.lower_stop_m = ActuatorModel::kNoLowerStop;
+  if (linear_ok) {
+    linear.stiffness_n_per_m = l.stiffness_n_per_m;
+    linear.damping_n_s_per_m = l.damping_n_s_per_m;
+    linear.gain_n_per_v = l.gain_n_per_v;
+  }
+  internal::BroadbandFitOptions fit_options;
+  fit_options.max_iterations = options.max_iterations;
+  fit_options.max_seconds = options.max_refinement_seconds;
+  const std::vector<bool> quiet_impacts =
+      internal::ImpactSamples(quiet->response, internal::SecondDifferenceNoiseRms(quiet->response));
+  if (std::find(quiet_impacts.begin(), quiet_impacts.end(), true) == quiet_impacts.end()) {
+    internal::ExtendedProblem linear_problem;
+    linear_problem.base = linear;
+    linear_problem.parameters = {
+        LogParameter("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, linear.stiffness_n_per_m, 3.0),
+        LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, linear.damping_n_s_per_m, 3.0),
+        LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, linear.gain_n_per_v, 3.0)};
+    const std::vector<const Recording*> one = {quiet};
+    const internal::BroadbandFitResult refined = internal::FitBroadband(one, campaign.response, linear_problem, fit_options);
+    if (refined.fit.converged && !refined.rejected) linear = refined.fit.model;
+  }
+
+  // 2. The stop, where a record shows impacts.
+  for (const Recording* r : records)
+    if (options.model == FitModelKind::kPaper) {
+      const std::vector<bool> impact =
+          internal::ImpactSamples(r->response, internal::SecondDifferenceNoiseRms(r->response));
+      out.stop_free = out.stop_free || std::find(impact.begin(), impact.end(), true) != impact.end();
+    }
+
+  // 3. The problem and the fit.
+  internal::ExtendedProblem problem;
+  problem.base = PaperModel();
+  problem.base.mass_kg = options.mass_kg;
+  if (options.model == FitModelKind::kLinear || !out.stop_free) problem.base.lower_stop_m = ActuatorModel::kNoLowerStop;
+  auto problem_from = [&](double stop_factor) {
+    internal::ExtendedProblem p = problem;
+    auto add = [&](const char* name, const char* unit, double ActuatorModel::*field, double start, double range) {
+      p.parameters.push_back(LogParameter(name, unit, field, start, range));
+    };
+    add("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, linear.stiffness_n_per_m, 3.0);
+    add("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, linear.damping_n_s_per_m, 3.0);
+    add("g", "N/V", &ActuatorModel::gain_n_per_v, linear.gain_n_per_v, 3.0);
+    if (options.model == FitModelKind::kPaper && out.stop_free) {
+      add("d", "m", &ActuatorModel::lower_stop_m, stop_factor * problem.base.lower_stop_m, 3.0);
+      add("k_s", "N/m", &ActuatorModel::contact_stiffness, problem.base.contact_stiffness, 30.0);
+    }
+    return p;
+  };
+  // The impacts make the misfit rugged in d (broadband_fit.h): a fit the records reject is tried again
+  // from the next of a few stop positions around the data sheet's, and the first the records accept,
+  // or else the one with the least chi-square, is the result.
+  constexpr double kStopFactors[] = {1.0, 0.97, 1.03, 0.94, 1.06};
+  for (double factor : kStopFactors) {
+    internal::BroadbandFitResult trial = internal::FitBroadband(records, campaign.response, problem_from(factor), fit_options);
+    ++out.starts_tried;
+    const bool better = out.starts_tried == 1 || !(trial.fit.chi2 >= out.result.fit.chi2);
+    if (better) out.result = std::move(trial);
+    if ((out.result.fit.converged && !out.result.rejected) || !out.stop_free) break;
+  }
+  if (options.model == FitModelKind::kPaper && !out.stop_free)
+    out.warnings.push_back("no record shows an impact: the stop's position and stiffness cannot be fitted");
+  if (!campaign.absolute_scale)
+    out.warnings.push_back("the sensitivity is nominal: g and d carry its unknown factor (only ratios are identifiable)");
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return out;
+}
+
+nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit) {
+  using nlohmann::json;
+  const internal::ExtendedFitResult& r = fit.result.fit;
+  json parameters = json::object();
+  for (const FitParameter& p : r.parameters) parameters[p.name] = FitParameterJson(p);
+  json records = json::array();
+  for (const internal::BroadbandRecordFit& x : fit.result.records)
+    records.push_back({{"name", x.name},
+                       {"noise_rms", JsonNumber(x.noise_rms)},
+                       {"offset", JsonNumber(x.offset)},
+                       {"hum_amplitude", JsonNumber(x.hum_amplitude)},
+                       {"nrmse_initial", JsonNumber(x.nrmse_initial)},
+                       {"nrmse", JsonNumber(x.nrmse)},
+                       {"chi2_per_sample", JsonNumber(x.chi2_per_sample)},
+                       {"segments", x.segments}});
+  const FrfFitSummary& l = fit.linear_start;
+  return {{"kind", "broadband"},
+          {"model", ToString(fit.model_kind)},
+          {"response", ToString(fit.response)},
+          {"absolute_scale", fit.absolute_scale},
+          {"parameters", parameters},
+          {"converged", r.converged},
+          {"rejected", fit.result.rejected},
+          {"report", r.report},
+          {"chi2", JsonNumber(r.chi2)},
+          {"residuals", r.residuals},
+          {"residual_variance", JsonNumber(r.residual_variance)},
+          {"iterations", r.iterations},
+          {"linear_start",
+           {{"record", fit.start_record},
+            {"k_p", JsonNumber(l.stiffness_n_per_m)},
+            {"c_p", JsonNumber(l.damping_n_s_per_m)},
+            {"g", JsonNumber(l.gain_n_per_v)},
+            {"converged", l.converged}}},
+          {"stop_fitted", fit.stop_free},
+          {"starts_tried", fit.starts_tried},
+          {"records", records},
+          {"warnings", fit.warnings},
+          {"seconds", JsonNumber(fit.seconds)}};
+}
+
+}  // namespace strokelab

@@ -1,0 +1,589 @@
+// The output-error fit of broadband records by multiple shooting (identify/broadband_fit.h).
+#include "strokelab/identify/broadband_fit.h"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCore>
+#include <Eigen/SparseQR>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <numbers>
+
+#include "step_callback.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/base/parallel_for.h"
+#include "strokelab/engines/variational_flow.h"
+#include "strokelab/identify/fit.h"
+
+namespace strokelab::internal {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// n var(sigma_est / sigma) of SecondDifferenceNoiseRms on n samples of white Gaussian noise: 2.52, 2.61
+// and 2.41 at n = 2048, 8192 and 51200 (2000 draws each; the test checks it).
+constexpr double kNoiseEstimateVariance = 2.5;
+// The continuity residuals: a gap between segments of this fraction of the length scale costs one
+// noise standard error. The fit tightens it in steps (a penalty continuation): from a start model that
+// misses the records, the segments' ends lie far from the next starts, and at the final weight alone
+// closing those gaps is all the first steps would do, wherever that takes the parameters.
+constexpr double kContinuityGaps[] = {1e-2, 1e-4, 1e-6};
+constexpr double kMainsHz[] = {50.0, 60.0};
+// Per record: the response's offset, then sin and cos of each mains order.
+constexpr int kNuisance = 1 + 2 * 2 * kHumOrders;
+
+// The unit of each state component: the solver sees x / L, v / (L w_n) and F_e / (k_p L).
+struct StateScale {
+  double unit[3] = {1.0, 1.0, 1.0};
+  explicit StateScale(const ActuatorModel& m) {
+    const double length = LengthScaleM(m);
+    const double omega = m.stiffness_n_per_m > 0 ? std::sqrt(m.stiffness_n_per_m / m.mass_kg) : 2.0 * std::numbers::pi;
+    unit[0] = length;
+    unit[1] = length * omega;
+    unit[2] = std::max(m.stiffness_n_per_m, 1.0) * length;
+  }
+};
+
+// The offset and hum basis at sample n of a record sampled at fs: column j of kNuisance.
+double NuisanceBasis(int j, size_t n, double fs) {
+  if (j == 0) return 1.0;
+  const int k = j - 1, mains = k / (2 * kHumOrders), order = (k % (2 * kHumOrders)) / 2 + 1;
+  const double phase = 2.0 * std::numbers::pi * kMainsHz[mains] * order * static_cast<double>(n) / fs;
+  return k % 2 == 0 ? std::sin(phase) : std::cos(phase);
+}
+
+struct RecordData {
+  const Recording* record = nullptr;
+  SampledDrive drive;
+  double sigma = 1.0;
+  std::vector<bool> impact;  // samples within 2 of a fourth difference beyond 8 of its noise level
+};
+
+
+struct Segment {
+  size_t record = 0;
+  size_t first = 0, end = 0;  // samples [first, end)
+  bool last = false;          // the record's last segment: no continuity residual
+  double T0(double fs) const { return static_cast<double>(first) / fs; }
+  double T1(double fs) const { return static_cast<double>(last ? end - 1 : end) / fs; }
+};
+
+// The model's response of `kind` at sample n of a flow, and its slope per column c.
+double ResponseOf(const FlowResult& flow, ResponseKind kind, const ActuatorModel& m, size_t n) {
+  switch (kind) {
+    case ResponseKind::kForce: return flow.sample_force_n[n];
+    case ResponseKind::kAcceleration: return flow.sample_force_n[n] / m.mass_kg;
+    case ResponseKind::kVelocity: return flow.samples[n].v_m_per_s;
+    case ResponseKind::kDisplacement: return flow.samples[n].x_m;
+  }
+  return kNaN;
+}
+double ResponseSlope(const FlowResult& flow, ResponseKind kind, const ActuatorModel& m, size_t n, size_t columns,
+                     size_t c, bool is_mass) {
+  const double* s = &flow.sample_slopes[(n * columns + c) * 3];
+  switch (kind) {
+    case ResponseKind::kForce: return s[2];
+    case ResponseKind::kAcceleration:  // (f / m_p)' = f' / m_p - f / m_p^2 for the mass
+      return s[2] / m.mass_kg - (is_mass ? flow.sample_force_n[n] / (m.mass_kg * m.mass_kg) : 0.0);
+    case ResponseKind::kVelocity: return s[1];
+    case ResponseKind::kDisplacement: return s[0];
+  }
+  return kNaN;
+}
+
+// One segment's residuals: its samples, then (unless last) the continuity gap to the next segment's
+// start. Parameter blocks: theta (P), the segment's start (d), the record's nuisance (kNuisance), and
+// the next segment's start (d) unless last.
+class SegmentCost : public ceres::CostFunction {
+ public:
+  SegmentCost(const ExtendedProblem& problem, ResponseKind kind, const RecordData& data, const Segment& segment,
+              const StateScale& scale, int state_size, const double* continuity_gap)
+      : problem_(problem), kind_(kind), data_(data), segment_(segment), scale_(scale), d_(state_size),
+        continuity_gap_(continuity_gap) {
+    for (const FreeParameter& p : problem.parameters) fields_.push_back(p.field);
+    const int p = static_cast<int>(problem.parameters.size());
+    mutable_parameter_block_sizes()->push_back(p);
+    mutable_parameter_block_sizes()->push_back(d_);
+    mutable_parameter_block_sizes()->push_back(kNuisance);
+    if (!segment.last) mutable_parameter_block_sizes()->push_back(d_);
+    set_num_residuals(static_cast<int>(segment.end - segment.first) + (segment.last ? 0 : d_));
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const double* theta = parameters[0];
+    const ActuatorModel model = problem_.Decode(theta);
+    const double* y0 = parameters[1];
+    const State start{y0[0] * scale_.unit[0], y0[1] * scale_.unit[1], d_ > 2 ? y0[2] * scale_.unit[2] : 0.0};
+    const Recording& record = *data_.record;
+    const double fs = record.sample_rate_hz;
+    const size_t samples = segment_.end - segment_.first;
+    FlowRequest request;
+    request.sample_count = static_cast<int>(samples);
+    request.sample_start_s = segment_.T0(fs);
+    request.sample_interval_s = 1.0 / fs;
+    if (jacobians) {
+      request.monodromy = true;
+      request.parameters = fields_;
+      request.sample_sensitivities = true;
+    }
+    FlowResult flow;
+    try {
+      flow = Flow(model, data_.drive, start, segment_.T0(fs), segment_.T1(fs), request);
+    } catch (const std::exception&) {  // a model out of range (InputError) or a flow that fails
+      return false;
+    }
+    const int p = static_cast<int>(fields_.size());
+    const size_t columns = static_cast<size_t>(d_ + p);
+    const double* nuisance = parameters[2];
+    for (size_t i = 0; i < samples; ++i) {
+      const size_t n = segment_.first + i;
+      const double inverse_sigma = 1.0 / data_.sigma;
+      double predicted = ResponseOf(flow, kind_, model, i);
+      for (int j = 0; j < kNuisance; ++j) predicted += nuisance[j] * NuisanceBasis(j, n, fs);
+      residuals[i] = (record.response[n] - predicted) * inverse_sigma;
+      if (!jacobians) continue;
+      if (jacobians[0])
+        for (int c = 0; c < p; ++c)
+          jacobians[0][i * p + c] = -ResponseSlope(flow, kind_, model, i, columns, d_ + c,
+                                                   fields_[c] == &ActuatorModel::mass_kg) *
+                                    problem_.parameters[c].ValuePerTheta(theta[c]) * inverse_sigma;
+      if (jacobians[1])
+        for (int c = 0; c < d_; ++c)
+          jacobians[1][i * d_ + c] = -ResponseSlope(flow, kind_, model, i, columns, c, false) * scale_.unit[c] * inverse_sigma;
+      if (jacobians[2])
+        for (int j = 0; j < kNuisance; ++j) jacobians[2][i * kNuisance + j] = -NuisanceBasis(j, n, fs) * inverse_sigma;
+      if (!segment_.last && jacobians[3])  // a sample does not depend on the next segment's start
+        for (int c = 0; c < d_; ++c) jacobians[3][i * d_ + c] = 0.0;
+    }
+    if (segment_.last) return true;
+    // The gap to the next segment's start, in units of the continuity gap of each component's scale.
+    const double* next = parameters[3];
+    const double end[3] = {flow.end.x_m, flow.end.v_m_per_s, flow.end.coil_force_n};
+    for (int k = 0; k < d_; ++k) {
+      const double weight = 1.0 / (*continuity_gap_ * scale_.unit[k]);
+      const size_t row = samples + k;
+      residuals[row] = (end[k] - next[k] * scale_.unit[k]) * weight;
+      if (!jacobians) continue;
+      auto component = [&](const State& s) { return k == 0 ? s.x_m : k == 1 ? s.v_m_per_s : s.coil_force_n; };
+      if (jacobians[0])
+        for (int c = 0; c < p; ++c)
+          jacobians[0][row * p + c] =
+              component(flow.columns[d_ + c]) * problem_.parameters[c].ValuePerTheta(theta[c]) * weight;
+      if (jacobians[1])
+        for (int c = 0; c < d_; ++c) jacobians[1][row * d_ + c] = component(flow.columns[c]) * scale_.unit[c] * weight;
+      if (jacobians[2])
+        for (int j = 0; j < kNuisance; ++j) jacobians[2][row * kNuisance + j] = 0.0;
+      if (jacobians[3])
+        for (int c = 0; c < d_; ++c) jacobians[3][row * d_ + c] = c == k ? -scale_.unit[k] * weight : 0.0;
+    }
+    return true;
+  }
+
+ private:
+  const ExtendedProblem& problem_;
+  ResponseKind kind_;
+  const RecordData& data_;
+  Segment segment_;
+  StateScale scale_;
+  int d_;
+  const double* continuity_gap_;  // the fit's current one (kContinuityGaps)
+  std::vector<double ActuatorModel::*> fields_;
+};
+
+// A start state within kStartBound of each component's scale: the actuator's motion stays within a few
+// strokes and their speeds, and a window too short to pin the start down cannot send it further.
+constexpr double kStartBound = 10.0;
+void BoundStart(ceres::Problem* problem, double* start, int d) {
+  for (int c = 0; c < d; ++c) {
+    start[c] = std::clamp(start[c], -kStartBound, kStartBound);
+    problem->SetParameterLowerBound(start, c, -kStartBound);
+    problem->SetParameterUpperBound(start, c, kStartBound);
+  }
+}
+
+// The start state (scaled) that fits samples [first, end) of `data` best at the model of `problem`
+// at theta, from *start: Levenberg-Marquardt over the d start components alone (theta and the
+// record's offset and hum held).
+void FitStartOver(const ExtendedProblem& problem, ResponseKind kind, const RecordData& data, Segment part,
+                  const StateScale& scale, int d, std::vector<double>& theta, std::vector<double>& nuisance,
+                  std::vector<double>* start) {
+  part.last = true;  // no continuity residual: the samples only
+  ceres::Problem local;
+  local.AddResidualBlock(new SegmentCost(problem, kind, data, part, scale, d, nullptr), nullptr,
+                         {theta.data(), start->data(), nuisance.data()});
+  local.SetParameterBlockConstant(theta.data());
+  local.SetParameterBlockConstant(nuisance.data());
+  BoundStart(&local, start->data(), d);
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = 20;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &local, &summary);
+}
+
+// Each segment's start state at the start model, segment after segment from the previous segment's
+// end (rest for the first). Over a record's impacts the misfit is no bowl around the recorded state: a
+// start whose motion grazes the stop where the record does not (or misses an impact it shows) sits in
+// a valley of its own, since an impact's residuals do not change with the start until the motion
+// reaches the stop. So the start is first fitted to the samples before the segment's first impact with
+// the stops taken away (the motion is then smooth in the start, and for a model that is linear
+// without its stops, linear in it: one Gauss-Newton step), over windows that double from 16 samples;
+// then to the whole segment with the full model.
+void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const RecordData& data,
+                      const std::vector<Segment>& segments, size_t record, const StateScale& scale, int d,
+                      std::vector<double>& theta, std::vector<double>& nuisance,
+                      std::vector<std::vector<double>>* starts) {
+  const ActuatorModel model = problem.Decode(theta.data());
+  ExtendedProblem stop_free;
+  stop_free.base = model;
+  stop_free.base.lower_stop_m = ActuatorModel::kNoLowerStop;
+  stop_free.base.upper_stop_m = ActuatorModel::kNoUpperStop;
+  FreeParameter held;  // a block of one parameter, held at its start value (theta = 1)
+  held.field = &ActuatorModel::stiffness_n_per_m;
+  held.start = model.stiffness_n_per_m;
+  stop_free.parameters = {held};
+  std::vector<double> held_theta = {1.0};
+  const double fs = data.record->sample_rate_hz;
+  std::vector<double> guess(d, 0.0);
+  for (size_t s = 0; s < segments.size(); ++s) {
+    if (segments[s].record != record) continue;
+    std::vector<double>& start = (*starts)[s];
+    start = guess;
+    const size_t length = segments[s].end - segments[s].first;
+    size_t smooth = length;  // samples before the first impact
+    for (size_t n = segments[s].first; n < segments[s].end; ++n)
+      if (data.impact[n]) {
+        smooth = n - segments[s].first;
+        break;
+      }
+    for (size_t window = 16; window <= smooth; window = window == smooth ? smooth + 1 : std::min(2 * window, smooth)) {
+      Segment part = segments[s];
+      part.end = part.first + window;
+      FitStartOver(stop_free, kind, data, part, scale, d, held_theta, nuisance, &start);
+    }
+    FitStartOver(problem, kind, data, segments[s], scale, d, theta, nuisance, &start);
+    // The next guess: this segment's end from its fitted start.
+    const State y0{start[0] * scale.unit[0], start[1] * scale.unit[1], d > 2 ? start[2] * scale.unit[2] : 0.0};
+    try {
+      const State end = Flow(model, data.drive, y0, segments[s].T0(fs), static_cast<double>(segments[s].end) / fs, {}).end;
+      const double values[3] = {end.x_m, end.v_m_per_s, end.coil_force_n};
+      for (int c = 0; c < d; ++c) guess[c] = values[c] / scale.unit[c];
+    } catch (const std::exception&) {
+      std::fill(guess.begin(), guess.end(), 0.0);
+    }
+  }
+}
+
+// The offset and hum (kNuisance) that best fit the residual of the model's motion from each segment's
+// start, by linear least squares over the record.
+std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind kind, const RecordData& data,
+                                        const std::vector<Segment>& segments, size_t record, const StateScale& scale,
+                                        int d, const std::vector<std::vector<double>>& starts) {
+  const double fs = data.record->sample_rate_hz;
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(kNuisance, kNuisance);
+  Eigen::VectorXd right = Eigen::VectorXd::Zero(kNuisance);
+  for (size_t s = 0; s < segments.size(); ++s) {
+    const Segment& seg = segments[s];
+    if (seg.record != record) continue;
+    FlowRequest request;
+    request.sample_count = static_cast<int>(seg.end - seg.first);
+    request.sample_start_s = seg.T0(fs);
+    request.sample_interval_s = 1.0 / fs;
+    const State y0{starts[s][0] * scale.unit[0], starts[s][1] * scale.unit[1],
+                   d > 2 ? starts[s][2] * scale.unit[2] : 0.0};
+    FlowResult flow;
+    try {
+      flow = Flow(model, data.drive, y0, seg.T0(fs), static_cast<double>(seg.end - 1) / fs, request);
+    } catch (const std::exception&) {
+      continue;
+    }
+    Eigen::VectorXd basis(kNuisance);
+    for (size_t i = 0; i < seg.end - seg.first; ++i) {
+      const size_t n = seg.first + i;
+      for (int j = 0; j < kNuisance; ++j) basis(j) = NuisanceBasis(j, n, fs);
+      normal += basis * basis.transpose();
+      right += basis * (data.record->response[n] - ResponseOf(flow, kind, model, i));
+    }
+  }
+  const Eigen::VectorXd solution = normal.ldlt().solve(right);
+  return std::vector<double>(solution.data(), solution.data() + kNuisance);
+}
+
+// (J^T J)^-1 restricted to the first p columns, from the whole sparse Jacobian (the segments' states
+// and the nuisance parameters eliminated), by a sparse QR of J: J P = Q R, (J^T J)^-1 = P R^-1 R^-T P^T,
+// applied to the p unit vectors. Not the normal equations: the continuity rows weigh 1e6 times the
+// samples' and squaring J's condition lost the covariance in rounding. Empty when J is rank deficient.
+std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int p) {
+  Eigen::SparseMatrix<double> j(crs.num_rows, crs.num_cols);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int r = 0; r < crs.num_rows; ++r)
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) entries.emplace_back(r, crs.cols[k], crs.values[k]);
+  j.setFromTriplets(entries.begin(), entries.end());
+  // Columns scaled to unit norm (J D): the rank decision then does not depend on each unknown's units.
+  Eigen::VectorXd column_scale(crs.num_cols);
+  for (int c = 0; c < crs.num_cols; ++c) {
+    const double norm = j.col(c).norm();
+    column_scale(c) = norm > 0 ? 1.0 / norm : 1.0;
+  }
+  j = j * column_scale.asDiagonal();
+  j.makeCompressed();
+  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr;
+  qr.compute(j);
+  if (qr.info() != Eigen::Success || qr.rank() < crs.num_cols) return std::nullopt;
+  const Eigen::SparseMatrix<double> r = qr.matrixR().topLeftCorner(crs.num_cols, crs.num_cols);
+  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(crs.num_cols, p);
+  for (int i = 0; i < p; ++i) unit(i, i) = 1.0;
+  const Eigen::MatrixXd permuted = qr.colsPermutation().transpose() * unit;
+  const Eigen::MatrixXd z = r.transpose().triangularView<Eigen::Lower>().solve(permuted);
+  const Eigen::MatrixXd w = r.triangularView<Eigen::Upper>().solve(z);
+  const Eigen::MatrixXd x = qr.colsPermutation() * w;
+  const Eigen::MatrixXd block =
+      column_scale.head(p).asDiagonal() * x.topRows(p) * column_scale.head(p).asDiagonal();  // D (.) D
+  if (!block.allFinite()) return std::nullopt;
+  for (int i = 0; i < p; ++i)
+    if (!(block(i, i) > 0.0)) return std::nullopt;
+  return block;
+}
+
+}  // namespace
+
+double SecondDifferenceNoiseRms(std::span<const double> y) {
+  // Fourth differences (1, -4, 6, -4, 1; noise variance 70 sigma^2): a signal at w is scaled by
+  // (2 sin(w / 2fs))^4, 1e-6 for a band at 1/50 of fs. The name keeps the idea: differences of a
+  // higher order than the signal's curvature.
+  if (y.size() < 16) return kNaN;
+  std::vector<double> d;
+  d.reserve(y.size() - 4);
+  for (size_t n = 2; n + 2 < y.size(); ++n) d.push_back(y[n - 2] - 4 * y[n - 1] + 6 * y[n] - 4 * y[n + 1] + y[n + 2]);
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const double center = median(d);
+  for (double& v : d) v = std::abs(v - center);
+  return 1.4826 * median(d) / std::sqrt(70.0);
+}
+
+std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
+  std::vector<bool> impact(y.size(), false);
+  const double limit = 8.0 * std::sqrt(70.0) * sigma;
+  for (size_t n = 2; n + 2 < y.size(); ++n)
+    if (std::abs(y[n - 2] - 4 * y[n - 1] + 6 * y[n] - 4 * y[n + 1] + y[n + 2]) > limit)
+      for (size_t k = n - 2; k <= n + 2; ++k) impact[k] = true;
+  return impact;
+}
+
+BroadbandFitResult FitBroadband(std::span<const Recording* const> records, ResponseKind kind,
+                                const ExtendedProblem& problem, const BroadbandFitOptions& options) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  if (!(options.segment_s > 0) || !std::isfinite(options.segment_s))
+    throw InputError("segment_s", "must be a finite number > 0");
+  if (options.max_iterations < 1) throw InputError("max_iterations", "must be >= 1");
+  if (records.empty()) throw InputError("records", "no broadband record to fit");
+  Validate(problem.base);
+  const int p = static_cast<int>(problem.parameters.size());
+  const int d = problem.base.StateSize();
+  std::vector<double> theta(p, 1.0);
+  const ActuatorModel start_model = problem.Decode(theta.data());
+  const StateScale scale(start_model);
+
+  // Records, their drives, noise levels and segments.
+  std::vector<RecordData> data(records.size());
+  std::vector<Segment> segments;
+  for (size_t r = 0; r < records.size(); ++r) {
+    const Recording& rec = *records[r];
+    if (!rec.broadband) throw InputError(rec.name, "is a stepped-sine record: fit it with the stepped-sine fit");
+    if (rec.size() < 16 || rec.response.size() != rec.size())
+      throw InputError(rec.name, "needs at least 16 samples in both channels");
+    for (size_t n = 0; n < rec.size(); ++n)
+      if (!std::isfinite(rec.voltage_v[n]) || !std::isfinite(rec.response[n]))
+        throw InputError(rec.name, "sample " + std::to_string(n) + " is not finite");
+    data[r].record = &rec;
+    data[r].drive = SampledDrive{rec.sample_rate_hz, rec.voltage_v};
+    double power = 0.0;
+    for (double v : rec.response) power += v * v;
+    const double rms = std::sqrt(power / static_cast<double>(rec.size()));
+    // A noiseless (synthetic) record: weights as if its noise were 1e-9 of its rms.
+    data[r].sigma = std::max(SecondDifferenceNoiseRms(rec.response), 1e-9 * rms);
+    data[r].impact = ImpactSamples(rec.response, data[r].sigma);
+    const size_t length = std::max<size_t>(8, static_cast<size_t>(std::llround(options.segment_s * rec.sample_rate_hz)));
+    for (size_t first = 0; first < rec.size(); first += length) {
+      Segment s;
+      s.record = r;
+      s.first = first;
+      s.end = std::min(rec.size(), first + length);
+      if (rec.size() - s.end < length / 2) s.end = rec.size();  // no short tail segment
+      s.last = s.end == rec.size();
+      segments.push_back(s);
+      if (s.last) break;
+    }
+  }
+
+  // Unknowns: theta, each segment's scaled start state, each record's nuisance.
+  std::vector<std::vector<double>> starts(segments.size(), std::vector<double>(d, 0.0));
+  std::vector<std::vector<double>> nuisance(records.size(), std::vector<double>(kNuisance, 0.0));
+  // The starts are fitted twice: with the offset at the response's mean and no hum, then with the
+  // offset and hum that the first starts' residuals show (over a short window, hum of a few noise
+  // levels is a misfit the start would otherwise take up).
+  ParallelFor(records.size(), [&](size_t r) {
+    double mean = 0.0;
+    for (double v : records[r]->response) mean += v;
+    nuisance[r][0] = mean / static_cast<double>(records[r]->size());
+    std::vector<double> theta_copy = theta;  // each record's own (the local problems hold them constant)
+    FitSegmentStarts(problem, kind, data[r], segments, r, scale, d, theta_copy, nuisance[r], &starts);
+    nuisance[r] = NuisanceOfResiduals(start_model, kind, data[r], segments, r, scale, d, starts);
+    FitSegmentStarts(problem, kind, data[r], segments, r, scale, d, theta_copy, nuisance[r], &starts);
+  });
+  ceres::Problem::Options problem_options;
+  ceres::Problem solver_problem(problem_options);
+  solver_problem.AddParameterBlock(theta.data(), p);
+  for (int i = 0; i < p; ++i) {
+    solver_problem.SetParameterLowerBound(theta.data(), i, problem.parameters[i].theta_min);
+    solver_problem.SetParameterUpperBound(theta.data(), i, problem.parameters[i].theta_max);
+  }
+  std::vector<ceres::ResidualBlockId> blocks;
+  double continuity_gap = kContinuityGaps[0];
+  for (size_t s = 0; s < segments.size(); ++s) {
+    const Segment& seg = segments[s];
+    auto* cost = new SegmentCost(problem, kind, data[seg.record], seg, scale, d, &continuity_gap);
+    std::vector<double*> blocks_of = {theta.data(), starts[s].data(), nuisance[seg.record].data()};
+    if (!seg.last) blocks_of.push_back(starts[s + 1].data());
+    blocks.push_back(solver_problem.AddResidualBlock(cost, nullptr, blocks_of));
+    BoundStart(&solver_problem, starts[s].data(), d);
+  }
+
+  // Per-record residuals at the current unknowns: sum of squares of the sample rows, and of the raw
+  // misfit in response units.
+  auto record_misfit = [&](std::vector<double>* chi2, std::vector<double>* raw) {
+    chi2->assign(records.size(), 0.0);
+    raw->assign(records.size(), 0.0);
+    for (size_t s = 0; s < segments.size(); ++s) {
+      const Segment& seg = segments[s];
+      const SegmentCost* cost = static_cast<const SegmentCost*>(solver_problem.GetCostFunctionForResidualBlock(blocks[s]));
+      std::vector<double> residuals(cost->num_residuals());
+      std::vector<const double*> parameter_blocks = {theta.data(), starts[s].data(), nuisance[seg.record].data()};
+      if (!seg.last) parameter_blocks.push_back(starts[s + 1].data());
+      if (!cost->Evaluate(parameter_blocks.data(), residuals.data(), nullptr)) {
+        (*chi2)[seg.record] = (*raw)[seg.record] = kNaN;
+        continue;
+      }
+      for (size_t i = 0; i < seg.end - seg.first; ++i) {
+        (*chi2)[seg.record] += residuals[i] * residuals[i];
+        const double e = residuals[i] * data[seg.record].sigma;
+        (*raw)[seg.record] += e * e;
+      }
+    }
+  };
+  std::vector<double> chi2_initial, raw_initial;
+  record_misfit(&chi2_initial, &raw_initial);
+
+  AfterSuccessfulStep callback([] {});
+  ceres::Solver::Options solver = RefinementSolverOptions(options.max_iterations, &callback);
+  solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  if (options.threads > 0) solver.num_threads = options.threads;
+  ceres::Solver::Summary summary;
+  int iterations = 0;
+  for (double gap : kContinuityGaps) {
+    continuity_gap = gap;
+    solver.max_solver_time_in_seconds = std::max(
+        1.0, options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count());
+    ceres::Solve(solver, &solver_problem, &summary);
+    iterations += static_cast<int>(summary.iterations.size()) - 1;
+  }
+
+  BroadbandFitResult out;
+  ExtendedFitResult& fit = out.fit;
+  fit.theta = theta;
+  fit.model = problem.Decode(theta.data());
+  fit.iterations = iterations;
+  fit.passes = static_cast<int>(std::size(kContinuityGaps));
+  std::vector<double> chi2, raw;
+  record_misfit(&chi2, &raw);
+  size_t samples = 0;
+  for (const Recording* r : records) samples += r->size();
+  fit.residuals = samples;
+  fit.chi2 = 0.0;
+  for (double c : chi2) fit.chi2 += c;
+  // Degrees of freedom: the samples less the model's parameters, one start state per record (the
+  // continuity rows tie the other segments' starts) and the nuisance.
+  const double dof = static_cast<double>(samples) - p - static_cast<double>(records.size()) * (d + kNuisance);
+  fit.residual_variance = fit.chi2 / dof;
+  fit.report = summary.BriefReport();
+  bool converged = summary.termination_type == ceres::CONVERGENCE && std::isfinite(fit.chi2);
+
+  fit.covariance.assign(static_cast<size_t>(p) * p, kNaN);
+  ceres::CRSMatrix crs;
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks.push_back(theta.data());
+  for (auto& s : starts) evaluate.parameter_blocks.push_back(s.data());
+  for (auto& q : nuisance) evaluate.parameter_blocks.push_back(q.data());
+  std::optional<Eigen::MatrixXd> covariance;
+  if (solver_problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) covariance = ModelCovariance(crs, p);
+  if (!covariance) {
+    converged = false;
+    fit.report += "\nNOT CONVERGED: the parameters are not all identifiable from these records (J^T J is singular)";
+  }
+  for (int i = 0; i < p; ++i) {
+    const FreeParameter& fp = problem.parameters[i];
+    FitParameter parameter =
+        fp.Reported(theta[i], covariance ? (*covariance)(i, i) * fit.residual_variance : kNaN);
+    parameter.identifiable = std::isfinite(parameter.standard_error);
+    const bool on_bound = theta[i] <= fp.theta_min + 1e-9 || theta[i] >= fp.theta_max - 1e-9;
+    if (on_bound) parameter.note = "ended on its bound";
+    fit.parameters.push_back(parameter);
+    if (covariance)
+      for (int j = 0; j < p; ++j)
+        fit.covariance[static_cast<size_t>(i) * p + j] = (*covariance)(i, j) * fit.residual_variance *
+                                                         fp.ValuePerTheta(theta[i]) *
+                                                         problem.parameters[j].ValuePerTheta(theta[j]);
+  }
+  fit.converged = converged;
+  if (summary.termination_type != ceres::CONVERGENCE) fit.report += "\nNOT CONVERGED: " + summary.message;
+  // The records reject the fitted model (as extended_fit.h: a wrong model, or a valley of the misfit
+  // away from the optimum, where records with hard impacts can end from a start far from the truth)
+  // when chi-square stands beyond its 1e-3 upper tail. The noise levels it is scaled by are estimates
+  // from the same records, whose own spread (kNoiseEstimateVariance) widens chi-square / dof's beyond
+  // chi-square's 2 / dof: var = 2 / dof + 4 sum_r (n_r / M)^2 kNoiseEstimateVariance / n_r.
+  double variance = 2.0 / dof;
+  for (const Recording* r : records) {
+    const double share = static_cast<double>(r->size()) / static_cast<double>(samples);
+    variance += 4.0 * share * share * kNoiseEstimateVariance / static_cast<double>(r->size());
+  }
+  constexpr double kUpperTail1e3 = 3.0902;  // the standard normal's 1e-3 upper quantile
+  const double limit = dof * (1.0 + kUpperTail1e3 * std::sqrt(variance));
+  out.rejected = !(fit.chi2 <= limit);
+  if (out.rejected) {
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "\nREJECTED: chi-square %.4g over %.0f degrees of freedom, beyond its 1e-3 upper tail %.4g (the "
+                  "noise levels' own spread included): the fitted model does not explain the records",
+                  fit.chi2, dof, limit);
+    fit.report += line;
+  }
+
+  for (size_t r = 0; r < records.size(); ++r) {
+    const Recording& rec = *records[r];
+    BroadbandRecordFit f;
+    f.name = rec.name;
+    f.noise_rms = data[r].sigma;
+    f.offset = nuisance[r][0];
+    for (int j = 1; j < kNuisance; ++j) f.hum_amplitude = std::max(f.hum_amplitude, std::abs(nuisance[r][j]));
+    double power = 0.0;
+    for (double v : rec.response) power += (v - f.offset) * (v - f.offset);
+    f.nrmse_initial = std::sqrt(raw_initial[r] / power);
+    f.nrmse = std::sqrt(raw[r] / power);
+    f.chi2_per_sample = chi2[r] / static_cast<double>(rec.size());
+    f.segments = static_cast<size_t>(std::count_if(segments.begin(), segments.end(),
+                                                   [r](const Segment& s) { return s.record == r; }));
+    out.records.push_back(f);
+  }
+  fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return out;
+}
+
+}  // namespace strokelab::internal

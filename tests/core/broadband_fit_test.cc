@@ -1,0 +1,218 @@
+// The output-error fit of broadband records (identify/broadband_fit.h) on campaigns from data's
+// synthesiser with known truth: the parameters come back within their standard errors, the residual
+// is the noise, a parameter the records cannot see is reported as not identifiable, and the noise
+// estimate is the noise.
+#include "strokelab/identify/broadband_fit.h"
+
+#include "strokelab/identify/broadband_campaign.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "strokelab/data/synth.h"
+#include "strokelab/model/model.h"
+
+namespace strokelab {
+namespace {
+
+using internal::BroadbandFitResult;
+using internal::ExtendedProblem;
+using internal::FreeParameter;
+
+// A free parameter on a log scale within a factor 3 of `start`, or linear with `scale` per unit of theta
+// within 10 scales either way.
+FreeParameter Log(const char* name, double ActuatorModel::*field, double start) {
+  return internal::LogParameter(name, "", field, start, 3.0);
+}
+FreeParameter Linear(const char* name, double ActuatorModel::*field, double start, double scale) {
+  return internal::LinearParameter(name, "", field, start, scale, -10.0, 10.0);
+}
+
+// Odd multisines over 2..200 Hz at 8192 Hz, 1 s each after 2 s of settling, force response with
+// sensor noise of 2e-4 V (0.009 N), an offset and 50 Hz hum.
+Synthesis MultisineCampaign(const ActuatorModel& truth, std::vector<double> levels, std::uint64_t seed) {
+  SynthOptions options;
+  options.excitation = Excitation::kMultisine;
+  options.levels_v_rms = std::move(levels);
+  options.duration_s = 1.0;
+  options.settle_s = 2.0;
+  options.sample_rate_hz = 8192.0;
+  options.noise_rms_v = 2e-4;
+  options.offset_v = 3e-3;
+  options.hum_v = 5e-4;
+  options.seed = seed;
+  return Synthesize(truth, options);
+}
+
+std::vector<const Recording*> Pointers(const Campaign& campaign) {
+  std::vector<const Recording*> out;
+  for (const Recording& r : campaign.records) out.push_back(&r);
+  return out;
+}
+
+// The truth's parameters as the problem lists them.
+std::vector<double> Truths(const ExtendedProblem& problem, const ActuatorModel& truth) {
+  std::vector<double> out;
+  for (const FreeParameter& p : problem.parameters) out.push_back(truth.*(p.field));
+  return out;
+}
+
+// Every estimate within 4 standard errors of the truth, those errors a few per cent or less, the
+// residual the noise (chi-square per sample 1 within its spread over 8,192 samples, 0.016, plus the
+// noise estimate's own few per cent), the misfit below the start's and the offset found.
+void ExpectRecovered(const BroadbandFitResult& result, const ExtendedProblem& problem, const ActuatorModel& truth) {
+  ASSERT_TRUE(result.fit.converged) << result.fit.report;
+  EXPECT_FALSE(result.rejected) << result.fit.report;
+  const std::vector<double> truths = Truths(problem, truth);
+  for (size_t i = 0; i < truths.size(); ++i) {
+    const FitParameter& p = result.fit.parameters[i];
+    EXPECT_TRUE(p.identifiable) << p.name;
+    EXPECT_LT(p.standard_error, 0.05 * std::abs(truths[i])) << p.name;
+    EXPECT_LT(std::abs(p.value - truths[i]), 4.0 * p.standard_error)
+        << p.name << " = " << p.value << " +- " << p.standard_error << ", truth " << truths[i];
+  }
+  for (const internal::BroadbandRecordFit& r : result.records) {
+    EXPECT_NEAR(r.chi2_per_sample, 1.0, 0.08) << r.name;
+    EXPECT_LT(r.nrmse, r.nrmse_initial) << r.name;
+    EXPECT_NEAR(r.offset, 3e-3 / 0.02248, 0.1 * 3e-3 / 0.02248) << r.name;  // the offset, in newtons
+  }
+}
+
+// Paper + k3 = 4e7 at 0.1 and 0.6 V rms (the hardening keeps both clear of the stop), from a start
+// 10 % off in the linear parameters and half the k3.
+TEST(BroadbandFit, RecoversACubicStiffnessFromMultisines) {
+  ActuatorModel truth = PaperModel();
+  truth.cubic_stiffness_n_per_m3 = 4e7;
+  const Synthesis synthesis = MultisineCampaign(truth, {0.1, 0.6}, 41);
+  ExtendedProblem problem;
+  problem.base = truth;
+  problem.parameters = {Log("k_p", &ActuatorModel::stiffness_n_per_m, 1.1 * truth.stiffness_n_per_m),
+                        Log("c_p", &ActuatorModel::damping_n_s_per_m, 0.9 * truth.damping_n_s_per_m),
+                        Log("g", &ActuatorModel::gain_n_per_v, 0.9 * truth.gain_n_per_v),
+                        Linear("k3", &ActuatorModel::cubic_stiffness_n_per_m3, 2e7, 1e7)};
+  const std::vector<const Recording*> records = Pointers(synthesis.campaign);
+  ExpectRecovered(internal::FitBroadband(records, ResponseKind::kForce, problem), problem, truth);
+}
+
+// The paper's model at 0.1 V rms (clear) and 0.6 V rms (impacts of a few newtons), from a start 10 %
+// off in every parameter, the stop's position and stiffness included.
+TEST(BroadbandFit, RecoversTheStopFromMultisines) {
+  const ActuatorModel truth = PaperModel();
+  const Synthesis synthesis = MultisineCampaign(truth, {0.1, 0.6}, 43);
+  ExtendedProblem problem;
+  problem.base = truth;
+  problem.parameters = {Log("k_p", &ActuatorModel::stiffness_n_per_m, 1.1 * truth.stiffness_n_per_m),
+                        Log("c_p", &ActuatorModel::damping_n_s_per_m, 0.9 * truth.damping_n_s_per_m),
+                        Log("g", &ActuatorModel::gain_n_per_v, 1.1 * truth.gain_n_per_v),
+                        Log("d", &ActuatorModel::lower_stop_m, 1.1 * truth.lower_stop_m),
+                        Log("k_s", &ActuatorModel::contact_stiffness, 1.1 * truth.contact_stiffness)};
+  const std::vector<const Recording*> records = Pointers(synthesis.campaign);
+  ExpectRecovered(internal::FitBroadband(records, ResponseKind::kForce, problem), problem, truth);
+}
+
+// At 1 V rms the impacts are hard (force spikes ~600 noise levels high, a few samples wide) and the
+// misfit is rugged: from a start 10 % off in the stop's position and stiffness alone the fit can end
+// away from the optimum (broadband_fit.h's known limit). Whatever it ends with, it never reports an
+// estimate more than 4 standard errors from the truth as a fit the records accept.
+TEST(BroadbandFit, AFitThatMissesHardImpactsSaysSo) {
+  const ActuatorModel truth = PaperModel();
+  const Synthesis synthesis = MultisineCampaign(truth, {1.0}, 41);
+  ExtendedProblem problem;
+  problem.base = truth;
+  problem.parameters = {Log("k_p", &ActuatorModel::stiffness_n_per_m, truth.stiffness_n_per_m),
+                        Log("c_p", &ActuatorModel::damping_n_s_per_m, truth.damping_n_s_per_m),
+                        Log("g", &ActuatorModel::gain_n_per_v, truth.gain_n_per_v),
+                        Log("d", &ActuatorModel::lower_stop_m, 1.1 * truth.lower_stop_m),
+                        Log("k_s", &ActuatorModel::contact_stiffness, 1.1 * truth.contact_stiffness)};
+  const std::vector<const Recording*> records = Pointers(synthesis.campaign);
+  const BroadbandFitResult result = internal::FitBroadband(records, ResponseKind::kForce, problem);
+  const std::vector<double> truths = Truths(problem, truth);
+  bool wrong = false;
+  for (size_t i = 0; i < truths.size(); ++i) {
+    const FitParameter& p = result.fit.parameters[i];
+    wrong = wrong || !(std::abs(p.value - truths[i]) <= 4.0 * p.standard_error);
+  }
+  if (wrong) EXPECT_TRUE(result.rejected || !result.fit.converged) << result.fit.report;
+}
+
+// At 0.05 V rms the mass never reaches the stop: k_s has no effect on these records, and the fit says
+// it is not identifiable rather than print a standard error for it.
+TEST(BroadbandFit, AStopTheRecordsNeverReachIsNotIdentifiable) {
+  const ActuatorModel truth = PaperModel();
+  const Synthesis synthesis = MultisineCampaign(truth, {0.05}, 42);
+  ExtendedProblem problem;
+  problem.base = truth;
+  problem.parameters = {Log("k_p", &ActuatorModel::stiffness_n_per_m, truth.stiffness_n_per_m),
+                        Log("k_s", &ActuatorModel::contact_stiffness, truth.contact_stiffness)};
+  const std::vector<const Recording*> records = Pointers(synthesis.campaign);
+  const BroadbandFitResult result = internal::FitBroadband(records, ResponseKind::kForce, problem);
+  EXPECT_FALSE(result.fit.converged);
+  EXPECT_FALSE(result.fit.parameters[1].identifiable);
+  EXPECT_FALSE(std::isfinite(result.fit.parameters[1].standard_error));
+  EXPECT_NE(result.fit.report.find("not all identifiable"), std::string::npos) << result.fit.report;
+}
+
+// A quiet campaign (0.1 V rms, the paper's model perturbed as a real actuator departs from its data
+// sheet) fitted from its own start values (broadband_campaign.h): the stop is not fitted (no impacts),
+// the fit is accepted and every estimate is within 4 standard errors of the truth. Campaigns with
+// impacts, whose fits the records can reject, are tests/recordings/broadband_fit_study.py's.
+TEST(BroadbandCampaignFit, AQuietCampaignIsFittedFromItsOwnStart) {
+  SynthOptions options;
+  options.excitation = Excitation::kMultisine;
+  options.levels_v_rms = {0.1};
+  options.settle_s = 2.0;
+  options.sample_rate_hz = 8192.0;
+  options.noise_rms_v = 2e-4;
+  options.offset_v = 3e-3;
+  options.hum_v = 5e-4;
+  options.seed = 101;
+  options.perturb = {{"k_p", 0.1}, {"c_p", 0.1}, {"g", 0.1}};
+  const Synthesis synthesis = Synthesize(PaperModel(), options);
+  const BroadbandCampaignFit fit = FitBroadbandCampaign(synthesis.campaign, FitOptions{});
+  EXPECT_FALSE(fit.stop_free);
+  ASSERT_TRUE(fit.result.fit.converged && !fit.result.rejected) << fit.result.fit.report;
+  const ActuatorModel& truth = synthesis.model;
+  const double truths[] = {truth.stiffness_n_per_m, truth.damping_n_s_per_m, truth.gain_n_per_v};
+  ASSERT_EQ(fit.result.fit.parameters.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    const FitParameter& p = fit.result.fit.parameters[i];
+    EXPECT_LT(std::abs(p.value - truths[i]), 4.0 * p.standard_error) << p.name;
+  }
+}
+
+// White noise of rms 0.01 on a 40 Hz sine of amplitude 1 sampled at 8192 Hz, with ten impact-like
+// spikes: the fourth differences give the noise within 3 % (the estimate's spread over 8,000 samples
+// is ~1 %).
+TEST(BroadbandFit, TheNoiseEstimateIsTheNoiseUnderASignalAndSpikes) {
+  std::mt19937_64 random(7);
+  std::normal_distribution<double> normal(0.0, 0.01);
+  std::vector<double> y(8192);
+  for (size_t n = 0; n < y.size(); ++n) y[n] = std::sin(2 * std::numbers::pi * 40.0 * n / 8192.0) + normal(random);
+  for (size_t k = 0; k < 10; ++k) y[400 + 800 * k] += 5.0;
+  EXPECT_NEAR(internal::SecondDifferenceNoiseRms(y), 0.01, 3e-4);
+}
+
+// The estimate's own spread, which the fit's rejection test counts (broadband_fit.cc's
+// kNoiseEstimateVariance = 2.5): n var(estimate / sigma) over 400 draws of 8,192 samples of white
+// noise, within 25 % of it (the sample variance of 400 draws has a relative spread of 7 %).
+TEST(BroadbandFit, TheNoiseEstimatesSpreadIsWhatTheRejectionTestCounts) {
+  std::mt19937_64 random(8);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::vector<double> y(8192), estimates;
+  for (int draw = 0; draw < 400; ++draw) {
+    for (double& v : y) v = normal(random);
+    estimates.push_back(internal::SecondDifferenceNoiseRms(y));
+  }
+  double mean = 0.0, variance = 0.0;
+  for (double e : estimates) mean += e / 400.0;
+  for (double e : estimates) variance += (e - mean) * (e - mean) / 399.0;
+  EXPECT_NEAR(mean, 1.0, 0.005);
+  EXPECT_NEAR(8192.0 * variance, 2.5, 0.25 * 2.5);
+}
+
+}  // namespace
+}  // namespace strokelab
