@@ -62,6 +62,21 @@ std::vector<FrfSample> WholeRecordFrf(const Recording& record) {
   return samples;
 }
 
+// Whether a record shows impacts: ImpactSamples on its response turned into the blocked force's shape.
+// An impact is a spike of force and acceleration, a kink of velocity and a corner of displacement; the
+// spike shows in the differences of a kinematic response (one for velocity, two for displacement),
+// whose own noise level the detection then measures.
+bool ShowsImpacts(const Recording& record, ResponseKind kind) {
+  std::vector<double> y = record.response;
+  const int differences = kind == ResponseKind::kDisplacement ? 2 : kind == ResponseKind::kVelocity ? 1 : 0;
+  for (int k = 0; k < differences; ++k) {
+    for (size_t n = 0; n + 1 < y.size(); ++n) y[n] = y[n + 1] - y[n];
+    y.pop_back();
+  }
+  const std::vector<bool> impact = internal::ImpactSamples(y, internal::SecondDifferenceNoiseRms(y));
+  return std::find(impact.begin(), impact.end(), true) != impact.end();
+}
+
 double RmsOf(const std::vector<double>& v) {
   double sum = 0.0, mean = 0.0;
   for (double x : v) mean += x;
@@ -116,9 +131,7 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   internal::BroadbandFitOptions fit_options;
   fit_options.max_iterations = options.max_iterations;
   fit_options.max_seconds = options.max_refinement_seconds;
-  const std::vector<bool> quiet_impacts =
-      internal::ImpactSamples(quiet->response, internal::SecondDifferenceNoiseRms(quiet->response));
-  if (std::find(quiet_impacts.begin(), quiet_impacts.end(), true) == quiet_impacts.end()) {
+  if (!ShowsImpacts(*quiet, campaign.response)) {
     internal::ExtendedProblem linear_problem;
     linear_problem.base = linear;
     linear_problem.parameters = {
@@ -132,19 +145,15 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
 
   // 2. The stop, where a record shows impacts.
   for (const Recording* r : records)
-    if (options.model == FitModelKind::kPaper) {
-      const std::vector<bool> impact =
-          internal::ImpactSamples(r->response, internal::SecondDifferenceNoiseRms(r->response));
-      out.stop_free = out.stop_free || std::find(impact.begin(), impact.end(), true) != impact.end();
-    }
+    out.stop_free = out.stop_free || (options.model == FitModelKind::kPaper && ShowsImpacts(*r, campaign.response));
 
   // 3. The problem and the fit.
   internal::ExtendedProblem problem;
   problem.base = PaperModel();
   problem.base.mass_kg = options.mass_kg;
-  if (options.model == FitModelKind::kLinear || !out.stop_free) problem.base.lower_stop_m = ActuatorModel::kNoLowerStop;
   auto problem_from = [&](double stop_factor) {
     internal::ExtendedProblem p = problem;
+    if (!out.stop_free) p.base.lower_stop_m = ActuatorModel::kNoLowerStop;
     auto add = [&](const char* name, const char* unit, double ActuatorModel::*field, double start, double range) {
       p.parameters.push_back(LogParameter(name, unit, field, start, range));
     };
@@ -159,14 +168,28 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   };
   // The impacts make the misfit rugged in d (broadband_fit.h): a fit the records reject is tried again
   // from the next of a few stop positions around the data sheet's, and the first the records accept,
-  // or else the one with the least chi-square, is the result.
+  // or else the one with the least chi-square, is the result. Without impacts seen, the stop is freed
+  // when the records reject the fit without it: a displacement record that grazes the stop by a few
+  // micrometres shows no impact in its differences, yet no stop-free model fits it.
   constexpr double kStopFactors[] = {1.0, 0.97, 1.03, 0.94, 1.06};
-  for (double factor : kStopFactors) {
+  for (size_t next = 0; next < std::size(kStopFactors); ++next) {
+    const double factor = kStopFactors[next];
+    // The starts share the fit's wall-time budget (options.max_refinement_seconds).
+    const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+    if (out.starts_tried > 0 && spent >= options.max_refinement_seconds) break;
+    fit_options.max_seconds = std::max(1.0, options.max_refinement_seconds - spent);
     internal::BroadbandFitResult trial = internal::FitBroadband(records, campaign.response, problem_from(factor), fit_options);
     ++out.starts_tried;
     const bool better = out.starts_tried == 1 || !(trial.fit.chi2 >= out.result.fit.chi2);
     if (better) out.result = std::move(trial);
-    if ((out.result.fit.converged && !out.result.rejected) || !out.stop_free) break;
+    const bool accepted = out.result.fit.converged && !out.result.rejected;
+    if (accepted) break;
+    if (!out.stop_free) {
+      if (options.model != FitModelKind::kPaper) break;
+      out.stop_free = true;
+      out.warnings.push_back("no record shows an impact, but the records reject the fit without the stop: it is fitted");
+      next = static_cast<size_t>(-1);  // from the data sheet's d again
+    }
   }
   if (options.model == FitModelKind::kPaper && !out.stop_free)
     out.warnings.push_back("no record shows an impact: the stop's position and stiffness cannot be fitted");

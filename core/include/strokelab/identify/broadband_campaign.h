@@ -7,8 +7,9 @@
 //      largest; a kinematic response's FRF is first turned into the blocked force's
 //      (EquivalentForceFrf). Where that record shows no impact, k_p, c_p, g are then fitted to its time
 //      series with the stop taken away (a linear model: one valley).
-//   2. The stop (paper model): free only when a record shows impacts (fourth differences of the response
-//      far out of its noise, broadband_fit.h); it starts at the data sheet's d and k_s (paper Table 2).
+//   2. The stop (paper model): free only when a record shows impacts (fourth differences of the response,
+//      or of its differences for velocity and displacement, far out of their noise; broadband_fit.h);
+//      it starts at the data sheet's d and k_s (paper Table 2).
 //   3. k_p, c_p, g, d (and k_s) fitted to every record's time series, m_p held at options.mass_kg. A fit
 //      the records reject (chi-square beyond its 1e-3 tail) is tried again from d 3 % and 6 % either
 //      side of the data sheet's; the first accepted, or the least chi-square, is the result.
