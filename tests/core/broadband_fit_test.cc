@@ -224,7 +224,7 @@ TEST(BroadbandFit, TheNoiseEstimateIsTheNoiseUnderASignalAndSpikes) {
   std::vector<double> y(8192);
   for (size_t n = 0; n < y.size(); ++n) y[n] = std::sin(2 * std::numbers::pi * 40.0 * n / 8192.0) + normal(random);
   for (size_t k = 0; k < 10; ++k) y[400 + 800 * k] += 5.0;
-  EXPECT_NEAR(internal::SecondDifferenceNoiseRms(y), 0.01, 3e-4);
+  EXPECT_NEAR(internal::FourthDifferenceNoiseRms(y), 0.01, 3e-4);
 }
 
 // The estimate's own spread, which the fit's rejection test counts (broadband_fit.cc's
@@ -236,7 +236,7 @@ TEST(BroadbandFit, TheNoiseEstimatesSpreadIsWhatTheRejectionTestCounts) {
   std::vector<double> y(8192), estimates;
   for (int draw = 0; draw < 400; ++draw) {
     for (double& v : y) v = normal(random);
-    estimates.push_back(internal::SecondDifferenceNoiseRms(y));
+    estimates.push_back(internal::FourthDifferenceNoiseRms(y));
   }
   double mean = 0.0, variance = 0.0;
   for (double e : estimates) mean += e / 400.0;

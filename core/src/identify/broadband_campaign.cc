@@ -73,7 +73,7 @@ bool ShowsImpacts(const Recording& record, ResponseKind kind) {
     for (size_t n = 0; n + 1 < y.size(); ++n) y[n] = y[n + 1] - y[n];
     y.pop_back();
   }
-  const std::vector<bool> impact = internal::ImpactSamples(y, internal::SecondDifferenceNoiseRms(y));
+  const std::vector<bool> impact = internal::ImpactSamples(y, internal::FourthDifferenceNoiseRms(y));
   return std::find(impact.begin(), impact.end(), true) != impact.end();
 }
 

@@ -24,7 +24,7 @@ namespace strokelab::internal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// n var(sigma_est / sigma) of SecondDifferenceNoiseRms on n samples of white Gaussian noise: 2.52, 2.61
+// n var(sigma_est / sigma) of FourthDifferenceNoiseRms on n samples of white Gaussian noise: 2.52, 2.61
 // and 2.41 at n = 2048, 8192 and 51200 (2000 draws each; the test checks it).
 constexpr double kNoiseEstimateVariance = 2.5;
 // The continuity residuals: a gap between segments of this fraction of the length scale costs one
@@ -352,10 +352,9 @@ std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int 
 
 }  // namespace
 
-double SecondDifferenceNoiseRms(std::span<const double> y) {
+double FourthDifferenceNoiseRms(std::span<const double> y) {
   // Fourth differences (1, -4, 6, -4, 1; noise variance 70 sigma^2): a signal at w is scaled by
-  // (2 sin(w / 2fs))^4, 1e-6 for a band at 1/50 of fs. The name keeps the idea: differences of a
-  // higher order than the signal's curvature.
+  // (2 sin(w / 2fs))^4, 2.5e-4 at a band edge of fs / 50 (second differences keep 1.6e-2 there).
   if (y.size() < 16) return kNaN;
   std::vector<double> d;
   d.reserve(y.size() - 4);
@@ -409,7 +408,7 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     for (double v : rec.response) power += v * v;
     const double rms = std::sqrt(power / static_cast<double>(rec.size()));
     // A noiseless (synthetic) record: weights as if its noise were 1e-9 of its rms.
-    data[r].sigma = std::max(SecondDifferenceNoiseRms(rec.response), 1e-9 * rms);
+    data[r].sigma = std::max(FourthDifferenceNoiseRms(rec.response), 1e-9 * rms);
     data[r].impact = ImpactSamples(rec.response, data[r].sigma);
     const size_t length = std::max<size_t>(8, static_cast<size_t>(std::llround(options.segment_s * rec.sample_rate_hz)));
     for (size_t first = 0; first < rec.size(); first += length) {

@@ -66,10 +66,10 @@ struct BroadbandFitResult {
   std::vector<BroadbandRecordFit> records;
 };
 
-// White-noise rms of a record's channel from its second differences, which remove a signal whose band
-// lies far below the sample rate: 1.4826 MAD(y[n+1] - 2 y[n] + y[n-1]) / sqrt(6) (the median absolute
-// deviation is blind to the few samples of an impact).
-double SecondDifferenceNoiseRms(std::span<const double> samples);
+// White-noise rms of a record's channel from its fourth differences, which remove a signal whose band
+// lies far below the sample rate: 1.4826 MAD(y[n-2] - 4 y[n-1] + 6 y[n] - 4 y[n+1] + y[n+2]) / sqrt(70)
+// (the median absolute deviation is blind to the few samples of an impact).
+double FourthDifferenceNoiseRms(std::span<const double> samples);
 
 // The samples of an impact: where the response's fourth difference stands out of its noise (70 sigma^2
 // for white noise of rms sigma) by more than 8 standard deviations, and the two samples either side.
