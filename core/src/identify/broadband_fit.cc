@@ -317,7 +317,7 @@ std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind
 // (J^T J)^-1 restricted to the first p columns, from the whole sparse Jacobian (the segments' states
 // and the nuisance parameters eliminated), by a sparse QR of J: J P = Q R, (J^T J)^-1 = P R^-1 R^-T P^T,
 // applied to the p unit vectors. Not the normal equations: the continuity rows weigh 1e6 times the
-// samples' and squaring J's condition lost the covariance in rounding. Empty when J is rank deficient.
+// samples', and the normal equations would square J's condition number. Empty when J is rank deficient.
 std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int p) {
   Eigen::SparseMatrix<double> j(crs.num_rows, crs.num_cols);
   std::vector<Eigen::Triplet<double>> entries;
