@@ -153,7 +153,10 @@ class FlowIntegrator {
     const variational::Layout& l = field_.layout();
     d_ = l.state_size;
     controlled_ = d_ * (1 + l.columns);
-    const double length_m = LengthScaleM(model), speed_m_per_s = length_m * 2.0 * std::numbers::pi / shortest_s;
+    // The speed scale: the length scale times the drive's angular frequency, or for a sampled drive
+    // (no frequency) the shortest period's.
+    const double omega = drive.sampled ? 2.0 * std::numbers::pi / shortest_s : drive.AngularFrequency();
+    const double length_m = LengthScaleM(model), speed_m_per_s = length_m * omega;
     const double state_tolerance[] = {options.absolute_tolerance_m, options.absolute_tolerance_m_per_s,
                                       options.absolute_tolerance_n};
     const double state_size[] = {length_m, speed_m_per_s, std::abs(model.gain_n_per_v) * drive.PeakV()};
