@@ -61,17 +61,6 @@ std::optional<FieldError> FiniteError(double value, const char* field, bool posi
   return std::nullopt;
 }
 
-// The response r in physical units from the state and the blocked force at one instant.
-double Response(ResponseKind kind, const ActuatorModel& model, double x_m, double v_m_per_s, double force_n) {
-  switch (kind) {
-    case ResponseKind::kForce: return force_n;
-    case ResponseKind::kAcceleration: return force_n / model.mass_kg;
-    case ResponseKind::kVelocity: return v_m_per_s;
-    case ResponseKind::kDisplacement: return x_m;
-  }
-  return 0.0;
-}
-
 // The samples first .. first + kept - 1 of a broadband record: the drive's samples over the whole
 // simulated span (0 .. total / fs, settling included) and the response there, from rest.
 struct BroadbandRun {
@@ -98,8 +87,7 @@ BroadbandRun SimulateBroadband(const ActuatorModel& model, const SynthOptions& o
   const FlowResult flow = Flow(model, drive, State{}, 0.0, static_cast<double>(total) / fs, request, flow_options);
   run.response.resize(flow.samples.size());
   for (size_t n = 0; n < flow.samples.size(); ++n)
-    run.response[n] = Response(options.response, model, flow.samples[n].x_m, flow.samples[n].v_m_per_s,
-                               flow.sample_force_n[n]);
+    run.response[n] = ResponseOf(options.response, model.mass_kg, flow.samples[n], flow.sample_force_n[n]);
   return run;
 }
 
@@ -255,9 +243,9 @@ Synthesis Synthesize(const ActuatorModel& nominal_model, const SynthOptions& opt
       MakeEngine(out.method)->Simulate(out.model, drive, simulation, &record);
       for (size_t n = 0; n < kept; ++n) {
         voltage[n] = drive.Voltage(static_cast<double>(first + n) / options.sample_rate_hz);
-        response[n] = Response(options.response, out.model, record.displacement_m[first + n],
-                               record.velocity_m_per_s.empty() ? 0.0 : record.velocity_m_per_s[first + n],
-                               record.force_n[first + n]);
+        const State y{record.displacement_m[first + n],
+                      record.velocity_m_per_s.empty() ? 0.0 : record.velocity_m_per_s[first + n]};
+        response[n] = ResponseOf(options.response, out.model.mass_kg, y, record.force_n[first + n]);
       }
       rec.nominal_frequency_hz = nominal_hz;
       rec.nominal_amplitude_v = drive.amplitude_v;

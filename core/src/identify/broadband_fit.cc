@@ -72,16 +72,7 @@ struct Segment {
   double T1(double fs) const { return static_cast<double>(last ? end - 1 : end) / fs; }
 };
 
-// The model's response of `kind` at sample n of a flow, and its slope per column c.
-double ResponseOf(const FlowResult& flow, ResponseKind kind, const ActuatorModel& m, size_t n) {
-  switch (kind) {
-    case ResponseKind::kForce: return flow.sample_force_n[n];
-    case ResponseKind::kAcceleration: return flow.sample_force_n[n] / m.mass_kg;
-    case ResponseKind::kVelocity: return flow.samples[n].v_m_per_s;
-    case ResponseKind::kDisplacement: return flow.samples[n].x_m;
-  }
-  return kNaN;
-}
+// The slope of the model's response of `kind` at sample n of a flow per column c (ResponseOf's).
 double ResponseSlope(const FlowResult& flow, ResponseKind kind, const ActuatorModel& m, size_t n, size_t columns,
                      size_t c, bool is_mass) {
   const double* s = &flow.sample_slopes[(n * columns + c) * 3];
@@ -142,7 +133,7 @@ class SegmentCost : public ceres::CostFunction {
     for (size_t i = 0; i < samples; ++i) {
       const size_t n = segment_.first + i;
       const double inverse_sigma = 1.0 / data_.sigma;
-      double predicted = ResponseOf(flow, kind_, model, i);
+      double predicted = ResponseOf(kind_, model.mass_kg, flow.samples[i], flow.sample_force_n[i]);
       for (int j = 0; j < kNuisance; ++j) predicted += nuisance[j] * NuisanceBasis(j, n, fs);
       residuals[i] = (record.response[n] - predicted) * inverse_sigma;
       if (!jacobians) continue;
@@ -307,7 +298,8 @@ std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind
       const size_t n = seg.first + i;
       for (int j = 0; j < kNuisance; ++j) basis(j) = NuisanceBasis(j, n, fs);
       normal += basis * basis.transpose();
-      right += basis * (data.record->response[n] - ResponseOf(flow, kind, model, i));
+      const double predicted = ResponseOf(kind, model.mass_kg, flow.samples[i], flow.sample_force_n[i]);
+      right += basis * (data.record->response[n] - predicted);
     }
   }
   const Eigen::VectorXd solution = normal.ldlt().solve(right);

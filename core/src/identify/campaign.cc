@@ -24,6 +24,16 @@ const char* UnitOf(ResponseKind kind) {
   return "";
 }
 
+double ResponseOf(ResponseKind kind, double mass_kg, const State& y, double force_n) {
+  switch (kind) {
+    case ResponseKind::kForce: return force_n;
+    case ResponseKind::kAcceleration: return force_n / mass_kg;
+    case ResponseKind::kVelocity: return y.v_m_per_s;
+    case ResponseKind::kDisplacement: return y.x_m;
+  }
+  return 0.0;
+}
+
 ResponseKind ParseResponseKind(const std::string& text) {
   if (text == "force") return ResponseKind::kForce;
   if (text == "acceleration") return ResponseKind::kAcceleration;

@@ -236,22 +236,7 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
     force_n = std::move(flow.sample_force_n);
   }
   std::vector<double> signal(states.size());
-  for (size_t n = 0; n < states.size(); ++n) {
-    switch (kind) {
-      case ResponseKind::kForce:
-        signal[n] = force_n[n];
-        break;
-      case ResponseKind::kAcceleration:
-        signal[n] = force_n[n] / model.mass_kg;
-        break;
-      case ResponseKind::kVelocity:
-        signal[n] = states[n].v_m_per_s;
-        break;
-      case ResponseKind::kDisplacement:
-        signal[n] = states[n].x_m;
-        break;
-    }
-  }
+  for (size_t n = 0; n < states.size(); ++n) signal[n] = ResponseOf(kind, model.mass_kg, states[n], force_n[n]);
   return signal;
 }
 

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/model/dynamics.h"
+
 namespace strokelab {
 
 // What the response channel measures (of the moving mass, or the blocked force).
@@ -13,6 +15,9 @@ enum class ResponseKind { kForce, kAcceleration, kVelocity, kDisplacement };
 const char* ToString(ResponseKind kind);
 const char* UnitOf(ResponseKind kind);  // of the response: "N", "m/s^2", "m/s", "m"
 ResponseKind ParseResponseKind(const std::string& text);  // "force", ...; throws InputError("channels")
+// The response of `kind` in physical units from the state and the blocked force f = m_p x'' at one
+// instant: f, f / m_p, v or x.
+double ResponseOf(ResponseKind kind, double mass_kg, const State& y, double force_n);
 
 struct Recording {
   std::string name;                   // the file it came from, for messages
