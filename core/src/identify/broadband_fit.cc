@@ -46,6 +46,14 @@ struct StateScale {
     unit[1] = length * omega;
     unit[2] = std::max(m.stiffness_n_per_m, 1.0) * length;
   }
+  // The state of the d scaled components `scaled`, and back.
+  State Unscaled(const double* scaled, int d) const {
+    return {scaled[0] * unit[0], scaled[1] * unit[1], d > 2 ? scaled[2] * unit[2] : 0.0};
+  }
+  void Scale(const State& y, int d, double* scaled) const {
+    const double values[3] = {y.x_m, y.v_m_per_s, y.coil_force_n};
+    for (int c = 0; c < d; ++c) scaled[c] = values[c] / unit[c];
+  }
 };
 
 // The offset and hum basis at sample n of a record sampled at fs: column j of kNuisance.
@@ -62,7 +70,6 @@ struct RecordData {
   double sigma = 1.0;
   std::vector<bool> impact;  // samples within 2 of a fourth difference beyond 8 of its noise level
 };
-
 
 struct Segment {
   size_t record = 0;
@@ -107,8 +114,7 @@ class SegmentCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
     const double* theta = parameters[0];
     const ActuatorModel model = problem_.Decode(theta);
-    const double* y0 = parameters[1];
-    const State start{y0[0] * scale_.unit[0], y0[1] * scale_.unit[1], d_ > 2 ? y0[2] * scale_.unit[2] : 0.0};
+    const State start = scale_.Unscaled(parameters[1], d_);
     const Recording& record = *data_.record;
     const double fs = record.sample_rate_hz;
     const size_t samples = segment_.end - segment_.first;
@@ -259,11 +265,10 @@ void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const R
     }
     FitStartOver(problem, kind, data, segments[s], scale, d, theta, nuisance, &start);
     // The next guess: this segment's end from its fitted start.
-    const State y0{start[0] * scale.unit[0], start[1] * scale.unit[1], d > 2 ? start[2] * scale.unit[2] : 0.0};
     try {
-      const State end = Flow(model, data.drive, y0, segments[s].T0(fs), static_cast<double>(segments[s].end) / fs, {}).end;
-      const double values[3] = {end.x_m, end.v_m_per_s, end.coil_force_n};
-      for (int c = 0; c < d; ++c) guess[c] = values[c] / scale.unit[c];
+      const double end_s = static_cast<double>(segments[s].end) / fs;
+      scale.Scale(Flow(model, data.drive, scale.Unscaled(start.data(), d), segments[s].T0(fs), end_s, {}).end, d,
+                  guess.data());
     } catch (const std::exception&) {
       std::fill(guess.begin(), guess.end(), 0.0);
     }
@@ -285,11 +290,10 @@ std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind
     request.sample_count = static_cast<int>(seg.end - seg.first);
     request.sample_start_s = seg.T0(fs);
     request.sample_interval_s = 1.0 / fs;
-    const State y0{starts[s][0] * scale.unit[0], starts[s][1] * scale.unit[1],
-                   d > 2 ? starts[s][2] * scale.unit[2] : 0.0};
     FlowResult flow;
     try {
-      flow = Flow(model, data.drive, y0, seg.T0(fs), static_cast<double>(seg.end - 1) / fs, request);
+      const double last_sample_s = static_cast<double>(seg.end - 1) / fs;
+      flow = Flow(model, data.drive, scale.Unscaled(starts[s].data(), d), seg.T0(fs), last_sample_s, request);
     } catch (const std::exception&) {
       continue;
     }
