@@ -131,13 +131,17 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   internal::BroadbandFitOptions fit_options;
   fit_options.max_iterations = options.max_iterations;
   fit_options.max_seconds = options.max_refinement_seconds;
+  // k_p, c_p and g, free within a factor 3 of `m`'s.
+  auto linear_parameters = [](const ActuatorModel& m) {
+    return std::vector<internal::FreeParameter>{
+        LogParameter("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, m.stiffness_n_per_m, 3.0),
+        LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, m.damping_n_s_per_m, 3.0),
+        LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, m.gain_n_per_v, 3.0)};
+  };
   if (!ShowsImpacts(*quiet, campaign.response)) {
     internal::ExtendedProblem linear_problem;
     linear_problem.base = linear;
-    linear_problem.parameters = {
-        LogParameter("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, linear.stiffness_n_per_m, 3.0),
-        LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, linear.damping_n_s_per_m, 3.0),
-        LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, linear.gain_n_per_v, 3.0)};
+    linear_problem.parameters = linear_parameters(linear);
     const std::vector<const Recording*> one = {quiet};
     const internal::BroadbandFitResult refined = internal::FitBroadband(one, campaign.response, linear_problem, fit_options);
     if (refined.fit.converged && !refined.rejected) linear = refined.fit.model;
@@ -154,15 +158,12 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   auto problem_from = [&](double stop_factor) {
     internal::ExtendedProblem p = problem;
     if (!out.stop_free) p.base.lower_stop_m = ActuatorModel::kNoLowerStop;
-    auto add = [&](const char* name, const char* unit, double ActuatorModel::*field, double start, double range) {
-      p.parameters.push_back(LogParameter(name, unit, field, start, range));
-    };
-    add("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, linear.stiffness_n_per_m, 3.0);
-    add("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, linear.damping_n_s_per_m, 3.0);
-    add("g", "N/V", &ActuatorModel::gain_n_per_v, linear.gain_n_per_v, 3.0);
+    p.parameters = linear_parameters(linear);
     if (options.model == FitModelKind::kPaper && out.stop_free) {
-      add("d", "m", &ActuatorModel::lower_stop_m, stop_factor * problem.base.lower_stop_m, 3.0);
-      add("k_s", "N/m", &ActuatorModel::contact_stiffness, problem.base.contact_stiffness, 30.0);
+      p.parameters.push_back(
+          LogParameter("d", "m", &ActuatorModel::lower_stop_m, stop_factor * problem.base.lower_stop_m, 3.0));
+      p.parameters.push_back(
+          LogParameter("k_s", "N/m", &ActuatorModel::contact_stiffness, problem.base.contact_stiffness, 30.0));
     }
     return p;
   };
