@@ -56,16 +56,13 @@ std::string Fixed(double value, int precision) {
   return buffer;
 }
 
-void PrintReport(const FitResult& r, std::ostream& out) {
-  out << "model " << ToString(r.model_kind) << ", " << ToString(r.response) << " response"
-      << (r.absolute_scale ? "" : " (sensitivity nominal: only ratios identifiable)") << ", " << r.records.size()
-      << " records, " << General(r.seconds, 3) << " s\n";
-  out << r.identifiability << "\n\n";
-
+// The parameter table: value, standard error ("-" for a fixed one), unit, and the note, marked where
+// the parameter is fixed or not identifiable.
+void PrintParameters(const std::vector<FitParameter>& parameters, std::ostream& out) {
   char line[256];
   std::snprintf(line, sizeof line, "%-10s %14s %12s %9s  %s\n", "parameter", "value", "std. error", "unit", "note");
   out << line;
-  for (const FitParameter& p : r.parameters) {
+  for (const FitParameter& p : parameters) {
     std::string note = p.note;
     if (p.fixed) note = "fixed: " + note;
     if (!p.identifiable) note = "NOT IDENTIFIABLE: " + note;
@@ -73,6 +70,16 @@ void PrintReport(const FitResult& r, std::ostream& out) {
                   p.fixed ? "-" : General(p.standard_error, 3).c_str(), p.unit.c_str(), note.c_str());
     out << line;
   }
+}
+
+void PrintReport(const FitResult& r, std::ostream& out) {
+  out << "model " << ToString(r.model_kind) << ", " << ToString(r.response) << " response"
+      << (r.absolute_scale ? "" : " (sensitivity nominal: only ratios identifiable)") << ", " << r.records.size()
+      << " records, " << General(r.seconds, 3) << " s\n";
+  out << r.identifiability << "\n\n";
+
+  PrintParameters(r.parameters, out);
+  char line[256];
 
   const FrfFitSummary& l = r.linear.summary;
   out << "\nstage 2, paper Eq. 3 on " << r.linear.records.size() << " clear records: k_p "
@@ -125,15 +132,8 @@ void PrintBroadbandReport(const BroadbandCampaignFit& fit, std::ostream& out) {
   out << (r.converged ? "converged" : "NOT CONVERGED") << (fit.result.rejected ? ", REJECTED by the records" : "")
       << ": chi-square " << General(r.chi2, 6) << " over " << r.residuals << " samples, residual variance "
       << General(r.residual_variance, 3) << " (1: noise only), " << r.iterations << " iterations\n\n";
+  PrintParameters(r.parameters, out);
   char line[256];
-  std::snprintf(line, sizeof line, "%-10s %14s %12s %9s  %s\n", "parameter", "value", "std. error", "unit", "note");
-  out << line;
-  for (const FitParameter& p : r.parameters) {
-    const std::string note = p.identifiable ? p.note : "NOT IDENTIFIABLE " + p.note;
-    std::snprintf(line, sizeof line, "%-10s %14s %12s %9s  %s\n", p.name.c_str(), General(p.value, 8).c_str(),
-                  General(p.standard_error, 3).c_str(), p.unit.c_str(), note.c_str());
-    out << line;
-  }
   const FrfFitSummary& l = fit.linear_start;
   out << "\nstart: paper Eq. 3 on " << fit.start_record << "'s FRF: k_p " << General(l.stiffness_n_per_m, 6)
       << " N/m, c_p " << General(l.damping_n_s_per_m, 6) << " N s/m, g " << General(l.gain_n_per_v, 6) << " N/V"
