@@ -10,6 +10,7 @@
 #include <unsupported/Eigen/FFT>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/signal/signal.h"
 #include "strokelab/base/json_number.h"
 
 namespace strokelab {
@@ -17,10 +18,25 @@ namespace {
 
 using internal::LogParameter;
 
-// The H1 estimate S_yu / S_uu of one record over one Hann window of the whole record (the finest
-// resolution: a lightly damped resonance is a few tenths of a hertz wide), at the frequencies where the
-// drive's power is within 20 dB of its largest (at most ~200 of them, evenly taken).
-std::vector<FrfSample> WholeRecordFrf(const Recording& record) {
+// Whether a record shows impacts: ImpactSamples on its response turned into the blocked force's shape.
+// An impact is a spike of force and acceleration, a kink of velocity and a corner of displacement; the
+// spike shows in the differences of a kinematic response (one for velocity, two for displacement),
+// whose own noise level the detection then measures.
+bool ShowsImpacts(const Recording& record, ResponseKind kind) {
+  std::vector<double> y = record.response;
+  const int differences = kind == ResponseKind::kDisplacement ? 2 : kind == ResponseKind::kVelocity ? 1 : 0;
+  for (int k = 0; k < differences; ++k) {
+    for (size_t n = 0; n + 1 < y.size(); ++n) y[n] = y[n + 1] - y[n];
+    y.pop_back();
+  }
+  const std::vector<bool> impact = internal::ImpactSamples(y, internal::FourthDifferenceNoiseRms(y));
+  return std::find(impact.begin(), impact.end(), true) != impact.end();
+}
+
+
+}  // namespace
+
+std::vector<FrfSample> BroadbandFrf(const Recording& record) {
   const size_t n = record.size();
   const size_t length = n;
   if (n < 256) throw InputError(record.name, "is too short for a spectral estimate (fewer than 256 samples)");
@@ -62,31 +78,6 @@ std::vector<FrfSample> WholeRecordFrf(const Recording& record) {
   return samples;
 }
 
-// Whether a record shows impacts: ImpactSamples on its response turned into the blocked force's shape.
-// An impact is a spike of force and acceleration, a kink of velocity and a corner of displacement; the
-// spike shows in the differences of a kinematic response (one for velocity, two for displacement),
-// whose own noise level the detection then measures.
-bool ShowsImpacts(const Recording& record, ResponseKind kind) {
-  std::vector<double> y = record.response;
-  const int differences = kind == ResponseKind::kDisplacement ? 2 : kind == ResponseKind::kVelocity ? 1 : 0;
-  for (int k = 0; k < differences; ++k) {
-    for (size_t n = 0; n + 1 < y.size(); ++n) y[n] = y[n + 1] - y[n];
-    y.pop_back();
-  }
-  const std::vector<bool> impact = internal::ImpactSamples(y, internal::FourthDifferenceNoiseRms(y));
-  return std::find(impact.begin(), impact.end(), true) != impact.end();
-}
-
-double RmsOf(const std::vector<double>& v) {
-  double sum = 0.0, mean = 0.0;
-  for (double x : v) mean += x;
-  mean /= static_cast<double>(v.size());
-  for (double x : v) sum += (x - mean) * (x - mean);
-  return std::sqrt(sum / static_cast<double>(v.size()));
-}
-
-}  // namespace
-
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options) {
   const auto clock_start = std::chrono::steady_clock::now();
   Validate(options);
@@ -103,10 +94,10 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
 
   // 1. The linear start from the record with the smallest drive.
   const Recording* quiet = *std::min_element(records.begin(), records.end(), [](const Recording* a, const Recording* b) {
-    return RmsOf(a->voltage_v) < RmsOf(b->voltage_v);
+    return RmsAboutMean(a->voltage_v) < RmsAboutMean(b->voltage_v);
   });
   out.start_record = quiet->name;
-  std::vector<FrfSample> frf = WholeRecordFrf(*quiet);
+  std::vector<FrfSample> frf = BroadbandFrf(*quiet);
   for (FrfSample& s : frf) s.h = EquivalentForceFrf(s.h, campaign.response, s.frequency_hz, options.mass_kg);
   FrfFitOptions frf_options;
   frf_options.mass_kg = options.mass_kg;

@@ -24,9 +24,6 @@ namespace strokelab::internal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// n var(sigma_est / sigma) of FourthDifferenceNoiseRms on n samples of white Gaussian noise: 2.52, 2.61
-// and 2.41 at n = 2048, 8192 and 51200 (2000 draws each; the test checks it).
-constexpr double kNoiseEstimateVariance = 2.5;
 // The continuity residuals: a gap between segments of this fraction of the length scale costs one
 // noise standard error. The fit tightens it in steps (a penalty continuation): from a start model that
 // misses the records, the segments' ends lie far from the next starts, and at the final weight alone
@@ -202,6 +199,16 @@ void BoundStart(ceres::Problem* problem, double* start, int d) {
   }
 }
 
+// k_p as the one parameter of a problem whose parameters are all held (theta = 1 is its value).
+FreeParameter HeldStiffness(const ActuatorModel& model) {
+  FreeParameter held;
+  held.name = "k_p";
+  held.unit = "N/m";
+  held.field = &ActuatorModel::stiffness_n_per_m;
+  held.start = model.stiffness_n_per_m;
+  return held;
+}
+
 // The start state (scaled) that fits samples [first, end) of `data` best at the model of `problem`
 // at theta, from *start: Levenberg-Marquardt over the d start components alone (theta and the
 // record's offset and hum held).
@@ -240,10 +247,7 @@ void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const R
   stop_free.base = model;
   stop_free.base.lower_stop_m = ActuatorModel::kNoLowerStop;
   stop_free.base.upper_stop_m = ActuatorModel::kNoUpperStop;
-  FreeParameter held;  // a block of one parameter, held at its start value (theta = 1)
-  held.field = &ActuatorModel::stiffness_n_per_m;
-  held.start = model.stiffness_n_per_m;
-  stop_free.parameters = {held};
+  stop_free.parameters = {HeldStiffness(model)};
   std::vector<double> held_theta = {1.0};
   const double fs = data.record->sample_rate_hz;
   std::vector<double> guess(d, 0.0);
@@ -275,6 +279,17 @@ void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const R
   }
 }
 
+// The model's motion over a segment from `start`, sampled at the segment's samples (no sensitivities).
+// Throws as Flow.
+FlowResult SegmentMotion(const ActuatorModel& model, const RecordData& data, const Segment& seg, const State& start) {
+  const double fs = data.record->sample_rate_hz;
+  FlowRequest request;
+  request.sample_count = static_cast<int>(seg.end - seg.first);
+  request.sample_start_s = seg.T0(fs);
+  request.sample_interval_s = 1.0 / fs;
+  return Flow(model, data.drive, start, seg.T0(fs), static_cast<double>(seg.end - 1) / fs, request);
+}
+
 // The offset and hum (kNuisance) that best fit the residual of the model's motion from each segment's
 // start, by linear least squares over the record.
 std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind kind, const RecordData& data,
@@ -286,14 +301,9 @@ std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind
   for (size_t s = 0; s < segments.size(); ++s) {
     const Segment& seg = segments[s];
     if (seg.record != record) continue;
-    FlowRequest request;
-    request.sample_count = static_cast<int>(seg.end - seg.first);
-    request.sample_start_s = seg.T0(fs);
-    request.sample_interval_s = 1.0 / fs;
     FlowResult flow;
     try {
-      const double last_sample_s = static_cast<double>(seg.end - 1) / fs;
-      flow = Flow(model, data.drive, scale.Unscaled(starts[s].data(), d), seg.T0(fs), last_sample_s, request);
+      flow = SegmentMotion(model, data, seg, scale.Unscaled(starts[s].data(), d));
     } catch (const std::exception&) {
       continue;
     }
@@ -308,6 +318,27 @@ std::vector<double> NuisanceOfResiduals(const ActuatorModel& model, ResponseKind
   }
   const Eigen::VectorXd solution = normal.ldlt().solve(right);
   return std::vector<double>(solution.data(), solution.data() + kNuisance);
+}
+
+// BroadbandRecordFit's series over one segment (samples [first, end) of `out`'s vectors, which hold the
+// whole record): the model's motion from the segment's start, and the residual after offset and hum.
+void SegmentSeries(const ActuatorModel& model, ResponseKind kind, const RecordData& data, const Segment& seg,
+                   const State& start, const std::vector<double>& nuisance, BroadbandRecordFit* out) {
+  const double fs = data.record->sample_rate_hz;
+  FlowResult flow;
+  try {
+    flow = SegmentMotion(model, data, seg, start);
+  } catch (const std::exception&) {
+    return;  // the series stay NaN there
+  }
+  for (size_t i = 0; i < seg.end - seg.first; ++i) {
+    const size_t n = seg.first + i;
+    double predicted = ResponseOf(kind, model.mass_kg, flow.samples[i], flow.sample_force_n[i]);
+    for (int j = 0; j < kNuisance; ++j) predicted += nuisance[j] * NuisanceBasis(j, n, fs);
+    out->residual[n] = data.record->response[n] - predicted;
+    out->x_m[n] = flow.samples[i].x_m;
+    out->v_m_per_s[n] = flow.samples[i].v_m_per_s;
+  }
 }
 
 // (J^T J)^-1 restricted to the first p columns, from the whole sparse Jacobian (the segments' states
@@ -374,13 +405,18 @@ std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
 }
 
 BroadbandFitResult FitBroadband(std::span<const Recording* const> records, ResponseKind kind,
-                                const ExtendedProblem& problem, const BroadbandFitOptions& options) {
+                                const ExtendedProblem& requested, const BroadbandFitOptions& options) {
   const auto clock_start = std::chrono::steady_clock::now();
   if (!(options.segment_s > 0) || !std::isfinite(options.segment_s))
     throw InputError("segment_s", "must be a finite number > 0");
   if (options.max_iterations < 1) throw InputError("max_iterations", "must be >= 1");
   if (records.empty()) throw InputError("records", "no broadband record to fit");
-  Validate(problem.base);
+  Validate(requested.base);
+  // An evaluation (no free parameter): Ceres takes no empty parameter block, so the costs get one that
+  // is held constant.
+  const bool evaluation = requested.parameters.empty();
+  ExtendedProblem problem = requested;
+  if (evaluation) problem.parameters = {HeldStiffness(requested.base)};
   const int p = static_cast<int>(problem.parameters.size());
   const int d = problem.base.StateSize();
   std::vector<double> theta(p, 1.0);
@@ -425,7 +461,15 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   // The starts are fitted twice: with the offset at the response's mean and no hum, then with the
   // offset and hum that the first starts' residuals show (over a short window, hum of a few noise
   // levels is a misfit the start would otherwise take up).
-  ParallelFor(records.size(), [&](size_t r) {
+  const BroadbandFitResult* warm = options.warm_start;
+  if (warm && (warm->segment_starts.size() != segments.size() || warm->nuisance.size() != records.size()))
+    throw InputError("warm_start", "is a fit of other records or segments (" + std::to_string(warm->segment_starts.size()) +
+                                       " segments, this fit has " + std::to_string(segments.size()) + ")");
+  if (warm) {
+    for (size_t s = 0; s < segments.size(); ++s) scale.Scale(warm->segment_starts[s], d, starts[s].data());
+    nuisance = warm->nuisance;
+  }
+  if (!warm) ParallelFor(records.size(), [&](size_t r) {
     double mean = 0.0;
     for (double v : records[r]->response) mean += v;
     nuisance[r][0] = mean / static_cast<double>(records[r]->size());
@@ -441,6 +485,7 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     solver_problem.SetParameterLowerBound(theta.data(), i, problem.parameters[i].theta_min);
     solver_problem.SetParameterUpperBound(theta.data(), i, problem.parameters[i].theta_max);
   }
+  if (evaluation) solver_problem.SetParameterBlockConstant(theta.data());
   std::vector<ceres::ResidualBlockId> blocks;
   double continuity_gap = kContinuityGaps[0];
   for (size_t s = 0; s < segments.size(); ++s) {
@@ -483,8 +528,9 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   if (options.threads > 0) solver.num_threads = options.threads;
   ceres::Solver::Summary summary;
   int iterations = 0;
-  for (double gap : kContinuityGaps) {
-    continuity_gap = gap;
+  // A warm start's gaps are closed already: its fit starts at the final weight.
+  for (size_t g = warm ? std::size(kContinuityGaps) - 1 : 0; g < std::size(kContinuityGaps); ++g) {
+    continuity_gap = kContinuityGaps[g];
     solver.max_solver_time_in_seconds = std::max(
         1.0, options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count());
     ceres::Solve(solver, &solver_problem, &summary);
@@ -506,24 +552,27 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   for (double c : chi2) fit.chi2 += c;
   // Degrees of freedom: the samples less the model's parameters, one start state per record (the
   // continuity rows tie the other segments' starts) and the nuisance.
-  const double dof = static_cast<double>(samples) - p - static_cast<double>(records.size()) * (d + kNuisance);
+  const int free_parameters = evaluation ? 0 : p;
+  const double dof =
+      static_cast<double>(samples) - free_parameters - static_cast<double>(records.size()) * (d + kNuisance);
   fit.residual_variance = fit.chi2 / dof;
   fit.report = summary.BriefReport();
   bool converged = summary.termination_type == ceres::CONVERGENCE && std::isfinite(fit.chi2);
 
-  fit.covariance.assign(static_cast<size_t>(p) * p, kNaN);
+  fit.covariance.assign(static_cast<size_t>(free_parameters) * free_parameters, kNaN);
   ceres::CRSMatrix crs;
   ceres::Problem::EvaluateOptions evaluate;
   evaluate.parameter_blocks.push_back(theta.data());
   for (auto& s : starts) evaluate.parameter_blocks.push_back(s.data());
   for (auto& q : nuisance) evaluate.parameter_blocks.push_back(q.data());
   std::optional<Eigen::MatrixXd> covariance;
-  if (solver_problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) covariance = ModelCovariance(crs, p);
-  if (!covariance) {
+  if (!evaluation && solver_problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs))
+    covariance = ModelCovariance(crs, p);
+  if (!covariance && !evaluation) {
     converged = false;
     fit.report += "\nNOT CONVERGED: the parameters are not all identifiable from these records (J^T J is singular)";
   }
-  for (int i = 0; i < p; ++i) {
+  for (int i = 0; i < free_parameters; ++i) {
     const FreeParameter& fp = problem.parameters[i];
     FitParameter parameter =
         fp.Reported(theta[i], covariance ? (*covariance)(i, i) * fit.residual_variance : kNaN);
@@ -551,6 +600,8 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   }
   constexpr double kUpperTail1e3 = 3.0902;  // the standard normal's 1e-3 upper quantile
   const double limit = dof * (1.0 + kUpperTail1e3 * std::sqrt(variance));
+  out.dof = dof;
+  out.chi2_limit = limit;
   out.rejected = !(fit.chi2 <= limit);
   if (out.rejected) {
     char line[200];
@@ -576,6 +627,20 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     f.segments = static_cast<size_t>(std::count_if(segments.begin(), segments.end(),
                                                    [r](const Segment& s) { return s.record == r; }));
     out.records.push_back(f);
+  }
+  for (size_t s = 0; s < segments.size(); ++s) out.segment_starts.push_back(scale.Unscaled(starts[s].data(), d));
+  out.nuisance = nuisance;
+  if (options.keep_series) {
+    for (size_t r = 0; r < records.size(); ++r) {
+      BroadbandRecordFit& f = out.records[r];
+      f.residual.assign(records[r]->size(), kNaN);
+      f.x_m = f.v_m_per_s = f.residual;
+    }
+    ParallelFor(segments.size(), [&](size_t s) {
+      const Segment& seg = segments[s];
+      SegmentSeries(fit.model, kind, data[seg.record], seg, scale.Unscaled(starts[s].data(), d), nuisance[seg.record],
+                    &out.records[seg.record]);
+    });
   }
   fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return out;

@@ -66,4 +66,12 @@ Spectrum HannSpectrum(std::span<const double> signal, double sample_rate_hz) {
   return spectrum;
 }
 
+double RmsAboutMean(std::span<const double> signal) {
+  double sum = 0.0, mean = 0.0;
+  for (double x : signal) mean += x;
+  mean /= static_cast<double>(signal.size());
+  for (double x : signal) sum += (x - mean) * (x - mean);
+  return std::sqrt(sum / static_cast<double>(signal.size()));
+}
+
 }  // namespace strokelab

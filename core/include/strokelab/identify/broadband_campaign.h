@@ -36,6 +36,12 @@ struct BroadbandCampaignFit {
   double seconds = 0.0;  // wall time of the whole fit, every start included [s]
 };
 
+// The H1 estimate S_yu / S_uu of one record over one Hann window of the whole record (the finest
+// resolution: a lightly damped resonance is a few tenths of a hertz wide), at the frequencies where the
+// drive's power is within 20 dB of its largest (at most ~200 of them, evenly taken): the drive's band.
+// Throws InputError naming a record of fewer than 256 samples.
+std::vector<FrfSample> BroadbandFrf(const Recording& record);
+
 // Throws InputError for a campaign without broadband records, bad options, or bad records (named).
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options);
 

@@ -39,11 +39,21 @@
 
 namespace strokelab::internal {
 
+struct BroadbandFitResult;
+
 struct BroadbandFitOptions {
   double segment_s = 0.25;     // shooting segment length [s]; a record shorter than one is one segment
   int max_iterations = 100;    // Ceres iterations
   double max_seconds = 120.0;  // wall time [s]
   int threads = 0;             // Ceres' evaluation threads; 0: one per core
+  // Keep each record's residual and the model's state at every sample (BroadbandRecordFit's series):
+  // the diagnosis's signatures and held-out figures read them.
+  bool keep_series = false;
+  // A fit of the same records with the same segment_s whose segment starts, offsets and hum this fit
+  // starts from, at its final continuity weight (may be null). From a model that the warm start's
+  // fitted, the misfit can then only go down: where the records hold impacts, starts fitted afresh at
+  // another model can settle in a valley of their own (an impact missed or made up).
+  const BroadbandFitResult* warm_start = nullptr;
 };
 
 // How the fitted model matches one record.
@@ -56,6 +66,9 @@ struct BroadbandRecordFit {
   double nrmse = 0.0;          // the same at the fitted model
   double chi2_per_sample = 0.0;  // sum (residual / sigma)^2 / samples: ~1 when only noise remains
   size_t segments = 0;
+  // With BroadbandFitOptions::keep_series, per sample at the fitted unknowns: the residual y - offset -
+  // hum - r [response units], and the model's displacement and velocity.
+  std::vector<double> residual, x_m, v_m_per_s;
 };
 
 struct BroadbandFitResult {
@@ -63,8 +76,18 @@ struct BroadbandFitResult {
   // The records reject the fitted model: chi-square beyond its 1e-3 upper tail, the spread of the noise
   // levels it is scaled by included (the report says so).
   bool rejected = false;
+  double dof = 0.0;         // the samples less every fitted unknown that is not tied by continuity
+  double chi2_limit = 0.0;  // rejected beyond it: that 1e-3 tail
   std::vector<BroadbandRecordFit> records;
+  // The fitted unknowns besides the parameters (BroadbandFitOptions::warm_start): every segment's start
+  // state, records in order, and each record's offset and hum.
+  std::vector<State> segment_starts;
+  std::vector<std::vector<double>> nuisance;
 };
+
+// n var(sigma_est / sigma) of FourthDifferenceNoiseRms on n samples of white Gaussian noise: 2.52, 2.61
+// and 2.41 at n = 2048, 8192 and 51200 (2000 draws each; the test checks it).
+inline constexpr double kNoiseEstimateVariance = 2.5;
 
 // White-noise rms of a record's channel from its fourth differences, which remove a signal whose band
 // lies far below the sample rate: 1.4826 MAD(y[n-2] - 4 y[n-1] + 6 y[n] - 4 y[n+1] + y[n+2]) / sqrt(70)
@@ -75,7 +98,9 @@ double FourthDifferenceNoiseRms(std::span<const double> samples);
 // for white noise of rms sigma) by more than 8 standard deviations, and the two samples either side.
 std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
 
-// Fits problem.parameters to the broadband `records` of a campaign whose response is of `kind`.
+// Fits problem.parameters to the broadband `records` of a campaign whose response is of `kind`. With no
+// free parameters it evaluates problem.base: only the segments' starts, offsets and hum are fitted (the
+// diagnosis's held-out records), and the result's parameters and covariance are empty.
 // Throws InputError naming a record that is not broadband, too short (fewer than 16 samples) or not
 // finite, or bad options.
 BroadbandFitResult FitBroadband(std::span<const Recording* const> records, ResponseKind kind,

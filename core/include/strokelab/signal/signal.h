@@ -46,6 +46,9 @@ struct Spectrum {
 };
 Spectrum HannSpectrum(std::span<const double> signal, double sample_rate_hz);
 
+// The root mean square of a signal about its mean (a record's level with its offset taken out).
+double RmsAboutMean(std::span<const double> signal);
+
 // A force spike left by an impact on a stop.
 struct Spike {
   size_t peak_index = 0;
