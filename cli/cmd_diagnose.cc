@@ -1,5 +1,6 @@
 // strokelab diagnose: where a fitted model misses a campaign and which physics it left out
 // (core/include/strokelab/diagnose.h).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "diagnose_print.h"
 #include "format.h"
 #include "option_flags.h"
 #include "strokelab/diagnose/diagnose.h"
@@ -34,6 +36,14 @@ the residual around impacts), fits the base model extended by each candidate eff
 quadratic_stiffness, hertzian_contact, contact_damping, second_stop, dry_friction,
 amplifier_saturation, quadratic_damping, force_factor, and with --coil-inductance coil_inductance)
 and names the ones that improve the held-out records beyond noise, or says "nothing missing".
+
+A campaign of broadband records only (noise, multisine, sweep) is diagnosed by the records' time
+series instead (as strokelab fit fits them): the last 1/N of each record (--heldout-every N) is held
+out, the candidates are fitted to the first parts, and their held-out chi-square is the held-out
+parts' at the fitted model (each part's start, offset and hum fitted). The choice, the thresholds and
+the "unexplained" verdict are the same; the evidence is where the base model's residual stands out
+(far out in displacement, slow, fast, near contacts), its spectrum and its coherence with the drive.
+--out writes diagnosis.json and model.json only (no HTML report or maps yet).
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper | linear                                             [paper]
@@ -99,34 +109,9 @@ void PrintReport(const Diagnosis& d, std::ostream& out) {
   out << "normalised RMS error (harmonics 1..N): before " << General(d.fit_before.nrmse, 4) << ", after "
       << General(d.fit_after.nrmse, 4) << "; held-out records (" << d.heldout.size() << "): before "
       << General(d.fit_before.heldout_nrmse, 4) << ", after " << General(d.fit_after.heldout_nrmse, 4) << "\n";
-  if (d.chosen >= 0) {
-    const CandidateFit& chosen = d.candidates[d.chosen];
-    out << "\nfitted parameters of " << chosen.label
-        << (chosen.converged ? "" : " (the fit did NOT converge: the standard errors understate the uncertainty)")
-        << ":\n";
-    for (const FitParameter& p : chosen.parameters)
-      out << "  " << p.name << " = " << General(p.value, 6) << " +- " << General(p.standard_error, 3) << " " << p.unit
-          << (p.note.empty() ? "" : "  (" + p.note + ")") << "\n";
-  }
-  out << "\ncandidates (held-out gain in residual variances; named when > the threshold):\n";
-  char line[256];
-  std::snprintf(line, sizeof line, "  %-42s %12s %12s %10s %10s %8s\n", "candidate", "heldout gain", "fit gain",
-                "nrmse", "held out", "seconds");
-  out << line;
-  for (const CandidateFit& c : d.candidates) {
-    std::snprintf(line, sizeof line, "  %-42s %12s %12s %10s %10s %8s\n", c.label.c_str(),
-                  General(c.heldout_gain, 4).c_str(), General(c.fit_gain, 4).c_str(), General(c.figures.nrmse, 4).c_str(),
-                  General(c.figures.heldout_nrmse, 4).c_str(), General(c.seconds, 3).c_str());
-    out << line;
-    if (!c.note.empty() && !c.fitted) out << "    " << c.note << "\n";
-    if (!c.decision.empty()) out << "    " << c.decision << "\n";
-  }
-  out << "\nevidence:\n";
-  for (const Evidence& e : d.signatures.evidence) {
-    std::string points;
-    for (Effect effect : e.points_to) points += (points.empty() ? "" : ", ") + std::string(Info(effect).id);
-    out << "  [" << e.kind << "] " << e.summary << (points.empty() ? "" : "  -> " + points) << "\n";
-  }
+  if (d.chosen >= 0) PrintChosenParameters(d.candidates[d.chosen], out);
+  PrintCandidates(d.candidates, out);
+  PrintEvidence(d.signatures.evidence, out);
   out << "\nworst records of the base model:\n";
   for (const auto& h : d.signatures.hotspots)
     out << "  " << h.record << " (" << General(h.frequency_hz, 4) << " Hz, " << General(h.amplitude_v, 4) << " V): chi2/residual "
@@ -179,6 +164,25 @@ void PrintMaps(const report::DiagnosisMaps& maps, std::ostream& out) {
     out << "  " << report::ThresholdShiftSummary(report::ThresholdShifts(*maps.base, *maps.diagnosed)) << "\n";
 }
 
+// A campaign of broadband records only: diagnose/broadband_diagnose.h. --out gets diagnosis.json and
+// model.json (the HTML report and its maps are the stepped-sine diagnosis's so far).
+int RunBroadbandDiagnose(const Campaign& campaign, const DiagnoseOptions& options, const Args& args) {
+  const BroadbandDiagnosis diagnosis = DiagnoseBroadbandCampaign(campaign, options);
+  const nlohmann::json json = BroadbandDiagnosisToJson(diagnosis);
+  if (const auto out = args.Get("--out")) {
+    std::filesystem::create_directories(*out);
+    for (const auto& [name, content] : {std::pair{"diagnosis.json", json}, std::pair{"model.json", json["model"]}}) {
+      const std::filesystem::path path = std::filesystem::path(*out) / name;
+      std::ofstream file(path);
+      file << content.dump(2) << "\n";
+      if (!file) throw InputError("--out", "cannot write " + path.string());
+    }
+  }
+  if (args.Has("--json")) std::cout << json.dump(2) << "\n";
+  else PrintBroadbandDiagnosis(diagnosis, std::cout);
+  return 0;
+}
+
 }  // namespace
 
 int RunDiagnose(const std::vector<std::string>& argv) {
@@ -205,6 +209,9 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   if (args.Has("--progress")) options.progress = [printer](const ProgressStage& stage) { (*printer)(stage); };
 
   const Campaign campaign = ReadCampaign(*data);
+  const bool broadband = std::none_of(campaign.records.begin(), campaign.records.end(),
+                                      [](const Recording& r) { return !r.broadband; });
+  if (broadband) return RunBroadbandDiagnose(campaign, options, args);
   const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
   const nlohmann::json json = DiagnosisToJson(diagnosis);
   std::optional<report::DiagnosisMaps> maps;

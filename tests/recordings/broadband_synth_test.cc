@@ -8,6 +8,7 @@
 #include <cmath>
 #include <complex>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
@@ -21,6 +22,7 @@
 #include "strokelab/data/synth.h"
 #include "strokelab/model/linear_response.h"
 #include "strokelab/model/model.h"
+#include "strokelab/model/model_json.h"
 
 #include "recordings_test_util.h"
 
@@ -279,6 +281,33 @@ TEST(FitCli, FitsABroadbandCampaignByItsTimeSeries) {
               4.0 * result["parameters"]["k_p"]["standard_error"].get<double>());
   EXPECT_FALSE(result["parameters"].contains("d"));
   fs::remove_all(dir);
+}
+
+// `strokelab diagnose` on a broadband campaign diagnoses it by its time series: the text report and the
+// JSON say so, and --out writes the diagnosis and the diagnosed model as a model file. (A time limit of
+// 1 s skips the candidates: the diagnosis itself is broadband_diagnose_test.cc's.)
+TEST(DiagnoseCli, DiagnosesABroadbandCampaignByItsTimeSeries) {
+  const fs::path dir = recordings_test::TempDir("diagnose_broadband");
+  const fs::path out = recordings_test::TempDir("diagnose_broadband_out");
+  const auto synth = testing::RunCli("synth --out " + dir.string() +
+                                     " --excitation multisine --levels-v-rms 0.1,0.2 --duration-s 1 --settle-s 2"
+                                     " --sample-rate-hz 8192 --noise-rms 2e-4 --seed 13");
+  ASSERT_EQ(synth.exit_code, 0) << synth.stderr_text;
+  const auto text = testing::RunCli("diagnose --max-seconds 1 --data " + dir.string() + " --out " + out.string());
+  ASSERT_EQ(text.exit_code, 0) << text.stderr_text;
+  EXPECT_THAT(text.stdout_text, HasSubstr("normalised RMS error of the time series"));
+  EXPECT_THAT(text.stdout_text, HasSubstr("held-out parts (1/4 of each record"));
+  EXPECT_THAT(text.stdout_text, HasSubstr("skipped: the diagnosis's time limit"));
+  const nlohmann::json model = nlohmann::json::parse(std::ifstream(out / "model.json"));
+  EXPECT_NEAR(ModelFromJson(model).stiffness_n_per_m, PaperModel().stiffness_n_per_m,
+              0.05 * PaperModel().stiffness_n_per_m);  // a model file, with the fitted k_p
+  const nlohmann::json result = nlohmann::json::parse(std::ifstream(out / "diagnosis.json"));
+  EXPECT_EQ(result["kind"], "broadband");
+  EXPECT_EQ(result["model"], model);
+  EXPECT_EQ(result["records"].size(), 2u);
+  EXPECT_GT(result["heldout_dof"].get<double>(), 0.0);
+  fs::remove_all(dir);
+  fs::remove_all(out);
 }
 
 }  // namespace

@@ -25,7 +25,6 @@ using internal::ExtendedFitResult;
 using internal::ExtendedProblem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kAkaikePerParameter = 2.0;  // AIC: 2 per parameter on the fit records
 // Grid points per axis of the report's maps: a smooth model's sweep costs ~0.1 s per point today.
 constexpr int kMaxMapPoints = 400;
 
@@ -140,12 +139,6 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
   return c;
 }
 
-std::string Label(const std::vector<Effect>& effects) {
-  std::string label;
-  for (Effect e : effects) label += (label.empty() ? "" : "+") + std::string(Info(e).id);
-  return label;
-}
-
 struct Split {
   std::vector<bool> heldout;            // per analysis
   std::vector<size_t> heldout_indices;  // into the analyses
@@ -231,7 +224,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   const auto clock_start = std::chrono::steady_clock::now();
   CandidateFit c;
   c.effects = effects;
-  c.label = Label(effects);
+  c.label = internal::Label(effects);
   const int orders = options.fit.harmonic_orders;
   int best_variant = 0;
   const int variants = internal::StartVariants(effects);
@@ -279,90 +272,6 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.fit_gain = (base_figures.chi2 - c.figures.chi2) / variance;
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return c;
-}
-
-// Forward selection's limit: effects in one model.
-constexpr size_t kMaxEffects = 3;
-// An effect whose parameter is within this many standard errors of its null value (zero) is not named.
-constexpr double kMinSignificance = 2.0;
-
-// Chi-square drop from `from` to `to` (held-out or fit records) in `to`'s residual variances.
-double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
-  const double variance = std::max(1.0, to.residual_variance);
-  return ((heldout ? from.heldout_chi2 : from.chi2) - (heldout ? to.heldout_chi2 : to.chi2)) / variance;
-}
-
-// Effects whose parameter is zero when the effect is absent (the others change a law or move a
-// limit from infinity; the held-out gain alone decides for them).
-bool NullIsZero(Effect e) {
-  return e == Effect::kCubicStiffness || e == Effect::kQuadraticStiffness || e == Effect::kContactDamping ||
-         e == Effect::kDryFriction || e == Effect::kQuadraticDamping || e == Effect::kForceFactor ||
-         e == Effect::kCoilInductance;
-}
-
-// Why a zero-null effect is not significant: none of its parameters lies beyond kMinSignificance
-// standard errors of zero (within them, or without a standard error: held at a bound or not
-// identifiable); empty when every effect has one that does.
-std::string InsignificantParameter(const CandidateFit& c) {
-  for (Effect e : c.effects) {
-    if (!NullIsZero(e)) continue;
-    std::string why;
-    bool significant = false;
-    for (const char* key : Info(e).parameters)
-      for (const FitParameter& p : c.effect_parameters) {
-        if (p.name != key) continue;
-        if (std::isfinite(p.standard_error) && std::abs(p.value) > kMinSignificance * p.standard_error) significant = true;
-        why += (why.empty() ? "" : ", ") + p.name + " = " + Format(p.value) + " +- " + Format(p.standard_error);
-      }
-    if (!significant) return why + (Info(e).parameters.size() > 1 ? " are" : " is") + " within " +
-                             Format(kMinSignificance) + " standard errors of zero";
-  }
-  return "";
-}
-
-// Why the candidate does not improve on `from` beyond noise (empty: it does): the held-out
-// chi-square must drop by more than min_heldout_gain residual variances, the fit records' by more
-// than the Akaike penalty of its new parameters (beyond the `from_effect_parameters` it had), and its
-// effects' parameters must be significant.
-std::string Rejection(const CandidateFit& c, const FitFigures& from, size_t from_effect_parameters,
-                      double min_heldout_gain) {
-  if (!c.fitted) return "not fitted";
-  const double extra = std::max<size_t>(1, c.effect_parameters.size() - from_effect_parameters);
-  const double heldout_gain = GainOver(from, c.figures, true), fit_gain = GainOver(from, c.figures, false);
-  if (!std::isfinite(heldout_gain) || heldout_gain <= min_heldout_gain)
-    return "held-out gain " + Format(heldout_gain) + " <= " + Format(min_heldout_gain);
-  if (fit_gain <= kAkaikePerParameter * extra)
-    return "fit gain " + Format(fit_gain) + " <= Akaike penalty " + Format(kAkaikePerParameter * extra);
-  return InsignificantParameter(c);
-}
-
-// The candidate of exactly these effects (any order), or -1.
-int FindFit(const std::vector<CandidateFit>& candidates, std::vector<Effect> effects) {
-  std::sort(effects.begin(), effects.end());
-  for (size_t i = 0; i < candidates.size(); ++i) {
-    std::vector<Effect> have = candidates[i].effects;
-    std::sort(have.begin(), have.end());
-    if (candidates[i].fitted && have == effects) return static_cast<int>(i);
-  }
-  return -1;
-}
-
-// Backward check of candidates[index]: dropping any one effect must raise the held-out chi-square
-// beyond noise. Returns why not (empty: each is needed). Models without one effect that were not
-// fitted (a triple's other pairs) are not checked.
-std::string UnneededEffect(const std::vector<CandidateFit>& candidates, int index, double min_heldout_gain) {
-  const CandidateFit& c = candidates[index];
-  for (size_t drop = 0; drop < c.effects.size(); ++drop) {
-    std::vector<Effect> without = c.effects;
-    without.erase(without.begin() + static_cast<long>(drop));
-    const int other = FindFit(candidates, without);
-    if (other < 0) continue;
-    const double gain = GainOver(candidates[other].figures, c.figures, true);
-    if (gain <= min_heldout_gain)
-      return std::string("backward check: without ") + Info(c.effects[drop]).id + " the held-out chi-square rises by only " +
-             Format(gain) + " <= " + Format(min_heldout_gain);
-  }
-  return "";
 }
 
 }  // namespace
@@ -443,71 +352,16 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   progress(3, "signatures of the base model's mismatch");
   d.signatures = internal::MeasureSignatures(campaign, analyses, d.before, d.base.model, kind, options.fit);
 
-  // 4. Single effects, then the best pair.
-  for (size_t i = 0; i < applicable.size(); ++i) {
-    const EffectInfo& info = *applicable[i];
-    if (seconds_left() <= 0) {
-      CandidateFit skipped;
-      skipped.effects = {info.effect};
-      skipped.label = info.id;
-      skipped.note = "skipped: the diagnosis's time limit of " + Format(options.max_seconds) + " s was reached";
-      d.candidates.push_back(skipped);
-      continue;
-    }
-    const int stage = 4 + static_cast<int>(i);
-    const std::string name = "candidate " + std::string(info.id);
+  // 4. Single effects, then forward selection.
+  std::vector<Effect> singles;
+  for (const EffectInfo* info : applicable) singles.push_back(info->effect);
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, int index, const std::string& name) {
+    const int stage = 4 + index;
     progress(stage, name);
-    d.candidates.push_back(RunCandidate({info.effect}, d.base.model, options, context, split, analyses, kind,
-                                        d.fit_before, seconds_left(),
-                                        [&](const std::string& step) { progress(stage, name, step); }));
-  }
-  auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
-    const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
-    return ga > gb;
+    return RunCandidate(effects, start, options, context, split, analyses, kind, d.fit_before, seconds_left(),
+                        [&](const std::string& step) { progress(stage, name, step); });
   };
-  std::stable_sort(d.candidates.begin(), d.candidates.end(), by_gain);
-  std::vector<Effect> fitted;  // every single that was fitted, best held-out gain first
-  int first = -1;              // the best single that beats the base beyond noise
-  for (size_t i = 0; i < d.candidates.size(); ++i) {
-    CandidateFit& c = d.candidates[i];
-    c.decision = Rejection(c, d.fit_before, 0, options.min_heldout_gain);
-    if (c.decision.empty() && first < 0) first = static_cast<int>(i);
-    if (c.fitted) fitted.push_back(c.effects[0]);
-  }
-  d.chosen = first;
-
-  // Forward selection: add the effect that lowers the held-out chi-square most beyond noise over the
-  // current model, refit with every parameter free, repeat. Every effect is tried at each step, not
-  // only those that beat the base alone: beside a large first effect, a second one's single fit can
-  // do worse than the base (it bends the model towards the first's misfit).
-  while (options.pairs && d.chosen >= 0 && d.candidates[d.chosen].effects.size() < kMaxEffects) {
-    const std::vector<Effect> current = d.candidates[d.chosen].effects;
-    int best = -1;
-    for (Effect e : fitted) {
-      if (std::find(current.begin(), current.end(), e) != current.end()) continue;
-      if (seconds_left() <= 0) break;
-      std::vector<Effect> effects = current;
-      effects.push_back(e);
-      const int stage = 4 + static_cast<int>(applicable.size());
-      const std::string name = "forward selection: candidate " + Label(effects);
-      progress(stage, name);
-      CandidateFit next = RunCandidate(effects, d.candidates[d.chosen].model, options, context, split, analyses, kind,
-                                       d.fit_before, seconds_left(),
-                                       [&](const std::string& step) { progress(stage, name, step); });
-      const FitFigures& now = d.candidates[d.chosen].figures;
-      next.note += (next.note.empty() ? "" : "; ") + std::string("held-out gain over ") +
-                   d.candidates[d.chosen].label + ": " + Format(GainOver(now, next.figures, true));
-      next.decision = Rejection(next, now, d.candidates[d.chosen].effect_parameters.size(), options.min_heldout_gain);
-      d.candidates.push_back(next);
-      if (next.decision.empty() && (best < 0 || next.figures.heldout_chi2 < d.candidates[best].figures.heldout_chi2))
-        best = static_cast<int>(d.candidates.size() - 1);
-    }
-    if (best < 0) break;
-    // Backward check: each effect of the new model must still beat noise against the model without it.
-    d.candidates[best].decision = UnneededEffect(d.candidates, best, options.min_heldout_gain);
-    if (!d.candidates[best].decision.empty()) break;
-    d.chosen = best;
-  }
+  d.chosen = internal::SelectEffects(singles, d.fit_before, d.base.model, options, seconds_left, fit, &d.candidates);
 
   // 5. The answer, and what it leaves (the open-world test).
   const ExtendedProblem chosen_problem =
@@ -520,12 +374,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   std::vector<Effect> best_partial;
   if (d.chosen >= 0 && d.unexplained) {
     const CandidateFit& c = d.candidates[d.chosen];
-    const double removed = d.fit_before.heldout_chi2 - c.figures.heldout_chi2;
-    const double left = c.figures.heldout_chi2 - d.unexplained->expected_chi2;
-    if (removed < left) {
+    partial = internal::PartialExplanation(c, d.fit_before, d.unexplained->expected_chi2);
+    if (!partial.empty()) {
       best_partial = c.effects;
-      partial = "the best library candidate, " + c.label + ", removes only " + Format(removed) +
-                " of the held-out chi-square's excess and leaves " + Format(left) + ": it is not named";
       d.chosen = -1;
       d.after = d.before;
       const ExtendedProblem base_problem = internal::BuildProblem(d.base.model, options.fit.model, {}, context, 0);
@@ -539,13 +390,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     RingingOfWorstPlaces(campaign, analyses, diagnosed, kind, orders, &*d.unexplained);
     d.unexplained->description += internal::DescribeMissingForce(d.unexplained->missing_force);
   }
-  for (size_t i = 0; i < d.candidates.size(); ++i) {
-    CandidateFit& c = d.candidates[i];
-    if (static_cast<int>(i) == d.chosen) c.decision = "named";
-    else if (!partial.empty() && c.decision.empty() && c.effects == best_partial) c.decision = "not named: " + partial;
-    else if (c.decision.empty()) c.decision = "beats noise, but another model is better";
-    else if (c.fitted) c.decision = "rejected: " + c.decision;
-  }
+  internal::LabelDecisions(d.chosen, partial, best_partial, &d.candidates);
 
   if (d.chosen >= 0) {
     const CandidateFit& c = d.candidates[d.chosen];

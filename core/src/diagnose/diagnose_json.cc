@@ -3,12 +3,12 @@
 #include <nlohmann/json.hpp>
 
 #include "strokelab/base/json_number.h"
+#include "diagnose_internal.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/model/model_json.h"
 
 namespace strokelab {
-namespace {
-
+namespace internal {
 
 nlohmann::json Parameters(const std::vector<FitParameter>& parameters) {
   nlohmann::json out = nlohmann::json::object();
@@ -37,6 +37,56 @@ nlohmann::json EvidenceJson(const Evidence& e) {
           {"significance", JsonNumber(e.significance)},
           {"points_to", points}};
 }
+
+nlohmann::json MissingPhysicsJson(const std::vector<CandidateFit>& candidates, int chosen,
+                                  const std::vector<Effect>& missing_physics, const std::vector<Evidence>& evidence) {
+  nlohmann::json out = nlohmann::json::array();
+  if (chosen < 0) return out;
+  const CandidateFit& c = candidates[chosen];
+  for (Effect effect : missing_physics) {
+    nlohmann::json entry;
+    entry["effect"] = Info(effect).id;
+    std::vector<FitParameter> own;
+    for (const FitParameter& p : c.effect_parameters)
+      for (const char* key : Info(effect).parameters)
+        if (p.name == key) own.push_back(p);
+    entry["parameters"] = Parameters(own);
+    entry["signature"] = Info(effect).signature;
+    entry["evidence"] = nlohmann::json::array();
+    for (const Evidence& e : evidence)
+      for (Effect pointed : e.points_to)
+        if (pointed == effect) entry["evidence"].push_back(EvidenceJson(e));
+    entry["heldout_gain"] = JsonNumber(c.heldout_gain);
+    entry["fit_gain"] = JsonNumber(c.fit_gain);
+    entry["all_parameters"] = Parameters(c.parameters);
+    out.push_back(entry);
+  }
+  return out;
+}
+
+nlohmann::json CandidatesJson(const std::vector<CandidateFit>& candidates, int chosen) {
+  nlohmann::json out = nlohmann::json::array();
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const CandidateFit& c = candidates[i];
+    out.push_back({{"label", c.label},
+                   {"chosen", static_cast<int>(i) == chosen},
+                   {"fitted", c.fitted},
+                   {"converged", c.converged},
+                   {"heldout_gain", JsonNumber(c.heldout_gain)},
+                   {"fit_gain", JsonNumber(c.fit_gain)},
+                   {"figures", Figures(c.figures)},
+                   {"effect_parameters", Parameters(c.effect_parameters)},
+                   {"passes", c.passes},
+                   {"seconds", JsonNumber(c.seconds)},
+                   {"note", c.note},
+                   {"decision", c.decision}});
+  }
+  return out;
+}
+
+}  // namespace internal
+
+namespace {
 
 nlohmann::json Complexes(const std::vector<std::complex<double>>& values) {
   nlohmann::json out = nlohmann::json::array();
@@ -113,60 +163,24 @@ nlohmann::json CurvesToJson(const std::vector<EffectCurve>& curves) {
 nlohmann::json DiagnosisToJson(const Diagnosis& d) {
   nlohmann::json out;
   out["conclusion"] = d.conclusion;
-  out["missing_physics"] = nlohmann::json::array();
-  if (d.chosen >= 0) {
-    const CandidateFit& c = d.candidates[d.chosen];
-    for (Effect effect : d.missing_physics) {
-      nlohmann::json entry;
-      entry["effect"] = Info(effect).id;
-      std::vector<FitParameter> own;
-      for (const FitParameter& p : c.effect_parameters)
-        for (const char* key : Info(effect).parameters)
-          if (p.name == key) own.push_back(p);
-      entry["parameters"] = Parameters(own);
-      entry["signature"] = Info(effect).signature;
-      entry["evidence"] = nlohmann::json::array();
-      for (const Evidence& e : d.signatures.evidence)
-        for (Effect pointed : e.points_to)
-          if (pointed == effect) entry["evidence"].push_back(EvidenceJson(e));
-      entry["heldout_gain"] = JsonNumber(c.heldout_gain);
-      entry["fit_gain"] = JsonNumber(c.fit_gain);
-      entry["all_parameters"] = Parameters(c.parameters);
-      out["missing_physics"].push_back(entry);
-    }
-  }
+  out["missing_physics"] = internal::MissingPhysicsJson(d.candidates, d.chosen, d.missing_physics, d.signatures.evidence);
   out["unexplained"] = UnexplainedToJson(d.unexplained);
   out["curves"] = CurvesToJson(d.curves);
   out["model"] = ModelToJson(d.model);
   out["model_note"] = d.model_note;
-  out["fit_before"] = Figures(d.fit_before);
-  out["fit_after"] = Figures(d.fit_after);
-  out["base_parameters"] = Parameters(d.base.parameters);
+  out["fit_before"] = internal::Figures(d.fit_before);
+  out["fit_after"] = internal::Figures(d.fit_after);
+  out["base_parameters"] = internal::Parameters(d.base.parameters);
   out["base_model"] = ModelToJson(d.base.model);
   out["base_warnings"] = d.base.warnings;
   out["heldout_records"] = nlohmann::json::array();
   for (size_t i : d.heldout) out["heldout_records"].push_back(d.before[i].name);
 
-  out["candidates"] = nlohmann::json::array();
-  for (size_t i = 0; i < d.candidates.size(); ++i) {
-    const CandidateFit& c = d.candidates[i];
-    out["candidates"].push_back({{"label", c.label},
-                                 {"chosen", static_cast<int>(i) == d.chosen},
-                                 {"fitted", c.fitted},
-                                 {"converged", c.converged},
-                                 {"heldout_gain", JsonNumber(c.heldout_gain)},
-                                 {"fit_gain", JsonNumber(c.fit_gain)},
-                                 {"figures", Figures(c.figures)},
-                                 {"effect_parameters", Parameters(c.effect_parameters)},
-                                 {"passes", c.passes},
-                                 {"seconds", JsonNumber(c.seconds)},
-                                 {"note", c.note},
-                                 {"decision", c.decision}});
-  }
+  out["candidates"] = internal::CandidatesJson(d.candidates, d.chosen);
 
   nlohmann::json signatures;
   signatures["evidence"] = nlohmann::json::array();
-  for (const Evidence& e : d.signatures.evidence) signatures["evidence"].push_back(EvidenceJson(e));
+  for (const Evidence& e : d.signatures.evidence) signatures["evidence"].push_back(internal::EvidenceJson(e));
   signatures["hotspots"] = nlohmann::json::array();
   for (const auto& h : d.signatures.hotspots)
     signatures["hotspots"].push_back({{"record", h.record},

@@ -18,20 +18,6 @@ namespace {
 
 using internal::LogParameter;
 
-// Whether a record shows impacts: ImpactSamples on its response turned into the blocked force's shape.
-// An impact is a spike of force and acceleration, a kink of velocity and a corner of displacement; the
-// spike shows in the differences of a kinematic response (one for velocity, two for displacement),
-// whose own noise level the detection then measures.
-bool ShowsImpacts(const Recording& record, ResponseKind kind) {
-  std::vector<double> y = record.response;
-  const int differences = kind == ResponseKind::kDisplacement ? 2 : kind == ResponseKind::kVelocity ? 1 : 0;
-  for (int k = 0; k < differences; ++k) {
-    for (size_t n = 0; n + 1 < y.size(); ++n) y[n] = y[n + 1] - y[n];
-    y.pop_back();
-  }
-  const std::vector<bool> impact = internal::ImpactSamples(y, internal::FourthDifferenceNoiseRms(y));
-  return std::find(impact.begin(), impact.end(), true) != impact.end();
-}
 
 
 }  // namespace
@@ -76,6 +62,18 @@ std::vector<FrfSample> BroadbandFrf(const Recording& record) {
     samples.push_back({static_cast<double>(k) * record.sample_rate_hz / static_cast<double>(length), syu[k] / suu[k]});
   }
   return samples;
+}
+
+std::vector<bool> RecordImpacts(const Recording& record, ResponseKind kind) {
+  std::vector<double> y = record.response;
+  const int differences = kind == ResponseKind::kDisplacement ? 2 : kind == ResponseKind::kVelocity ? 1 : 0;
+  for (int k = 0; k < differences; ++k) {
+    for (size_t n = 0; n + 1 < y.size(); ++n) y[n] = y[n + 1] - y[n];
+    y.pop_back();
+  }
+  std::vector<bool> impact = internal::ImpactSamples(y, internal::FourthDifferenceNoiseRms(y));
+  impact.resize(record.size(), false);  // the differences' last samples: none
+  return impact;
 }
 
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options) {
@@ -129,7 +127,11 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
         LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, m.damping_n_s_per_m, 3.0),
         LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, m.gain_n_per_v, 3.0)};
   };
-  if (!ShowsImpacts(*quiet, campaign.response)) {
+  auto shows_impacts = [&](const Recording& r) {
+    const std::vector<bool> impact = RecordImpacts(r, campaign.response);
+    return std::find(impact.begin(), impact.end(), true) != impact.end();
+  };
+  if (!shows_impacts(*quiet)) {
     internal::ExtendedProblem linear_problem;
     linear_problem.base = linear;
     linear_problem.parameters = linear_parameters(linear);
@@ -140,7 +142,7 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
 
   // 2. The stop, where a record shows impacts.
   for (const Recording* r : records)
-    out.stop_free = out.stop_free || (options.model == FitModelKind::kPaper && ShowsImpacts(*r, campaign.response));
+    out.stop_free = out.stop_free || (options.model == FitModelKind::kPaper && shows_impacts(*r));
 
   // 3. The problem and the fit.
   internal::ExtendedProblem problem;

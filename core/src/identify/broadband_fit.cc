@@ -379,6 +379,16 @@ std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int 
 
 }  // namespace
 
+std::vector<size_t> SegmentFirsts(size_t samples, double sample_rate_hz, double segment_s) {
+  const size_t length = std::max<size_t>(8, static_cast<size_t>(std::llround(segment_s * sample_rate_hz)));
+  std::vector<size_t> firsts;
+  for (size_t first = 0; first < samples; first += length) {
+    firsts.push_back(first);
+    if (samples - std::min(samples, first + length) < length / 2) break;  // no short tail segment
+  }
+  return firsts;
+}
+
 double FourthDifferenceNoiseRms(std::span<const double> y) {
   // Fourth differences (1, -4, 6, -4, 1; noise variance 70 sigma^2): a signal at w is scaled by
   // (2 sin(w / 2fs))^4, 2.5e-4 at a band edge of fs / 50 (second differences keep 1.6e-2 there).
@@ -442,16 +452,14 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     // A noiseless (synthetic) record: weights as if its noise were 1e-9 of its rms.
     data[r].sigma = std::max(FourthDifferenceNoiseRms(rec.response), 1e-9 * rms);
     data[r].impact = ImpactSamples(rec.response, data[r].sigma);
-    const size_t length = std::max<size_t>(8, static_cast<size_t>(std::llround(options.segment_s * rec.sample_rate_hz)));
-    for (size_t first = 0; first < rec.size(); first += length) {
+    const std::vector<size_t> firsts = SegmentFirsts(rec.size(), rec.sample_rate_hz, options.segment_s);
+    for (size_t k = 0; k < firsts.size(); ++k) {
       Segment s;
       s.record = r;
-      s.first = first;
-      s.end = std::min(rec.size(), first + length);
-      if (rec.size() - s.end < length / 2) s.end = rec.size();  // no short tail segment
-      s.last = s.end == rec.size();
+      s.first = firsts[k];
+      s.last = k + 1 == firsts.size();
+      s.end = s.last ? rec.size() : firsts[k + 1];
       segments.push_back(s);
-      if (s.last) break;
     }
   }
 

@@ -42,6 +42,12 @@ struct BroadbandCampaignFit {
 // Throws InputError naming a record of fewer than 256 samples.
 std::vector<FrfSample> BroadbandFrf(const Recording& record);
 
+// The samples of a record's impacts: ImpactSamples (broadband_fit.h) on its response turned into the
+// blocked force's shape. An impact is a spike of force and acceleration, a kink of velocity and a corner of
+// displacement; the spike shows in the differences of a kinematic response (one for velocity, two for
+// displacement), whose own noise level the detection then measures.
+std::vector<bool> RecordImpacts(const Recording& record, ResponseKind kind);
+
 // Throws InputError for a campaign without broadband records, bad options, or bad records (named).
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options);
 

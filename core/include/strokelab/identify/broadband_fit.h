@@ -80,7 +80,7 @@ struct BroadbandFitResult {
   double chi2_limit = 0.0;  // rejected beyond it: that 1e-3 tail
   std::vector<BroadbandRecordFit> records;
   // The fitted unknowns besides the parameters (BroadbandFitOptions::warm_start): every segment's start
-  // state, records in order, and each record's offset and hum.
+  // state, records in order (SegmentFirsts), and each record's offset and hum.
   std::vector<State> segment_starts;
   std::vector<std::vector<double>> nuisance;
 };
@@ -97,6 +97,10 @@ double FourthDifferenceNoiseRms(std::span<const double> samples);
 // The samples of an impact: where the response's fourth difference stands out of its noise (70 sigma^2
 // for white noise of rms sigma) by more than 8 standard deviations, and the two samples either side.
 std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
+
+// The first sample of each shooting segment of a record of `samples` (segments of segment_s; the last
+// ends at the record's end and takes a tail shorter than half a segment).
+std::vector<size_t> SegmentFirsts(size_t samples, double sample_rate_hz, double segment_s);
 
 // Fits problem.parameters to the broadband `records` of a campaign whose response is of `kind`. With no
 // free parameters it evaluates problem.base: only the segments' starts, offsets and hum are fitted (the

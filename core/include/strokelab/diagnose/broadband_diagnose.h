@@ -1,0 +1,108 @@
+// Diagnosis of a broadband campaign (strokelab diagnose on noise, multisine or sweep records): the
+// stepped-sine diagnosis's choice among the same effects (diagnose.h steps 4-6) on fits by the records'
+// time series (identify/broadband_fit.h) instead of their harmonics.
+//
+//   1. Split: the last 1 / heldout_every of every record is held out of all fits (the first, where the
+//      record's impacts all fall in its last part). A multisine's period is its record, so its held-out
+//      part carries the same lines at fresh noise; a noise record's held-out part is fresh drive as well.
+//   2. Base fit (identify/broadband_campaign.h) on the records' first parts; then the base model
+//      evaluated on every part, with only each part's segment starts, offset and hum fitted
+//      (FitBroadband with no free parameter; held-out parts as in step 4): the residuals the signatures
+//      read.
+//   3. Signatures (broadband_signatures.cc), needing no harmonics: the residual's chi-square per sample
+//      where the base model's motion is far out in displacement, slow, fast, or near a contact, against
+//      the rest of the record; the residual's coherence with the drive; its spectrum's excess over the
+//      noise floor.
+//   4. Candidates: the base model extended by each effect (as diagnose.h), every parameter free, fitted
+//      by the time series of the first parts from the base fit's segment starts, offsets and hum (a
+//      warm start: broadband_fit.h). A candidate's held-out chi-square is its evaluation on the held-out
+//      parts (their starts, offsets and hum fitted, the model held), from the motion continued from the
+//      fit parts: the state the model reaches at the end of each record's fit part.
+//   5. Choice: as diagnose.h step 5, the same rules and numbers (selection.cc).
+//   6. Open world: the chosen model's held-out chi-square against its 1e-3 upper tail under noise alone,
+//      the noise levels' own spread included (broadband_fit.h's rejection test). Beyond it, the misfit is
+//      "unexplained", with the parts where it lives and the residual's dominant frequency there.
+#pragma once
+
+#include <nlohmann/json_fwd.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/identify/broadband_campaign.h"
+
+namespace strokelab {
+
+// How one model matches one record: its fit part and its held-out part.
+struct BroadbandRecordMatch {
+  std::string name;
+  double drive_rms_v = 0.0;
+  double noise_rms = 0.0;  // the fit part's white-noise level [response units]
+  double nrmse = 0.0, heldout_nrmse = 0.0;  // rms(residual) / rms(response - offset)
+  double chi2_per_sample = 0.0, heldout_chi2_per_sample = 0.0;  // 1 is noise
+};
+
+struct BroadbandUnexplained {
+  double heldout_chi2 = 0.0;
+  double dof = 0.0;             // what noise alone gives on average
+  double threshold_chi2 = 0.0;  // flagged beyond: its 1e-3 upper tail
+  double misfit_to_noise = 0.0; // sqrt(heldout_chi2 / dof): misfit RMS over noise's (1: noise)
+  // Held-out parts whose own chi-square per sample is beyond noise (Bonferroni over the parts at the
+  // same 1e-3), worst first.
+  struct Place {
+    std::string record;
+    double chi2_per_sample = 0.0;
+    double peak_frequency_hz = 0.0;  // where the residual's spectrum stands furthest above the noise floor
+    double near_contact_share = 0.0; // of the residual's excess chi-square within 2 ms of the model's contacts
+    double contact_time_share = 0.0; // of the samples there (NaN: the model makes no contact)
+  };
+  std::vector<Place> places;
+  std::string description;
+};
+
+struct BroadbandDiagnosis {
+  BroadbandCampaignFit base;  // on the fit parts
+  int heldout_every = 4;      // the last 1 / heldout_every of each record is held out
+  std::vector<BroadbandRecordMatch> before, after;  // the base and the diagnosed model on every record
+  FitFigures fit_before, fit_after;
+  // What noise alone gives the held-out chi-square on average: the held-out misfit beyond noise is
+  // heldout_chi2 - heldout_dof (the normalised RMS error of a noisy record is mostly its noise's).
+  double heldout_dof = 0.0;
+  std::vector<Evidence> evidence;        // step 3, on the base model's residuals
+  std::vector<CandidateFit> candidates;  // every candidate tried, singles best held-out gain first
+  std::vector<Effect> missing_physics;   // named effects, best first (empty: nothing missing)
+  int chosen = -1;                       // index into candidates (-1: nothing named)
+  ActuatorModel model;                   // the diagnosed model (as Diagnosis::model)
+  std::string model_note;
+  std::optional<BroadbandUnexplained> unexplained;
+  std::vector<EffectCurve> curves;
+  std::string conclusion;
+  std::vector<std::string> warnings;
+  double seconds = 0.0;
+};
+
+// Step 1's parts: each broadband record's first part (fit) and its last 1 / heldout_every (held out), as
+// records of their own ("NAME (fit part)", "NAME (held-out part)"), in the campaign's order; where all of
+// a record's impacts (RecordImpacts) fall in its last part, its first 1 / heldout_every is held out
+// instead, so that the fit parts show the stop. Stepped-sine records are left out (a warning each, when
+// `warnings` is given). Throws InputError naming a record too short to hold out 256 samples, or
+// "records" when none is broadband.
+struct BroadbandParts {
+  std::vector<std::string> names;  // the records'
+  std::vector<Recording> fit, heldout;
+  std::vector<bool> heldout_first;  // the record's first part is held out
+};
+BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every,
+                                     std::vector<std::string>* warnings = nullptr);
+
+// Throws InputError for bad options, a campaign without broadband records, or records too short to
+// hold a part out (named).
+BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
+
+// kind "broadband", missing_physics (effect, parameters), model, model_note, fit_before, fit_after, heldout_dof,
+// base (BroadbandCampaignFitToJson), evidence, candidates, records (before and after), unexplained
+// (null or its figures), curves, conclusion, warnings, seconds.
+nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& diagnosis);
+
+}  // namespace strokelab

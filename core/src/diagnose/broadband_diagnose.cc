@@ -1,0 +1,442 @@
+// The diagnosis of a broadband campaign (diagnose/broadband_diagnose.h): split, base fit, signatures,
+// candidates by their time series, choice (selection.cc), open world.
+#include "strokelab/diagnose/broadband_diagnose.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <sstream>
+
+#include "diagnose_internal.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/signal/signal.h"
+#include "strokelab/diagnose/effect_curves.h"
+#include "strokelab/engines/variational_flow.h"
+#include "strokelab/identify/broadband_campaign.h"
+#include "strokelab/identify/frf_fit.h"
+
+namespace strokelab {
+namespace {
+
+using internal::BroadbandFitResult;
+using internal::BroadbandRecordFit;
+using internal::EffectContext;
+using internal::ExtendedProblem;
+using internal::FormatFigure;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr size_t kMinHeldOutSamples = 256;  // a held-out part long enough for its start, offset and hum
+constexpr double kBeyondNoiseP = 1e-3;      // the open-world test's level (as FitBroadband's rejection)
+
+
+// Samples [first, end) of a record, as a record of its own (its time starts at 0: the model is time
+// invariant, and the part's offset and hum are its own unknowns).
+Recording Part(const Recording& record, size_t first, size_t end, const char* which) {
+  Recording part;
+  part.name = record.name + " (" + which + ")";
+  part.sample_rate_hz = record.sample_rate_hz;
+  part.broadband = true;
+  part.voltage_v.assign(record.voltage_v.begin() + static_cast<long>(first), record.voltage_v.begin() + static_cast<long>(end));
+  part.response.assign(record.response.begin() + static_cast<long>(first), record.response.begin() + static_cast<long>(end));
+  return part;
+}
+
+// The parts with the pointers the fits take.
+struct Split : BroadbandParts {
+  std::vector<const Recording*> fit_pointers, heldout_pointers;
+  explicit Split(BroadbandParts parts) : BroadbandParts(std::move(parts)) {
+    for (const Recording& r : fit) fit_pointers.push_back(&r);
+    for (const Recording& r : heldout) heldout_pointers.push_back(&r);
+  }
+  Split(const Split&) = delete;  // the pointers point into this object
+};
+
+// `model` on `parts` with only their segments' starts, offsets and hum fitted, from `warm`'s (a fit of
+// the same parts; may be null).
+BroadbandFitResult Evaluate(const ActuatorModel& model, std::span<const Recording* const> parts, ResponseKind kind,
+                            bool series, double max_seconds, const BroadbandFitResult* warm) {
+  ExtendedProblem held;
+  held.base = model;
+  internal::BroadbandFitOptions options;
+  options.keep_series = series;
+  options.max_seconds = std::max(1.0, max_seconds);
+  options.warm_start = warm;
+  return internal::FitBroadband(parts, kind, held, options);
+}
+
+// The held-out parts' warm start at `model`: the motion continued from the fit parts. A record's held-out
+// part starts where its fit part ends (or, held out first, where the record's end would continue into
+// its start: a multisine's period is its record), so its segments start from the states `model` reaches
+// there, flowed by the record's own voltage from the start that `fit` (a fit of the fit parts at `model`)
+// found for the fit part's last segment; the offsets are the fit parts' (the hum, whose phase runs on,
+// starts at zero). Held-out starts fitted afresh could settle, through impacts, in a valley of their own.
+BroadbandFitResult HeldOutWarmStart(const ActuatorModel& model, const Split& split, const BroadbandFitResult& fit) {
+  const double segment_s = internal::BroadbandFitOptions{}.segment_s;
+  BroadbandFitResult warm;
+  size_t fit_segments = 0;
+  for (size_t r = 0; r < split.fit.size(); ++r) {
+    const Recording& part = split.fit[r];
+    const Recording& heldout = split.heldout[r];
+    const double fs = part.sample_rate_hz;
+    const std::vector<size_t> fit_firsts = internal::SegmentFirsts(part.size(), fs, segment_s);
+    fit_segments += fit_firsts.size();
+    State state = fit.segment_starts.at(fit_segments - 1);
+    double t_s = static_cast<double>(fit_firsts.back()) / fs;
+    std::vector<double> voltage = part.voltage_v;
+    voltage.insert(voltage.end(), heldout.voltage_v.begin(), heldout.voltage_v.end());
+    const SampledDrive drive{fs, voltage};
+    for (size_t first : internal::SegmentFirsts(heldout.size(), fs, segment_s)) {
+      const double next_s = static_cast<double>(part.size() + first) / fs;
+      try {
+        state = Flow(model, drive, state, t_s, next_s, {}).end;
+      } catch (const std::exception&) {
+        state = State{};  // the held-out fit starts this segment from rest
+      }
+      t_s = next_s;
+      warm.segment_starts.push_back(state);
+    }
+    std::vector<double> nuisance(fit.nuisance.at(r).size(), 0.0);
+    nuisance[0] = fit.nuisance[r][0];
+    warm.nuisance.push_back(nuisance);
+  }
+  return warm;
+}
+
+// sqrt(sum of squared residuals / sum of (response - offset)^2) over the parts.
+double Nrmse(std::span<const Recording* const> parts, const std::vector<BroadbandRecordFit>& fits) {
+  double misfit = 0.0, power = 0.0;
+  for (size_t r = 0; r < parts.size(); ++r) {
+    double p = 0.0;
+    for (double y : parts[r]->response) p += (y - fits[r].offset) * (y - fits[r].offset);
+    misfit += fits[r].nrmse * fits[r].nrmse * p;
+    power += p;
+  }
+  return std::sqrt(misfit / power);
+}
+
+FitFigures Figures(const Split& split, const BroadbandFitResult& fit, const BroadbandFitResult& heldout) {
+  FitFigures f;
+  f.chi2 = fit.fit.chi2;
+  f.residual_variance = fit.fit.residual_variance;
+  f.nrmse = Nrmse(split.fit_pointers, fit.records);
+  f.heldout_chi2 = heldout.fit.chi2;
+  f.heldout_nrmse = Nrmse(split.heldout_pointers, heldout.records);
+  return f;
+}
+
+std::vector<BroadbandRecordMatch> Matches(const Split& split, const std::vector<BroadbandRecordFit>& fit,
+                                          const BroadbandFitResult& heldout) {
+  std::vector<BroadbandRecordMatch> out;
+  for (size_t r = 0; r < split.fit.size(); ++r) {
+    BroadbandRecordMatch m;
+    m.name = split.names[r];
+    m.drive_rms_v = RmsAboutMean(split.fit[r].voltage_v);
+    m.noise_rms = fit[r].noise_rms;
+    m.nrmse = fit[r].nrmse;
+    m.chi2_per_sample = fit[r].chi2_per_sample;
+    m.heldout_nrmse = heldout.records[r].nrmse;
+    m.heldout_chi2_per_sample = heldout.records[r].chi2_per_sample;
+    out.push_back(m);
+  }
+  return out;
+}
+
+// The scales the effects' start values take (effects.cc), from the base model's motion over the fit
+// parts and the records' drives.
+EffectContext Context(const ActuatorModel& model, const Split& split, const std::vector<BroadbandRecordFit>& motion,
+                      bool stop_seen) {
+  EffectContext c;
+  c.stop_distance_m = LengthScaleM(model);
+  c.min_amplitude_v = kInf;
+  std::vector<double> penetrations;
+  for (size_t r = 0; r < split.fit.size(); ++r) {
+    const Recording& part = split.fit[r];
+    const double nyquist_rad_per_s = std::numbers::pi * part.sample_rate_hz;
+    c.max_contact_stiffness_n_per_m =
+        std::min(c.max_contact_stiffness_n_per_m, model.mass_kg * nyquist_rad_per_s * nyquist_rad_per_s);
+    // A broadband drive's "amplitude": its peak for the clipping level, sqrt(2) rms for the friction scale.
+    c.min_amplitude_v = std::min(c.min_amplitude_v, std::numbers::sqrt2 * RmsAboutMean(part.voltage_v));
+    for (double u : part.voltage_v) c.max_amplitude_v = std::max(c.max_amplitude_v, std::abs(u));
+    double deepest = 0.0;
+    for (size_t i = 0; i < motion[r].x_m.size(); ++i) {
+      const double x = motion[r].x_m[i], v = motion[r].v_m_per_s[i];
+      if (!std::isfinite(x)) continue;
+      c.min_displacement_m = std::min(c.min_displacement_m, x);
+      c.max_displacement_m = std::max(c.max_displacement_m, x);
+      c.max_velocity_m_per_s = std::max(c.max_velocity_m_per_s, std::abs(v));
+      if (model.HasLowerStop()) deepest = std::max(deepest, model.lower_stop_m - x);
+    }
+    if (deepest > 0) penetrations.push_back(deepest);
+  }
+  // The drive's band, from the records' spectra as the base fit's start takes it (broadband_campaign.h).
+  c.min_frequency_hz = kInf;
+  c.max_frequency_hz = 0.0;
+  for (const Recording& r : split.fit)
+    for (const FrfSample& s : BroadbandFrf(r)) {
+      c.min_frequency_hz = std::min(c.min_frequency_hz, s.frequency_hz);
+      c.max_frequency_hz = std::max(c.max_frequency_hz, s.frequency_hz);
+    }
+  c.contacts = stop_seen || !penetrations.empty();
+  if (!penetrations.empty()) {
+    c.max_penetration_m = *std::max_element(penetrations.begin(), penetrations.end());
+    std::nth_element(penetrations.begin(), penetrations.begin() + static_cast<long>(penetrations.size() / 2),
+                     penetrations.end());
+    c.penetration_m = penetrations[penetrations.size() / 2];
+  } else {
+    c.penetration_m = 1e-2 * c.stop_distance_m;
+  }
+  return c;
+}
+
+// The standard normal's upper p quantile, by bisection on its tail 0.5 erfc(z / sqrt 2).
+double NormalUpperQuantile(double p) {
+  double low = 0.0, high = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double z = 0.5 * (low + high);
+    (0.5 * std::erfc(z / std::numbers::sqrt2) > p ? low : high) = z;
+  }
+  return 0.5 * (low + high);
+}
+
+// The open-world test on `heldout` (the diagnosed model's evaluation on the held-out parts): null
+// when its chi-square is within the 1e-3 tail of noise alone, else where the misfit lives.
+std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const BroadbandFitResult& heldout,
+                                                    const ActuatorModel& model) {
+  if (!heldout.rejected) return std::nullopt;
+  BroadbandUnexplained u;
+  u.heldout_chi2 = heldout.fit.chi2;
+  u.dof = heldout.dof;
+  u.threshold_chi2 = heldout.chi2_limit;
+  u.misfit_to_noise = std::sqrt(u.heldout_chi2 / u.dof);
+  // Per part, as the whole's test (broadband_fit.h) at a Bonferroni share of the same level.
+  const double z = NormalUpperQuantile(kBeyondNoiseP / static_cast<double>(split.heldout.size()));
+  for (size_t r = 0; r < split.heldout.size(); ++r) {
+    const BroadbandRecordFit& f = heldout.records[r];
+    const double n = static_cast<double>(split.heldout[r].size());
+    if (!(f.chi2_per_sample > 1.0 + z * std::sqrt((2.0 + 4.0 * internal::kNoiseEstimateVariance) / n))) continue;
+    BroadbandUnexplained::Place place;
+    place.record = split.names[r];
+    place.chi2_per_sample = f.chi2_per_sample;
+    place.peak_frequency_hz = internal::ResidualPeakFrequencyHz(split.heldout[r], f);
+    std::tie(place.near_contact_share, place.contact_time_share) =
+        internal::NearContactShares(split.heldout[r], f, model);
+    u.places.push_back(place);
+  }
+  std::sort(u.places.begin(), u.places.end(),
+            [](const auto& a, const auto& b) { return a.chi2_per_sample > b.chi2_per_sample; });
+  std::ostringstream text;
+  text << "the held-out misfit is " << FormatFigure(u.misfit_to_noise) << " times the noise's RMS (chi-square "
+       << FormatFigure(u.heldout_chi2, 5) << " against at most " << FormatFigure(u.threshold_chi2, 5)
+       << " from noise alone)";
+  for (size_t i = 0; i < u.places.size() && i < 3; ++i) {
+    const auto& p = u.places[i];
+    text << (i == 0 ? "; it lives in " : ", ") << p.record << " (chi-square per sample " << FormatFigure(p.chi2_per_sample)
+         << ", the residual's spectrum peaks at " << FormatFigure(p.peak_frequency_hz) << " Hz";
+    if (std::isfinite(p.near_contact_share))
+      text << ", " << FormatFigure(100 * p.near_contact_share, 2) << " % of its excess within 2 ms of contacts that take "
+           << FormatFigure(100 * p.contact_time_share, 2) << " % of the time";
+    text << ")";
+  }
+  if (u.places.empty()) text << "; no single held-out part stands out on its own";
+  u.description = text.str();
+  return u;
+}
+
+}  // namespace
+
+BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every, std::vector<std::string>* warnings) {
+  BroadbandParts parts;
+  for (const Recording& r : campaign.records) {
+    if (!r.broadband) {
+      if (warnings) warnings->push_back("record " + r.name + " is a stepped sine: not used (broadband records only)");
+      continue;
+    }
+    const size_t held = r.size() / static_cast<size_t>(std::max(heldout_every, 2));
+    if (held < kMinHeldOutSamples)
+      throw InputError(r.name, "is too short to hold out 1/" + std::to_string(heldout_every) + " of it (" +
+                                   std::to_string(held) + " samples; at least " + std::to_string(kMinHeldOutSamples) +
+                                   " are needed)");
+    // Where the record's impacts all fall in its last part, the fit parts would show none and leave the
+    // stop out of the base fit: its first part is held out instead.
+    const std::vector<bool> impact = RecordImpacts(r, campaign.response);
+    const auto last = impact.begin() + static_cast<long>(r.size() - held);
+    const bool first = std::find(last, impact.end(), true) != impact.end() && std::find(impact.begin(), last, true) == last;
+    parts.names.push_back(r.name);
+    parts.heldout_first.push_back(first);
+    parts.fit.push_back(first ? Part(r, held, r.size(), "fit part") : Part(r, 0, r.size() - held, "fit part"));
+    parts.heldout.push_back(first ? Part(r, 0, held, "held-out part") : Part(r, r.size() - held, r.size(), "held-out part"));
+  }
+  if (parts.names.empty()) throw InputError("records", "the campaign holds no broadband record");
+  return parts;
+}
+
+BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const DiagnoseOptions& options) {
+  Validate(options);
+  const auto clock_start = std::chrono::steady_clock::now();
+  auto seconds_left = [&] {
+    return options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  };
+  const ResponseKind kind = campaign.response;
+  int stages = 0;
+  auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
+    if (options.progress) options.progress({stage, stages, name, step});
+  };
+  BroadbandDiagnosis d;
+  d.heldout_every = options.heldout_every;
+
+  // 1. The split.
+  const Split split(SplitBroadbandRecords(campaign, options.heldout_every, &d.warnings));
+  std::vector<const EffectInfo*> library;
+  for (const EffectInfo& info : EffectLibrary())
+    if (info.effect != Effect::kCoilInductance || options.coil_inductance) library.push_back(&info);
+  stages = 3 + static_cast<int>(library.size()) + (options.pairs ? 1 : 0);
+
+  // 2. The base fit on the first parts, and the base model on every part.
+  progress(1, "base fit on the first parts of " + std::to_string(split.fit.size()) + " records");
+  Campaign fit_campaign;
+  fit_campaign.actuator = campaign.actuator;
+  fit_campaign.response = kind;
+  fit_campaign.absolute_scale = campaign.absolute_scale;
+  fit_campaign.records = split.fit;
+  d.base = FitBroadbandCampaign(fit_campaign, options.fit);
+  const ActuatorModel& base_model = d.base.result.fit.model;
+  if (!d.base.result.fit.converged) d.warnings.push_back("the base fit did not converge: " + d.base.result.fit.report);
+  progress(2, "the base model on every part");
+  const BroadbandFitResult base_motion =
+      Evaluate(base_model, split.fit_pointers, kind, true, seconds_left(), &d.base.result);
+  const BroadbandFitResult base_warm = HeldOutWarmStart(base_model, split, d.base.result);
+  const BroadbandFitResult base_heldout =
+      Evaluate(base_model, split.heldout_pointers, kind, true, seconds_left(), &base_warm);
+  d.fit_before = Figures(split, d.base.result, base_heldout);
+  d.before = Matches(split, d.base.result.records, base_heldout);
+  d.heldout_dof = base_heldout.dof;
+  const EffectContext context = Context(base_model, split, base_motion.records, d.base.stop_free);
+
+  // 3. Signatures.
+  progress(3, "signatures of the base model's residuals");
+  d.evidence = internal::BroadbandSignatures(split.fit, base_motion.records, base_model);
+
+  // 4, 5. Candidates and the choice.
+  std::vector<Effect> singles;
+  for (const EffectInfo* info : library)
+    if (internal::Applicable(info->effect, options.fit.model, context)) singles.push_back(info->effect);
+  stages = 3 + static_cast<int>(singles.size()) + (options.pairs ? 1 : 0);
+  // Each candidate's fit, by label: the warm start of the candidates that extend it (broadband_fit.h).
+  std::map<std::string, BroadbandFitResult> fits;
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, int index, const std::string& name) {
+    const std::vector<Effect> extended(effects.begin(), effects.end() - 1);
+    const BroadbandFitResult* warm = extended.empty() ? &d.base.result : &fits.at(internal::Label(extended));
+    const int stage = 4 + index;
+    progress(stage, name);
+    const auto candidate_start = std::chrono::steady_clock::now();
+    CandidateFit c;
+    c.effects = effects;
+    c.label = internal::Label(effects);
+    // The start variant whose model fits the first parts best (effects with a flat misfit at some starts).
+    int variant = 0;
+    double best = kInf;
+    for (int v = 0; v < internal::StartVariants(effects) && internal::StartVariants(effects) > 1; ++v) {
+      progress(stage, name, "start value " + std::to_string(v + 1));
+      const ExtendedProblem trial = internal::BuildProblem(start, options.fit.model, effects, context, v);
+      const std::vector<double> theta(trial.parameters.size(), 1.0);
+      const double chi2 =
+          Evaluate(trial.Decode(theta.data()), split.fit_pointers, kind, false, seconds_left(), warm).fit.chi2;
+      if (chi2 < best) best = chi2, variant = v;
+    }
+    const ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, variant);
+    internal::BroadbandFitOptions fit_options;
+    fit_options.max_iterations = options.fit.max_iterations;
+    fit_options.max_seconds = std::max(1.0, std::min(options.fit.max_refinement_seconds, seconds_left()));
+    fit_options.warm_start = warm;
+    BroadbandFitResult r;
+    try {
+      progress(stage, name, "fitting the first parts");
+      r = internal::FitBroadband(split.fit_pointers, kind, problem, fit_options);
+      progress(stage, name, "the held-out parts at the fitted model");
+      const BroadbandFitResult heldout_warm = HeldOutWarmStart(r.fit.model, split, r);
+      const BroadbandFitResult heldout =
+          Evaluate(r.fit.model, split.heldout_pointers, kind, false, seconds_left(), &heldout_warm);
+      c.figures = Figures(split, r, heldout);
+    } catch (const std::exception& e) {
+      c.note = std::string("fit failed: ") + e.what();
+      return c;
+    }
+    c.fitted = true;
+    fits[c.label] = r;
+    c.converged = r.fit.converged;
+    c.passes = r.fit.passes;
+    if (!r.fit.converged || r.rejected) c.note = r.fit.report;
+    c.model = r.fit.model;
+    c.parameters = r.fit.parameters;
+    c.covariance = r.fit.covariance;
+    c.effect_parameters = internal::EffectParameters(effects, r.fit.parameters);
+    const double variance = std::max(1.0, c.figures.residual_variance);
+    c.heldout_gain = (d.fit_before.heldout_chi2 - c.figures.heldout_chi2) / variance;
+    c.fit_gain = (d.fit_before.chi2 - c.figures.chi2) / variance;
+    c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - candidate_start).count();
+    return c;
+  };
+  d.chosen = internal::SelectEffects(singles, d.fit_before, base_model, options, seconds_left, fit, &d.candidates);
+
+  // 6. The open world.
+  auto heldout_of = [&](int chosen) {
+    if (chosen < 0) return base_heldout;
+    const CandidateFit& c = d.candidates[chosen];
+    const BroadbandFitResult warm = HeldOutWarmStart(c.model, split, fits.at(c.label));
+    return Evaluate(c.model, split.heldout_pointers, kind, true, seconds_left(), &warm);
+  };
+  BroadbandFitResult chosen_heldout = heldout_of(d.chosen);
+  d.unexplained = FindUnexplained(split, chosen_heldout, d.chosen >= 0 ? d.candidates[d.chosen].model : base_model);
+  std::string partial;
+  std::vector<Effect> best_partial;
+  if (d.chosen >= 0 && d.unexplained) {
+    partial = internal::PartialExplanation(d.candidates[d.chosen], d.fit_before, d.unexplained->dof);
+    if (!partial.empty()) {
+      best_partial = d.candidates[d.chosen].effects;
+      d.chosen = -1;
+      chosen_heldout = base_heldout;
+      d.unexplained = FindUnexplained(split, base_heldout, base_model);
+      if (d.unexplained) d.unexplained->description += "; " + partial;
+    }
+  }
+  internal::LabelDecisions(d.chosen, partial, best_partial, &d.candidates);
+
+  if (d.chosen >= 0) {
+    const CandidateFit& c = d.candidates[d.chosen];
+    d.missing_physics = c.effects;
+    d.after = Matches(split, fits.at(c.label).records, chosen_heldout);
+    d.fit_after = c.figures;
+    d.model = c.model;
+    d.model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +
+                   (c.converged ? "" : " (that fit did NOT converge: the parameters may still be off)");
+    d.curves = EffectCurves(c, base_model,
+                            {context.min_displacement_m, context.max_displacement_m, context.max_velocity_m_per_s,
+                             context.max_penetration_m, context.max_amplitude_v, context.min_frequency_hz,
+                             context.max_frequency_hz, "reached by the base model's motion over the fit parts"});
+    std::ostringstream text;
+    text << "missing physics: " << c.label << (c.converged ? "" : " (its fit did NOT converge)")
+         << " (held-out chi-square down by " << FormatFigure(c.heldout_gain, 4)
+         << " residual variances; normalised RMS error " << FormatFigure(d.fit_before.nrmse, 4) << " -> "
+         << FormatFigure(d.fit_after.nrmse, 4) << ", held out " << FormatFigure(d.fit_before.heldout_nrmse, 4) << " -> "
+         << FormatFigure(d.fit_after.heldout_nrmse, 4) << ")";
+    if (d.unexplained) text << "; more is missing that no library effect explains: " << d.unexplained->description;
+    d.conclusion = text.str();
+  } else {
+    d.after = d.before;
+    d.fit_after = d.fit_before;
+    d.model = base_model;
+    d.model_note = std::string("nothing named: the base fit's model (") + ToString(options.fit.model) + ")";
+    d.conclusion = d.unexplained
+                       ? "unexplained: the model misses something no library effect explains; " + d.unexplained->description
+                       : "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
+                             FormatFigure(options.min_heldout_gain, 4) +
+                             " residual variances, and what the base model leaves on the held-out parts is noise";
+  }
+  d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return d;
+}
+
+}  // namespace strokelab

@@ -1,0 +1,197 @@
+// The diagnosis's choice among candidate effects (diagnose.h, steps 4 and 5): the rules that a
+// candidate must pass to beat a model, forward selection with its backward check, and the decisions the
+// report prints. Shared by the stepped-sine and the broadband diagnosis, which differ in how a candidate
+// is fitted and what its figures are made of, not in how one is chosen.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "diagnose_internal.h"
+
+namespace strokelab::internal {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kAkaikePerParameter = 2.0;  // AIC: 2 per parameter on the fit records
+
+std::string Format(double value, int digits = 4) {
+  std::ostringstream out;
+  out.precision(digits);
+  out << value;
+  return out.str();
+}
+
+// Forward selection's limit: effects in one model.
+constexpr size_t kMaxEffects = 3;
+// An effect whose parameter is within this many standard errors of its null value (zero) is not named.
+constexpr double kMinSignificance = 2.0;
+
+
+// Effects whose parameter is zero when the effect is absent (the others change a law or move a
+// limit from infinity; the held-out gain alone decides for them).
+bool NullIsZero(Effect e) {
+  return e == Effect::kCubicStiffness || e == Effect::kQuadraticStiffness || e == Effect::kContactDamping ||
+         e == Effect::kDryFriction || e == Effect::kQuadraticDamping || e == Effect::kForceFactor ||
+         e == Effect::kCoilInductance;
+}
+
+// Why a zero-null effect is not significant: none of its parameters lies beyond kMinSignificance
+// standard errors of zero (within them, or without a standard error: held at a bound or not
+// identifiable); empty when every effect has one that does.
+std::string InsignificantParameter(const CandidateFit& c) {
+  for (Effect e : c.effects) {
+    if (!NullIsZero(e)) continue;
+    std::string why;
+    bool significant = false;
+    for (const char* key : Info(e).parameters)
+      for (const FitParameter& p : c.effect_parameters) {
+        if (p.name != key) continue;
+        if (std::isfinite(p.standard_error) && std::abs(p.value) > kMinSignificance * p.standard_error) significant = true;
+        why += (why.empty() ? "" : ", ") + p.name + " = " + Format(p.value) + " +- " + Format(p.standard_error);
+      }
+    if (!significant) return why + (Info(e).parameters.size() > 1 ? " are" : " is") + " within " +
+                             Format(kMinSignificance) + " standard errors of zero";
+  }
+  return "";
+}
+
+// Why the candidate does not improve on `from` beyond noise (empty: it does): the held-out
+// chi-square must drop by more than min_heldout_gain residual variances, the fit records' by more
+// than the Akaike penalty of its new parameters (beyond the `from_effect_parameters` it had), and its
+// effects' parameters must be significant.
+std::string Rejection(const CandidateFit& c, const FitFigures& from, size_t from_effect_parameters,
+                      double min_heldout_gain) {
+  if (!c.fitted) return "not fitted";
+  const double extra = std::max<size_t>(1, c.effect_parameters.size() - from_effect_parameters);
+  const double heldout_gain = GainOver(from, c.figures, true), fit_gain = GainOver(from, c.figures, false);
+  if (!std::isfinite(heldout_gain) || heldout_gain <= min_heldout_gain)
+    return "held-out gain " + Format(heldout_gain) + " <= " + Format(min_heldout_gain);
+  if (fit_gain <= kAkaikePerParameter * extra)
+    return "fit gain " + Format(fit_gain) + " <= Akaike penalty " + Format(kAkaikePerParameter * extra);
+  return InsignificantParameter(c);
+}
+
+// The candidate of exactly these effects (any order), or -1.
+int FindFit(const std::vector<CandidateFit>& candidates, std::vector<Effect> effects) {
+  std::sort(effects.begin(), effects.end());
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    std::vector<Effect> have = candidates[i].effects;
+    std::sort(have.begin(), have.end());
+    if (candidates[i].fitted && have == effects) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+// Backward check of candidates[index]: dropping any one effect must raise the held-out chi-square
+// beyond noise. Returns why not (empty: each is needed). Models without one effect that were not
+// fitted (a triple's other pairs) are not checked.
+std::string UnneededEffect(const std::vector<CandidateFit>& candidates, int index, double min_heldout_gain) {
+  const CandidateFit& c = candidates[index];
+  for (size_t drop = 0; drop < c.effects.size(); ++drop) {
+    std::vector<Effect> without = c.effects;
+    without.erase(without.begin() + static_cast<long>(drop));
+    const int other = FindFit(candidates, without);
+    if (other < 0) continue;
+    const double gain = GainOver(candidates[other].figures, c.figures, true);
+    if (gain <= min_heldout_gain)
+      return std::string("backward check: without ") + Info(c.effects[drop]).id + " the held-out chi-square rises by only " +
+             Format(gain) + " <= " + Format(min_heldout_gain);
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string Label(const std::vector<Effect>& effects) {
+  std::string label;
+  for (Effect e : effects) label += (label.empty() ? "" : "+") + std::string(Info(e).id);
+  return label;
+}
+
+double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
+  const double variance = std::max(1.0, to.residual_variance);
+  return ((heldout ? from.heldout_chi2 : from.chi2) - (heldout ? to.heldout_chi2 : to.chi2)) / variance;
+}
+
+int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
+                  const DiagnoseOptions& options, const std::function<double()>& seconds_left,
+                  const CandidateFitter& fit, std::vector<CandidateFit>* candidates) {
+  std::vector<CandidateFit>& all = *candidates;
+  for (size_t i = 0; i < singles.size(); ++i) {
+    const EffectInfo& info = Info(singles[i]);
+    if (seconds_left() <= 0) {
+      CandidateFit skipped;
+      skipped.effects = {info.effect};
+      skipped.label = info.id;
+      skipped.note = "skipped: the diagnosis's time limit of " + Format(options.max_seconds) + " s was reached";
+      all.push_back(skipped);
+      continue;
+    }
+    all.push_back(fit({info.effect}, base, static_cast<int>(i), "candidate " + std::string(info.id)));
+  }
+  auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
+    const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
+    return ga > gb;
+  };
+  std::stable_sort(all.begin(), all.end(), by_gain);
+  std::vector<Effect> fitted;  // every single that was fitted, best held-out gain first
+  int chosen = -1;             // the best single that beats the base beyond noise
+  for (size_t i = 0; i < all.size(); ++i) {
+    CandidateFit& c = all[i];
+    c.decision = Rejection(c, base_figures, 0, options.min_heldout_gain);
+    if (c.decision.empty() && chosen < 0) chosen = static_cast<int>(i);
+    if (c.fitted) fitted.push_back(c.effects[0]);
+  }
+
+  // Forward selection: add the effect that lowers the held-out chi-square most beyond noise over the
+  // current model, refit with every parameter free, repeat. Every effect is tried at each step, not
+  // only those that beat the base alone: beside a large first effect, a second one's single fit can
+  // do worse than the base (it bends the model towards the first's misfit).
+  while (options.pairs && chosen >= 0 && all[chosen].effects.size() < kMaxEffects) {
+    const std::vector<Effect> current = all[chosen].effects;
+    int best = -1;
+    for (Effect e : fitted) {
+      if (std::find(current.begin(), current.end(), e) != current.end()) continue;
+      if (seconds_left() <= 0) break;
+      std::vector<Effect> effects = current;
+      effects.push_back(e);
+      CandidateFit next = fit(effects, all[chosen].model, static_cast<int>(singles.size()),
+                              "forward selection: candidate " + Label(effects));
+      const FitFigures& now = all[chosen].figures;
+      next.note += (next.note.empty() ? "" : "; ") + std::string("held-out gain over ") + all[chosen].label + ": " +
+                   Format(GainOver(now, next.figures, true));
+      next.decision = Rejection(next, now, all[chosen].effect_parameters.size(), options.min_heldout_gain);
+      all.push_back(next);
+      if (next.decision.empty() && (best < 0 || next.figures.heldout_chi2 < all[best].figures.heldout_chi2))
+        best = static_cast<int>(all.size() - 1);
+    }
+    if (best < 0) break;
+    // Backward check: each effect of the new model must still beat noise against the model without it.
+    all[best].decision = UnneededEffect(all, best, options.min_heldout_gain);
+    if (!all[best].decision.empty()) break;
+    chosen = best;
+  }
+  return chosen;
+}
+
+std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_heldout_chi2) {
+  const double removed = before.heldout_chi2 - chosen.figures.heldout_chi2;
+  const double left = chosen.figures.heldout_chi2 - expected_heldout_chi2;
+  if (removed >= left) return "";
+  return "the best library candidate, " + chosen.label + ", removes only " + Format(removed) +
+         " of the held-out chi-square's excess and leaves " + Format(left) + ": it is not named";
+}
+
+void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,
+                    std::vector<CandidateFit>* candidates) {
+  for (size_t i = 0; i < candidates->size(); ++i) {
+    CandidateFit& c = (*candidates)[i];
+    if (static_cast<int>(i) == chosen) c.decision = "named";
+    else if (!partial.empty() && c.decision.empty() && c.effects == best_partial) c.decision = "not named: " + partial;
+    else if (c.decision.empty()) c.decision = "beats noise, but another model is better";
+    else if (c.fitted) c.decision = "rejected: " + c.decision;
+  }
+}
+
+}  // namespace strokelab::internal
