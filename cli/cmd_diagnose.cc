@@ -164,19 +164,24 @@ void PrintMaps(const report::DiagnosisMaps& maps, std::ostream& out) {
     out << "  " << report::ThresholdShiftSummary(report::ThresholdShifts(*maps.base, *maps.diagnosed)) << "\n";
 }
 
+// `json` as DIR/name (--out DIR, created if missing).
+void WriteJson(const std::string& dir, const char* name, const nlohmann::json& json) {
+  std::error_code ignored;
+  std::filesystem::create_directories(dir, ignored);  // a failure shows as the file's
+  const std::filesystem::path path = std::filesystem::path(dir) / name;
+  std::ofstream file(path);
+  file << json.dump(2) << "\n";
+  if (!file) throw InputError("--out", "cannot write " + path.string());
+}
+
 // A campaign of broadband records only: diagnose/broadband_diagnose.h. --out gets diagnosis.json and
 // model.json (the HTML report and its maps are the stepped-sine diagnosis's so far).
 int RunBroadbandDiagnose(const Campaign& campaign, const DiagnoseOptions& options, const Args& args) {
   const BroadbandDiagnosis diagnosis = DiagnoseBroadbandCampaign(campaign, options);
   const nlohmann::json json = BroadbandDiagnosisToJson(diagnosis);
   if (const auto out = args.Get("--out")) {
-    std::filesystem::create_directories(*out);
-    for (const auto& [name, content] : {std::pair{"diagnosis.json", json}, std::pair{"model.json", json["model"]}}) {
-      const std::filesystem::path path = std::filesystem::path(*out) / name;
-      std::ofstream file(path);
-      file << content.dump(2) << "\n";
-      if (!file) throw InputError("--out", "cannot write " + path.string());
-    }
+    WriteJson(*out, "diagnosis.json", json);
+    WriteJson(*out, "model.json", json["model"]);
   }
   if (args.Has("--json")) std::cout << json.dump(2) << "\n";
   else PrintBroadbandDiagnosis(diagnosis, std::cout);
@@ -218,9 +223,7 @@ int RunDiagnose(const std::vector<std::string>& argv) {
   if (out) {
     maps = report::SweepDiagnosisMaps(diagnosis, options);
     report::WriteDiagnosisReport(diagnosis, *out, &*maps);
-    std::ofstream file(std::filesystem::path(*out) / "diagnosis.json");
-    file << json.dump(2) << "\n";
-    if (!file) throw InputError("--out", "cannot write " + (std::filesystem::path(*out) / "diagnosis.json").string());
+    WriteJson(*out, "diagnosis.json", json);
   }
   if (args.Has("--json")) {
     std::cout << json.dump(2) << "\n";

@@ -114,16 +114,21 @@ INSTANTIATE_TEST_SUITE_P(Library, BroadbandDiagnoseTest,
                                            BroadbandCase{"cubic_stiffness", "k3", 1.5e7, kSmoothLevels, 8302}),
                          [](const ::testing::TestParamInfo<BroadbandCase>& info) { return info.param.name; });
 
+// A broadband record of n samples at 1 kHz: voltage u(i), response y(i).
+template <typename U, typename Y>
+Recording BroadbandRecord(const char* name, int n, U u, Y y) {
+  Recording r;
+  r.name = name;
+  r.sample_rate_hz = 1000.0;
+  r.broadband = true;
+  for (int i = 0; i < n; ++i) r.voltage_v.push_back(u(i)), r.response.push_back(y(i));
+  return r;
+}
+
 // A record too short to hold a part out is named; a campaign of stepped sines only is refused.
 TEST(BroadbandDiagnoseTest, RefusesRecordsItCannotSplit) {
   Campaign campaign;
-  Recording r;
-  r.name = "short.csv";
-  r.sample_rate_hz = 1000.0;
-  r.broadband = true;
-  r.voltage_v.assign(600, 0.1);
-  r.response.assign(600, 0.0);
-  campaign.records = {r};
+  campaign.records = {BroadbandRecord("short.csv", 600, [](int) { return 0.1; }, [](int) { return 0.0; })};
   try {
     SplitBroadbandRecords(campaign, 4);
     ADD_FAILURE() << "no error";
@@ -138,12 +143,7 @@ TEST(BroadbandDiagnoseTest, RefusesRecordsItCannotSplit) {
 // The split keeps each record's samples, in order: the fit part then the held-out part.
 TEST(BroadbandDiagnoseTest, SplitsEachRecordIntoItsFirstAndLastParts) {
   Campaign campaign;
-  Recording r;
-  r.name = "a.csv";
-  r.sample_rate_hz = 1000.0;
-  r.broadband = true;
-  for (int i = 0; i < 2000; ++i) r.voltage_v.push_back(i), r.response.push_back(-i);
-  campaign.records = {r};
+  campaign.records = {BroadbandRecord("a.csv", 2000, [](int i) { return i; }, [](int i) { return -i; })};
   const BroadbandParts parts = SplitBroadbandRecords(campaign, 4);
   ASSERT_EQ(parts.fit.size(), 1u);
   EXPECT_EQ(parts.names[0], "a.csv");
@@ -160,11 +160,7 @@ TEST(BroadbandDiagnoseTest, HoldsOutTheFirstPartWhenTheImpactsAllFallInTheLast) 
   std::mt19937 random(5);
   std::normal_distribution<double> noise(0.0, 1.0);
   auto record = [&](std::vector<size_t> spikes) {
-    Recording r;
-    r.name = "r.csv";
-    r.sample_rate_hz = 1000.0;
-    r.broadband = true;
-    for (int i = 0; i < 2000; ++i) r.voltage_v.push_back(0.0), r.response.push_back(noise(random));
+    Recording r = BroadbandRecord("r.csv", 2000, [](int) { return 0.0; }, [&](int) { return noise(random); });
     for (size_t n : spikes) r.response[n] += 500.0;
     return r;
   };

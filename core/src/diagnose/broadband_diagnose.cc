@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "diagnose_internal.h"
+#include "strokelab/base/chi_square.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/signal/signal.h"
 #include "strokelab/diagnose/effect_curves.h"
@@ -191,16 +192,6 @@ EffectContext Context(const ActuatorModel& model, const Split& split, const std:
   return c;
 }
 
-// The standard normal's upper p quantile, by bisection on its tail 0.5 erfc(z / sqrt 2).
-double NormalUpperQuantile(double p) {
-  double low = 0.0, high = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double z = 0.5 * (low + high);
-    (0.5 * std::erfc(z / std::numbers::sqrt2) > p ? low : high) = z;
-  }
-  return 0.5 * (low + high);
-}
-
 // The open-world test on `heldout` (the diagnosed model's evaluation on the held-out parts): null
 // when its chi-square is within the 1e-3 tail of noise alone, else where the misfit lives.
 std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const BroadbandFitResult& heldout,
@@ -338,7 +329,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     // The start variant whose model fits the first parts best (effects with a flat misfit at some starts).
     int variant = 0;
     double best = kInf;
-    for (int v = 0; v < internal::StartVariants(effects) && internal::StartVariants(effects) > 1; ++v) {
+    const int variants = internal::StartVariants(effects);
+    for (int v = 0; variants > 1 && v < variants; ++v) {
       progress(stage, name, "start value " + std::to_string(v + 1));
       const ExtendedProblem trial = internal::BuildProblem(start, options.fit.model, effects, context, v);
       const std::vector<double> theta(trial.parameters.size(), 1.0);

@@ -7,48 +7,36 @@
 #include <complex>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <numeric>
 #include <unsupported/Eigen/FFT>
 
 #include "strokelab/base/errors.h"
-#include "strokelab/signal/signal.h"
 #include "strokelab/base/json_number.h"
+#include "strokelab/signal/signal.h"
 
 namespace strokelab {
-namespace {
 
 using internal::LogParameter;
 
-
-
-}  // namespace
-
 std::vector<FrfSample> BroadbandFrf(const Recording& record) {
   const size_t n = record.size();
-  const size_t length = n;
   if (n < 256) throw InputError(record.name, "is too short for a spectral estimate (fewer than 256 samples)");
-  const size_t hop = length;
-  std::vector<double> window(length);
-  for (size_t k = 0; k < length; ++k) window[k] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * k / length);
-  auto mean = [](const std::vector<double>& v) {
-    double sum = 0.0;
-    for (double x : v) sum += x;
-    return sum / static_cast<double>(v.size());
-  };
-  const double u_mean = mean(record.voltage_v), y_mean = mean(record.response);
+  const double u_mean = std::accumulate(record.voltage_v.begin(), record.voltage_v.end(), 0.0) / static_cast<double>(n);
+  const double y_mean = std::accumulate(record.response.begin(), record.response.end(), 0.0) / static_cast<double>(n);
+  std::vector<double> u(n), y(n);
+  for (size_t k = 0; k < n; ++k) {
+    const double window = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * k / n);
+    u[k] = (record.voltage_v[k] - u_mean) * window;
+    y[k] = (record.response[k] - y_mean) * window;
+  }
   Eigen::FFT<double> fft;
-  std::vector<std::complex<double>> suu(length / 2 + 1, 0.0), syu(length / 2 + 1, 0.0), u_bins, y_bins;
-  std::vector<double> u(length), y(length);
-  for (size_t start = 0; start + length <= n; start += hop) {
-    for (size_t k = 0; k < length; ++k) {
-      u[k] = (record.voltage_v[start + k] - u_mean) * window[k];
-      y[k] = (record.response[start + k] - y_mean) * window[k];
-    }
-    fft.fwd(u_bins, u);
-    fft.fwd(y_bins, y);
-    for (size_t k = 0; k < suu.size(); ++k) {
-      suu[k] += std::norm(u_bins[k]);
-      syu[k] += y_bins[k] * std::conj(u_bins[k]);
-    }
+  std::vector<std::complex<double>> u_bins, y_bins;
+  fft.fwd(u_bins, u);
+  fft.fwd(y_bins, y);
+  std::vector<std::complex<double>> suu(n / 2 + 1), syu(n / 2 + 1);
+  for (size_t k = 0; k < suu.size(); ++k) {
+    suu[k] = std::norm(u_bins[k]);
+    syu[k] = y_bins[k] * std::conj(u_bins[k]);
   }
   double peak = 0.0;
   for (size_t k = 1; k < suu.size(); ++k) peak = std::max(peak, suu[k].real());
@@ -59,7 +47,7 @@ std::vector<FrfSample> BroadbandFrf(const Recording& record) {
   std::vector<FrfSample> samples;
   for (size_t i = 0; i < bins.size(); i += stride) {
     const size_t k = bins[i];
-    samples.push_back({static_cast<double>(k) * record.sample_rate_hz / static_cast<double>(length), syu[k] / suu[k]});
+    samples.push_back({static_cast<double>(k) * record.sample_rate_hz / static_cast<double>(n), syu[k] / suu[k]});
   }
   return samples;
 }
