@@ -315,11 +315,11 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   for (const EffectInfo* info : library)
     if (internal::Applicable(info->effect, options.fit.model, context)) singles.push_back(info->effect);
   stages = 3 + static_cast<int>(singles.size()) + (options.pairs ? 1 : 0);
-  // Each candidate's fit, by label: the warm start of the candidates that extend it (broadband_fit.h).
+  // Each candidate's best fit, by label: the warm start of the candidates fitted from it (broadband_fit.h).
   std::map<std::string, BroadbandFitResult> fits;
-  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, int index, const std::string& name) {
-    const std::vector<Effect> extended(effects.begin(), effects.end() - 1);
-    const BroadbandFitResult* warm = extended.empty() ? &d.base.result : &fits.at(internal::Label(extended));
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
+                 int index, const std::string& name) {
+    const BroadbandFitResult* warm = from.empty() ? &d.base.result : &fits.at(internal::Label(from));
     const int stage = 4 + index;
     progress(stage, name);
     const auto candidate_start = std::chrono::steady_clock::now();
@@ -357,7 +357,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       return c;
     }
     c.fitted = true;
-    fits[c.label] = r;
+    // The best fit of these effects (the one SelectEffects takes when one was refitted).
+    if (!fits.count(c.label) || r.fit.chi2 < fits.at(c.label).fit.chi2) fits[c.label] = r;
     c.converged = r.fit.converged;
     c.passes = r.fit.passes;
     if (!r.fit.converged || r.rejected) c.note = r.fit.report;

@@ -355,7 +355,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // 4. Single effects, then forward selection.
   std::vector<Effect> singles;
   for (const EffectInfo* info : applicable) singles.push_back(info->effect);
-  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, int index, const std::string& name) {
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& /*from*/,
+                 int index, const std::string& name) {
     const int stage = 4 + index;
     progress(stage, name);
     return RunCandidate(effects, start, options, context, split, analyses, kind, d.fit_before, seconds_left(),

@@ -16,6 +16,7 @@
 #include "strokelab/identify/campaign.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/diagnose/open_world.h"
+#include "strokelab/diagnose/selection.h"
 
 namespace strokelab::internal {
 
@@ -63,31 +64,6 @@ std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, cons
 Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAnalysis> analyses,
                              const std::vector<RecordMatch>& before, const ActuatorModel& base, ResponseKind kind,
                              const FitOptions& options);
-
-// Selection (selection.cc): the rules shared by the stepped-sine and the broadband diagnosis.
-// "cubic_stiffness+contact_damping".
-std::string Label(const std::vector<Effect>& effects);
-// Chi-square drop from `from` to `to` (held-out or fit records) in `to`'s residual variances.
-double GainOver(const FitFigures& from, const FitFigures& to, bool heldout);
-// Fits the base model extended by `effects` from `start` (a fitted model's parameters as start values),
-// at progress stage `stage` (0 for the first single, singles.size() for the forward selection) under
-// `name`; the candidate's figures on the same records as the base's.
-using CandidateFitter = std::function<CandidateFit(const std::vector<Effect>& effects, const ActuatorModel& start,
-                                                    int stage, const std::string& name)>;
-// Steps 4 and 5 of diagnose.h: each of `singles` fitted from `base` (skipped once seconds_left() is
-// spent), sorted by held-out gain, then forward selection with its backward check. Appends every
-// candidate to `candidates`, each with its decision (empty: it beats the model it extends beyond
-// noise), and returns the chosen one's index (-1: none beats the base).
-int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
-                  const DiagnoseOptions& options, const std::function<double()>& seconds_left,
-                  const CandidateFitter& fit, std::vector<CandidateFit>* candidates);
-// Why the chosen candidate is not named though it beats noise (empty: it is named): it removes less
-// of the held-out chi-square's excess over `expected_heldout_chi2` than it leaves.
-std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_heldout_chi2);
-// The report's decisions: "named" for `chosen`, "not named: <partial>" for the candidate of
-// `best_partial`, "beats noise, but another model is better", "rejected: <why>".
-void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,
-                    std::vector<CandidateFit>* candidates);
 
 // Broadband signatures (broadband_signatures.cc; broadband_diagnose.h step 3) from `fits` of `parts`
 // (each with its series: BroadbandFitOptions::keep_series) at `model`.

@@ -237,6 +237,29 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
   return problem;
 }
 
+ActuatorModel WithoutEffect(const ActuatorModel& model, Effect effect, const ActuatorModel& base) {
+  ActuatorModel out = model;
+  switch (effect) {
+    case Effect::kCubicStiffness: out.cubic_stiffness_n_per_m3 = base.cubic_stiffness_n_per_m3; break;
+    case Effect::kQuadraticStiffness: out.quadratic_stiffness_n_per_m2 = base.quadratic_stiffness_n_per_m2; break;
+    case Effect::kHertzianContact:
+      out.contact_law = base.contact_law;
+      out.contact_stiffness = base.contact_stiffness;
+      break;
+    case Effect::kContactDamping: out.contact_damping_n_s_per_m = base.contact_damping_n_s_per_m; break;
+    case Effect::kSecondStop: out.upper_stop_m = base.upper_stop_m; break;
+    case Effect::kDryFriction: out.friction_force_n = base.friction_force_n; break;
+    case Effect::kAmplifierSaturation: out.amplifier_limit_v = base.amplifier_limit_v; break;
+    case Effect::kQuadraticDamping: out.quadratic_damping_n_s2_per_m2 = base.quadratic_damping_n_s2_per_m2; break;
+    case Effect::kForceFactor:
+      out.force_factor_b1_per_m = base.force_factor_b1_per_m;
+      out.force_factor_b2_per_m2 = base.force_factor_b2_per_m2;
+      break;
+    case Effect::kCoilInductance: out.coil_time_constant_s = base.coil_time_constant_s; break;
+  }
+  return out;
+}
+
 std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all) {
   std::vector<FitParameter> out;
   for (Effect e : effects)

@@ -1,7 +1,6 @@
-// The diagnosis's choice among candidate effects (diagnose.h, steps 4 and 5): the rules that a
-// candidate must pass to beat a model, forward selection with its backward check, and the decisions the
-// report prints. Shared by the stepped-sine and the broadband diagnosis, which differ in how a candidate
-// is fitted and what its figures are made of, not in how one is chosen.
+// The diagnosis's choice among candidate effects (diagnose/selection.h).
+#include "strokelab/diagnose/selection.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -72,15 +71,18 @@ std::string Rejection(const CandidateFit& c, const FitFigures& from, size_t from
   return InsignificantParameter(c);
 }
 
-// The candidate of exactly these effects (any order), or -1.
+// The best fit (lowest chi-square on the fit records) of exactly these effects (any order), or -1.
 int FindFit(const std::vector<CandidateFit>& candidates, std::vector<Effect> effects) {
   std::sort(effects.begin(), effects.end());
+  int best = -1;
   for (size_t i = 0; i < candidates.size(); ++i) {
     std::vector<Effect> have = candidates[i].effects;
     std::sort(have.begin(), have.end());
-    if (candidates[i].fitted && have == effects) return static_cast<int>(i);
+    if (candidates[i].fitted && have == effects &&
+        (best < 0 || candidates[i].figures.chi2 < candidates[best].figures.chi2))
+      best = static_cast<int>(i);
   }
-  return -1;
+  return best;
 }
 
 // Backward check of candidates[index]: dropping any one effect must raise the held-out chi-square
@@ -128,7 +130,7 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
       all.push_back(skipped);
       continue;
     }
-    all.push_back(fit({info.effect}, base, static_cast<int>(i), "candidate " + std::string(info.id)));
+    all.push_back(fit({info.effect}, base, {}, static_cast<int>(i), "candidate " + std::string(info.id)));
   }
   auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
     const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
@@ -156,7 +158,7 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
       if (seconds_left() <= 0) break;
       std::vector<Effect> effects = current;
       effects.push_back(e);
-      CandidateFit next = fit(effects, all[chosen].model, static_cast<int>(singles.size()),
+      CandidateFit next = fit(effects, all[chosen].model, current, static_cast<int>(singles.size()),
                               "forward selection: candidate " + Label(effects));
       const FitFigures& now = all[chosen].figures;
       next.note += (next.note.empty() ? "" : "; ") + std::string("held-out gain over ") + all[chosen].label + ": " +
@@ -167,20 +169,42 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
         best = static_cast<int>(all.size() - 1);
     }
     if (best < 0) break;
-    // Backward check: each effect of the new model must still beat noise against the model without it.
+    // The current model refitted from the new one's solution, the added effect taken out. A fit from
+    // the base can end short of the current model's optimum, and a second effect then "explains" what
+    // that fit left (a clipping level fitted beside a Hertzian stop that takes up the rest of the
+    // misfit): from the better start the current model can reach that optimum on its own.
+    const std::vector<Effect> extended = all[best].effects;
+    if (seconds_left() > 0) {
+      CandidateFit refit = fit(current, WithoutEffect(all[best].model, extended.back(), base), extended,
+                               static_cast<int>(singles.size()),
+                               "backward check: " + Label(current) + " refitted from " + Label(extended) + "'s solution");
+      refit.note += (refit.note.empty() ? "" : "; ") + std::string("refitted from ") + Label(extended) +
+                    "'s solution without " + Info(extended.back()).id;
+      refit.decision = Rejection(refit, base_figures, 0, options.min_heldout_gain);
+      all.push_back(refit);
+    }
+    // Backward check: each effect of the new model must still beat noise against the best fit of the
+    // model without it.
     all[best].decision = UnneededEffect(all, best, options.min_heldout_gain);
-    if (!all[best].decision.empty()) break;
+    if (!all[best].decision.empty()) {
+      const int better = FindFit(all, current);  // the refit, where it fits better
+      if (better >= 0 && all[better].decision.empty()) chosen = better;
+      break;
+    }
     chosen = best;
   }
   return chosen;
 }
 
-std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_heldout_chi2) {
-  const double removed = before.heldout_chi2 - chosen.figures.heldout_chi2;
-  const double left = chosen.figures.heldout_chi2 - expected_heldout_chi2;
+std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_chi2,
+                               bool heldout) {
+  const double before_chi2 = heldout ? before.heldout_chi2 : before.chi2;
+  const double chosen_chi2 = heldout ? chosen.figures.heldout_chi2 : chosen.figures.chi2;
+  const double removed = before_chi2 - chosen_chi2, left = chosen_chi2 - expected_chi2;
   if (removed >= left) return "";
-  return "the best library candidate, " + chosen.label + ", removes only " + Format(removed) +
-         " of the held-out chi-square's excess and leaves " + Format(left) + ": it is not named";
+  return "the best library candidate, " + chosen.label + ", removes only " + Format(removed) + " of the " +
+         (heldout ? "held-out chi-square's" : "fit records' chi-square's") + " excess and leaves " + Format(left) +
+         ": it is not named";
 }
 
 void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,

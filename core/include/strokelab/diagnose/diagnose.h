@@ -19,7 +19,10 @@
 //      every other fitted effect is added in turn (up to three effects; not only the accepted ones:
 //      beside a large first effect a second one's single fit can do worse than the base), the best
 //      that beats the current model by the same rules is kept if dropping any of its effects again
-//      costs more than noise (backward check), and so on.
+//      costs more than noise (backward check), and so on. For the check, the current model is also
+//      refitted from the larger one's solution with the added effect taken out, and the better of its
+//      two fits counts: a fit from the base can end short of its optimum, and a second effect then
+//      takes up only what that fit left (selection.h).
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
 //      is beyond noise, the report says where; when the chosen effects removed less of the excess than
 //      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).

@@ -1,0 +1,52 @@
+// The diagnosis's choice among candidate effects (diagnose.h, steps 4 and 5; selection.cc): the rules
+// shared by the stepped-sine and the broadband diagnosis, which differ in how a candidate is fitted and
+// what its figures are made of, not in how one is chosen. Public for its tests.
+#pragma once
+
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "strokelab/diagnose/diagnose.h"
+#include "strokelab/model/model.h"
+
+namespace strokelab::internal {
+
+// `model` without `effect`: the effect's own parameters (and, for a Hertzian stop, its contact law) back
+// at `base`'s values, which lack it; every other parameter as `model` has it (effects.cc). The
+// backward check refits a model from the larger one's solution so.
+ActuatorModel WithoutEffect(const ActuatorModel& model, Effect effect, const ActuatorModel& base);
+
+// "cubic_stiffness+contact_damping".
+std::string Label(const std::vector<Effect>& effects);
+// Chi-square drop from `from` to `to` (held-out or fit records) in `to`'s residual variances.
+double GainOver(const FitFigures& from, const FitFigures& to, bool heldout);
+// Fits the base model extended by `effects` from `start` (a fitted model's parameters as start values:
+// those of the candidate of the effects `from`, the base's when empty, maybe with an effect taken out),
+// at progress stage `stage` (0 for the first single, singles.size() for the forward selection) under
+// `name`; the candidate's figures on the same records as the base's.
+using CandidateFitter =
+    std::function<CandidateFit(const std::vector<Effect>& effects, const ActuatorModel& start,
+                               const std::vector<Effect>& from, int stage, const std::string& name)>;
+// Steps 4 and 5 of diagnose.h: each of `singles` fitted from `base` (skipped once seconds_left() is
+// spent), sorted by held-out gain, then forward selection with its backward check. The check compares
+// the larger model with the best fit of the model without each effect; the current model is refitted
+// from the larger one's solution for it (WithoutEffect of the added effect), since a fit from the base
+// can end short of its optimum and leave a misfit that a spurious second effect then takes up. Appends
+// every candidate to `candidates`, each with its decision (empty: it beats the model it extends beyond
+// noise), and returns the chosen one's index (-1: none beats the base).
+int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
+                  const DiagnoseOptions& options, const std::function<double()>& seconds_left,
+                  const CandidateFitter& fit, std::vector<CandidateFit>* candidates);
+// Why the chosen candidate is not named though it beats noise (empty: it is named): it removes less
+// of the held-out (or, with heldout false, the fit records') chi-square's excess over `expected_chi2`
+// than it leaves.
+std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_chi2,
+                               bool heldout = true);
+// The report's decisions: "named" for `chosen`, "not named: <partial>" for the candidate of
+// `best_partial`, "beats noise, but another model is better", "rejected: <why>".
+void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,
+                    std::vector<CandidateFit>* candidates);
+
+}  // namespace strokelab::internal

@@ -1,0 +1,161 @@
+// The diagnosis's choice among candidates (diagnose/selection.h) on scripted fits: the backward check
+// refits the current model from the larger one's solution, and a second effect that only takes up what
+// the first one's fit from the base left is not named.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "strokelab/diagnose/selection.h"
+
+namespace strokelab {
+namespace {
+
+using internal::SelectEffects;
+using internal::WithoutEffect;
+
+TEST(WithoutEffectTest, PutsBackOnlyTheEffectsOwnParameters) {
+  const ActuatorModel base = PaperModel();
+  ActuatorModel with = base;
+  with.stiffness_n_per_m *= 1.1;  // a base parameter the extended fit moved: kept
+  with.cubic_stiffness_n_per_m3 = 1.5e7;
+  with.contact_law = ContactLaw::kHertzian;
+  with.contact_stiffness = 4e8;
+  with.friction_force_n = 0.003;
+  with.force_factor_b1_per_m = 30;
+  with.force_factor_b2_per_m2 = -6e4;
+  with.amplifier_limit_v = 1.0;
+  with.upper_stop_m = 1.2e-3;
+
+  const ActuatorModel no_k3 = WithoutEffect(with, Effect::kCubicStiffness, base);
+  EXPECT_EQ(no_k3.cubic_stiffness_n_per_m3, 0.0);
+  EXPECT_EQ(no_k3.friction_force_n, 0.003);
+  EXPECT_EQ(no_k3.stiffness_n_per_m, with.stiffness_n_per_m);
+
+  const ActuatorModel no_hertz = WithoutEffect(with, Effect::kHertzianContact, base);
+  EXPECT_EQ(no_hertz.contact_law, ContactLaw::kLinear);
+  EXPECT_EQ(no_hertz.contact_stiffness, base.contact_stiffness);  // a linear stop's [N/m] again
+  EXPECT_EQ(no_hertz.cubic_stiffness_n_per_m3, 1.5e7);
+
+  const ActuatorModel no_bl = WithoutEffect(with, Effect::kForceFactor, base);
+  EXPECT_EQ(no_bl.force_factor_b1_per_m, 0.0);
+  EXPECT_EQ(no_bl.force_factor_b2_per_m2, 0.0);
+  EXPECT_FALSE(WithoutEffect(with, Effect::kAmplifierSaturation, base).HasAmplifierLimit());
+  EXPECT_FALSE(WithoutEffect(with, Effect::kSecondStop, base).HasUpperStop());
+  EXPECT_EQ(WithoutEffect(with, Effect::kDryFriction, base).friction_force_n, 0.0);
+}
+
+// Scripted candidate fits: chi-square on the fit and held-out records (residual variance 1) by the
+// candidate's label and the label it starts from ("" the base), with a significant parameter.
+class ScriptedFits {
+ public:
+  std::map<std::string, double> chi2;  // "effects<-from" -> chi-square (fit and held-out alike)
+  std::vector<std::pair<std::string, ActuatorModel>> starts;  // every fit's label and start model
+
+  internal::CandidateFitter Fitter() {
+    return [this](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
+                  int, const std::string&) {
+      CandidateFit c;
+      c.effects = effects;
+      c.label = internal::Label(effects);
+      const std::string key = c.label + "<-" + internal::Label(from);
+      starts.emplace_back(key, start);
+      c.fitted = chi2.count(key) > 0;
+      if (!c.fitted) return c;
+      c.figures.chi2 = c.figures.heldout_chi2 = chi2.at(key);
+      c.figures.residual_variance = 1.0;
+      c.heldout_gain = c.fit_gain = kBase - chi2.at(key);
+      for (Effect e : effects)
+        for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", 1.0, 0.1});
+      c.model = start;
+      if (std::find(effects.begin(), effects.end(), Effect::kCubicStiffness) != effects.end())
+        c.model.cubic_stiffness_n_per_m3 = 1.5e7;
+      if (std::find(effects.begin(), effects.end(), Effect::kDryFriction) != effects.end())
+        c.model.friction_force_n = 0.003;
+      return c;
+    };
+  }
+  static constexpr double kBase = 1000.0;
+};
+
+int Select(ScriptedFits& fits, std::vector<CandidateFit>* candidates) {
+  FitFigures base;
+  base.chi2 = base.heldout_chi2 = ScriptedFits::kBase;
+  base.residual_variance = 1.0;
+  const std::vector<Effect> singles = {Effect::kCubicStiffness, Effect::kDryFriction};
+  return SelectEffects(singles, base, PaperModel(), DiagnoseOptions{}, [] { return 1e9; }, fits.Fitter(), candidates);
+}
+
+TEST(SelectEffectsTest, ASecondEffectThatTakesUpWhatTheFirstFitLeftIsNotNamed) {
+  ScriptedFits fits;
+  fits.chi2 = {{"cubic_stiffness<-", 500},  // short of its optimum
+               {"dry_friction<-", 900},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 400},  // beats it by 100 > 10
+               {"cubic_stiffness<-cubic_stiffness+dry_friction", 405}};  // within 5 of the pair
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness");
+  EXPECT_EQ(candidates[chosen].figures.chi2, 405);  // the refit, not the fit from the base
+  bool pair_rejected = false;
+  for (const CandidateFit& c : candidates)
+    if (c.label == "cubic_stiffness+dry_friction")
+      pair_rejected = c.decision.find("backward check: without dry_friction") != std::string::npos;
+  EXPECT_TRUE(pair_rejected);
+  // The refit started from the pair's solution with the friction taken out.
+  bool refit_seen = false;
+  for (const auto& [key, start] : fits.starts)
+    if (key == "cubic_stiffness<-cubic_stiffness+dry_friction") {
+      refit_seen = true;
+      EXPECT_EQ(start.cubic_stiffness_n_per_m3, 1.5e7);
+      EXPECT_EQ(start.friction_force_n, 0.0);
+    }
+  EXPECT_TRUE(refit_seen);
+}
+
+TEST(SelectEffectsTest, APairThatAlsoBeatsTheRefitBeyondNoiseIsNamed) {
+  ScriptedFits fits;
+  fits.chi2 = {{"cubic_stiffness<-", 500},
+               {"dry_friction<-", 900},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 400},
+               {"cubic_stiffness<-cubic_stiffness+dry_friction", 480}};  // the pair still beats it by 80
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+dry_friction");
+  EXPECT_EQ(candidates[chosen].decision, "");
+}
+
+TEST(SelectEffectsTest, ARefitThatEndsWorseLeavesTheFitFromTheBase) {
+  ScriptedFits fits;
+  fits.chi2 = {{"cubic_stiffness<-", 500},
+               {"dry_friction<-", 900},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 495},  // gain 5: not beyond noise
+               {"cubic_stiffness<-cubic_stiffness+dry_friction", 600}};
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness");
+  EXPECT_EQ(candidates[chosen].figures.chi2, 500);
+}
+
+TEST(PartialExplanationTest, ACandidateThatLeavesMoreThanItRemovesIsNotNamedOnEitherParts) {
+  FitFigures before;
+  before.chi2 = 25000;  // fit parts
+  before.heldout_chi2 = 6200;
+  CandidateFit c;
+  c.label = "quadratic_stiffness+cubic_stiffness";
+  c.figures.chi2 = 24400;  // removes 600 of the fit parts' excess, leaves 5400 over 19000
+  c.figures.heldout_chi2 = 6100;
+  EXPECT_EQ(internal::PartialExplanation(c, before, 19000, false),
+            "the best library candidate, quadratic_stiffness+cubic_stiffness, removes only 600 of the fit records' "
+            "chi-square's excess and leaves 5400: it is not named");
+  EXPECT_EQ(internal::PartialExplanation(c, before, 6000, true), "");  // held out: removes 100, leaves 100
+  c.figures.chi2 = 19500;  // removes 5500, leaves 500: named
+  EXPECT_EQ(internal::PartialExplanation(c, before, 19000, false), "");
+}
+
+}  // namespace
+}  // namespace strokelab
