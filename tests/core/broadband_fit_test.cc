@@ -131,6 +131,35 @@ TEST(BroadbandFit, WithNothingFreeItEvaluatesTheModel) {
   EXPECT_GT(wrong.fit.chi2, truth.fit.chi2);
 }
 
+// Noise levels given (BroadbandFitOptions::noise, as the diagnosis gives its parts the whole record's)
+// weight the residuals instead of each record's own estimate: twice the level, a quarter of the
+// chi-square; more samples behind an estimate, a tighter rejection limit. A list that does not match
+// the records is refused by name.
+TEST(BroadbandFit, GivenNoiseLevelsWeightTheResidualsAndTightenTheLimit) {
+  const Synthesis synthesis = MultisineCampaign(PaperModel(), {0.1, 0.3}, 44);
+  const std::vector<const Recording*> records = Pointers(synthesis.campaign);
+  ExtendedProblem held;
+  held.base = synthesis.model;
+  const BroadbandFitResult own = internal::FitBroadband(records, ResponseKind::kForce, held);
+  internal::BroadbandFitOptions options;
+  for (const internal::BroadbandRecordFit& r : own.records) options.noise.push_back({2.0 * r.noise_rms, 8192});
+  const BroadbandFitResult doubled = internal::FitBroadband(records, ResponseKind::kForce, held, options);
+  ASSERT_EQ(doubled.records.size(), own.records.size());
+  for (size_t r = 0; r < own.records.size(); ++r) EXPECT_EQ(doubled.records[r].noise_rms, 2.0 * own.records[r].noise_rms);
+  EXPECT_NEAR(doubled.fit.chi2, own.fit.chi2 / 4.0, 1e-3 * own.fit.chi2);
+  for (auto& level : options.noise) level = {level.rms / 2.0, 4 * 8192};
+  const BroadbandFitResult wider_estimate = internal::FitBroadband(records, ResponseKind::kForce, held, options);
+  EXPECT_NEAR(wider_estimate.fit.chi2, own.fit.chi2, 1e-3 * own.fit.chi2);
+  EXPECT_LT(wider_estimate.chi2_limit - wider_estimate.dof, 0.8 * (own.chi2_limit - own.dof));
+  options.noise.pop_back();
+  try {
+    internal::FitBroadband(records, ResponseKind::kForce, held, options);
+    ADD_FAILURE() << "a noise list shorter than the records was taken";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "noise");
+  }
+}
+
 // A fit warm-started from another fit of the same records (BroadbandFitOptions::warm_start) starts
 // from its segment starts, offsets and hum: from the model that fit found, nothing is left to gain (the
 // same chi-square within 1e-6); a warm start from other records is refused by name.

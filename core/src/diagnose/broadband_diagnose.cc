@@ -48,16 +48,18 @@ Recording Part(const Recording& record, size_t first, size_t end, const char* wh
 // The parts with the pointers the fits take.
 struct Split : BroadbandParts {
   std::vector<const Recording*> fit_pointers, heldout_pointers;
+  std::vector<internal::BroadbandFitOptions::NoiseLevel> noise;  // the records', with their sizes
   explicit Split(BroadbandParts parts) : BroadbandParts(std::move(parts)) {
     for (const Recording& r : fit) fit_pointers.push_back(&r);
     for (const Recording& r : heldout) heldout_pointers.push_back(&r);
+    for (size_t r = 0; r < names.size(); ++r) noise.push_back({noise_rms[r], fit[r].size() + heldout[r].size()});
   }
   Split(const Split&) = delete;  // the pointers point into this object
 };
 
-// `model` on `parts` with only their segments' starts, offsets and hum fitted, from `warm`'s (a fit of
-// the same parts; may be null).
-BroadbandFitResult Evaluate(const ActuatorModel& model, std::span<const Recording* const> parts, ResponseKind kind,
+// `model` on `parts` (split's fit or held-out parts) with only their segments' starts, offsets and hum
+// fitted, from `warm`'s (a fit of the same parts; may be null).
+BroadbandFitResult Evaluate(const ActuatorModel& model, const Split& split, bool heldout, ResponseKind kind,
                             bool series, double max_seconds, const BroadbandFitResult* warm) {
   ExtendedProblem held;
   held.base = model;
@@ -65,7 +67,8 @@ BroadbandFitResult Evaluate(const ActuatorModel& model, std::span<const Recordin
   options.keep_series = series;
   options.max_seconds = std::max(1.0, max_seconds);
   options.warm_start = warm;
-  return internal::FitBroadband(parts, kind, held, options);
+  options.noise = split.noise;
+  return internal::FitBroadband(heldout ? split.heldout_pointers : split.fit_pointers, kind, held, options);
 }
 
 // The held-out parts' warm start at `model`: the motion continued from the fit parts. A record's held-out
@@ -192,46 +195,56 @@ EffectContext Context(const ActuatorModel& model, const Split& split, const std:
   return c;
 }
 
-// The open-world test on `heldout` (the diagnosed model's evaluation on the held-out parts): null
-// when its chi-square is within the 1e-3 tail of noise alone, else where the misfit lives.
+// The open-world test: null when `heldout` (the model's evaluation on the held-out parts) is within
+// the 1e-3 tail of noise alone, and so is `fit` (on the fit parts; null: not tested); else where the
+// misfit lives, on the held-out parts or, where only those pass, on the fit parts.
 std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const BroadbandFitResult& heldout,
-                                                    const ActuatorModel& model) {
-  if (!heldout.rejected) return std::nullopt;
+                                                    const BroadbandFitResult* fit, const ActuatorModel& model) {
+  const bool on_heldout = heldout.rejected;
+  if (!on_heldout && !(fit && fit->rejected)) return std::nullopt;
+  const BroadbandFitResult& tested = on_heldout ? heldout : *fit;
+  const std::vector<Recording>& parts = on_heldout ? split.heldout : split.fit;
   BroadbandUnexplained u;
-  u.heldout_chi2 = heldout.fit.chi2;
-  u.dof = heldout.dof;
-  u.threshold_chi2 = heldout.chi2_limit;
-  u.misfit_to_noise = std::sqrt(u.heldout_chi2 / u.dof);
+  u.parts = on_heldout ? "held-out" : "fit";
+  u.chi2 = tested.fit.chi2;
+  u.dof = tested.dof;
+  u.threshold_chi2 = tested.chi2_limit;
+  u.misfit_to_noise = std::sqrt(u.chi2 / u.dof);
   // Per part, as the whole's test (broadband_fit.h) at a Bonferroni share of the same level.
-  const double z = NormalUpperQuantile(kBeyondNoiseP / static_cast<double>(split.heldout.size()));
-  for (size_t r = 0; r < split.heldout.size(); ++r) {
-    const BroadbandRecordFit& f = heldout.records[r];
-    const double n = static_cast<double>(split.heldout[r].size());
-    if (!(f.chi2_per_sample > 1.0 + z * std::sqrt((2.0 + 4.0 * internal::kNoiseEstimateVariance) / n))) continue;
+  const double z = NormalUpperQuantile(kBeyondNoiseP / static_cast<double>(parts.size()));
+  for (size_t r = 0; r < parts.size(); ++r) {
+    const BroadbandRecordFit& f = tested.records[r];
+    const double n = static_cast<double>(parts[r].size());
+    const double estimated_from = static_cast<double>(split.noise[r].samples);
+    const double variance = 2.0 / n + 4.0 * internal::kNoiseEstimateVariance / estimated_from;
+    if (!(f.chi2_per_sample > 1.0 + z * std::sqrt(variance))) continue;
     BroadbandUnexplained::Place place;
     place.record = split.names[r];
     place.chi2_per_sample = f.chi2_per_sample;
-    place.peak_frequency_hz = internal::ResidualPeakFrequencyHz(split.heldout[r], f);
-    std::tie(place.near_contact_share, place.contact_time_share) =
-        internal::NearContactShares(split.heldout[r], f, model);
+    place.peak_frequency_hz = internal::ResidualPeakFrequencyHz(parts[r], f);
+    std::tie(place.near_contact_share, place.contact_time_share) = internal::NearContactShares(parts[r], f, model);
     u.places.push_back(place);
   }
   std::sort(u.places.begin(), u.places.end(),
             [](const auto& a, const auto& b) { return a.chi2_per_sample > b.chi2_per_sample; });
   std::ostringstream text;
-  text << "the held-out misfit is " << FormatFigure(u.misfit_to_noise) << " times the noise's RMS (chi-square "
-       << FormatFigure(u.heldout_chi2, 5) << " against at most " << FormatFigure(u.threshold_chi2, 5)
-       << " from noise alone)";
+  text << (on_heldout ? "the held-out misfit is "
+                      : "the held-out parts are within noise, but the model leaves the parts it was fitted to beyond "
+                        "it (a fit can stop in a valley of the misfit away from its optimum where the records hold "
+                        "hard impacts, or the model misses something): their misfit is ")
+       << FormatFigure(u.misfit_to_noise) << " times the noise's RMS (chi-square " << FormatFigure(u.chi2, 5)
+       << " against at most " << FormatFigure(u.threshold_chi2, 5) << " from noise alone)";
   for (size_t i = 0; i < u.places.size() && i < 3; ++i) {
     const auto& p = u.places[i];
-    text << (i == 0 ? "; it lives in " : ", ") << p.record << " (chi-square per sample " << FormatFigure(p.chi2_per_sample)
-         << ", the residual's spectrum peaks at " << FormatFigure(p.peak_frequency_hz) << " Hz";
+    text << (i == 0 ? "; it lives in " : ", ") << p.record << " (" << u.parts << " part, chi-square per sample "
+         << FormatFigure(p.chi2_per_sample) << ", the residual's spectrum peaks at " << FormatFigure(p.peak_frequency_hz)
+         << " Hz";
     if (std::isfinite(p.near_contact_share))
       text << ", " << FormatFigure(100 * p.near_contact_share, 2) << " % of its excess within 2 ms of contacts that take "
            << FormatFigure(100 * p.contact_time_share, 2) << " % of the time";
     text << ")";
   }
-  if (u.places.empty()) text << "; no single held-out part stands out on its own";
+  if (u.places.empty()) text << "; no single part stands out on its own";
   u.description = text.str();
   return u;
 }
@@ -257,6 +270,7 @@ BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every
     const bool first = std::find(last, impact.end(), true) != impact.end() && std::find(impact.begin(), last, true) == last;
     parts.names.push_back(r.name);
     parts.heldout_first.push_back(first);
+    parts.noise_rms.push_back(internal::ResponseNoiseRms(r.response));
     parts.fit.push_back(first ? Part(r, held, r.size(), "fit part") : Part(r, 0, r.size() - held, "fit part"));
     parts.heldout.push_back(first ? Part(r, 0, held, "held-out part") : Part(r, r.size() - held, r.size(), "held-out part"));
   }
@@ -297,12 +311,13 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   if (!d.base.result.fit.converged) d.warnings.push_back("the base fit did not converge: " + d.base.result.fit.report);
   progress(2, "the base model on every part");
   const BroadbandFitResult base_motion =
-      Evaluate(base_model, split.fit_pointers, kind, true, seconds_left(), &d.base.result);
+      Evaluate(base_model, split, false, kind, true, seconds_left(), &d.base.result);
   const BroadbandFitResult base_warm = HeldOutWarmStart(base_model, split, d.base.result);
   const BroadbandFitResult base_heldout =
-      Evaluate(base_model, split.heldout_pointers, kind, true, seconds_left(), &base_warm);
-  d.fit_before = Figures(split, d.base.result, base_heldout);
-  d.before = Matches(split, d.base.result.records, base_heldout);
+      Evaluate(base_model, split, true, kind, true, seconds_left(), &base_warm);
+  // The base's figures are its evaluation's: weighted by the records' noise levels, as the candidates'.
+  d.fit_before = Figures(split, base_motion, base_heldout);
+  d.before = Matches(split, base_motion.records, base_heldout);
   d.heldout_dof = base_heldout.dof;
   const EffectContext context = Context(base_model, split, base_motion.records, d.base.stop_free);
 
@@ -335,7 +350,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       const ExtendedProblem trial = internal::BuildProblem(start, options.fit.model, effects, context, v);
       const std::vector<double> theta(trial.parameters.size(), 1.0);
       const double chi2 =
-          Evaluate(trial.Decode(theta.data()), split.fit_pointers, kind, false, seconds_left(), warm).fit.chi2;
+          Evaluate(trial.Decode(theta.data()), split, false, kind, false, seconds_left(), warm).fit.chi2;
       if (chi2 < best) best = chi2, variant = v;
     }
     const ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, variant);
@@ -343,6 +358,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     fit_options.max_iterations = options.fit.max_iterations;
     fit_options.max_seconds = std::max(1.0, std::min(options.fit.max_refinement_seconds, seconds_left()));
     fit_options.warm_start = warm;
+    fit_options.noise = split.noise;
     BroadbandFitResult r;
     try {
       progress(stage, name, "fitting the first parts");
@@ -350,7 +366,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       progress(stage, name, "the held-out parts at the fitted model");
       const BroadbandFitResult heldout_warm = HeldOutWarmStart(r.fit.model, split, r);
       const BroadbandFitResult heldout =
-          Evaluate(r.fit.model, split.heldout_pointers, kind, false, seconds_left(), &heldout_warm);
+          Evaluate(r.fit.model, split, true, kind, false, seconds_left(), &heldout_warm);
       c.figures = Figures(split, r, heldout);
     } catch (const std::exception& e) {
       c.note = std::string("fit failed: ") + e.what();
@@ -379,19 +395,28 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     if (chosen < 0) return base_heldout;
     const CandidateFit& c = d.candidates[chosen];
     const BroadbandFitResult warm = HeldOutWarmStart(c.model, split, fits.at(c.label));
-    return Evaluate(c.model, split.heldout_pointers, kind, true, seconds_left(), &warm);
+    return Evaluate(c.model, split, true, kind, true, seconds_left(), &warm);
   };
   BroadbandFitResult chosen_heldout = heldout_of(d.chosen);
-  d.unexplained = FindUnexplained(split, chosen_heldout, d.chosen >= 0 ? d.candidates[d.chosen].model : base_model);
+  // A named model must explain its own fit parts too (broadband_diagnose.h step 6): its evaluation
+  // there, with the series the open-world test reads.
+  std::optional<BroadbandFitResult> chosen_fit;
+  if (d.chosen >= 0) {
+    const CandidateFit& c = d.candidates[d.chosen];
+    chosen_fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
+  }
+  d.unexplained = FindUnexplained(split, chosen_heldout, chosen_fit ? &*chosen_fit : nullptr,
+                                  d.chosen >= 0 ? d.candidates[d.chosen].model : base_model);
   std::string partial;
   std::vector<Effect> best_partial;
   if (d.chosen >= 0 && d.unexplained) {
-    partial = internal::PartialExplanation(d.candidates[d.chosen], d.fit_before, d.unexplained->dof);
+    partial = internal::PartialExplanation(d.candidates[d.chosen], d.fit_before, d.unexplained->dof,
+                                           d.unexplained->parts == "held-out");
     if (!partial.empty()) {
       best_partial = d.candidates[d.chosen].effects;
       d.chosen = -1;
       chosen_heldout = base_heldout;
-      d.unexplained = FindUnexplained(split, base_heldout, base_model);
+      d.unexplained = FindUnexplained(split, base_heldout, &base_motion, base_model);
       if (d.unexplained) d.unexplained->description += "; " + partial;
     }
   }
@@ -422,8 +447,11 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     d.fit_after = d.fit_before;
     d.model = base_model;
     d.model_note = std::string("nothing named: the base fit's model (") + ToString(options.fit.model) + ")";
+    const bool fit_parts = d.unexplained && d.unexplained->parts == "fit";
     d.conclusion = d.unexplained
-                       ? "unexplained: the model misses something no library effect explains; " + d.unexplained->description
+                       ? std::string(fit_parts ? "unexplained: no fitted model explains the records to within noise; "
+                                               : "unexplained: the model misses something no library effect explains; ") +
+                             d.unexplained->description
                        : "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
                              FormatFigure(options.min_heldout_gain, 4) +
                              " residual variances, and what the base model leaves on the held-out parts is noise";

@@ -18,7 +18,8 @@ nlohmann::json UnexplainedJson(const std::optional<BroadbandUnexplained>& u) {
                       {"peak_frequency_hz", JsonNumber(p.peak_frequency_hz)},
                       {"near_contact_share", JsonNumber(p.near_contact_share)},
                       {"contact_time_share", JsonNumber(p.contact_time_share)}});
-  return {{"heldout_chi2", JsonNumber(u->heldout_chi2)},
+  return {{"parts", u->parts},
+          {"chi2", JsonNumber(u->chi2)},
           {"dof", JsonNumber(u->dof)},
           {"threshold_chi2", JsonNumber(u->threshold_chi2)},
           {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},

@@ -405,6 +405,13 @@ double FourthDifferenceNoiseRms(std::span<const double> y) {
   return 1.4826 * median(d) / std::sqrt(70.0);
 }
 
+double ResponseNoiseRms(std::span<const double> response) {
+  double power = 0.0;
+  for (double v : response) power += v * v;
+  const double rms = std::sqrt(power / static_cast<double>(std::max<size_t>(response.size(), 1)));
+  return std::max(FourthDifferenceNoiseRms(response), 1e-9 * rms);
+}
+
 std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
   std::vector<bool> impact(y.size(), false);
   const double limit = 8.0 * std::sqrt(70.0) * sigma;
@@ -421,6 +428,12 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     throw InputError("segment_s", "must be a finite number > 0");
   if (options.max_iterations < 1) throw InputError("max_iterations", "must be >= 1");
   if (records.empty()) throw InputError("records", "no broadband record to fit");
+  if (!options.noise.empty() && options.noise.size() != records.size())
+    throw InputError("noise", "holds " + std::to_string(options.noise.size()) + " levels for " +
+                                  std::to_string(records.size()) + " records");
+  for (const auto& level : options.noise)
+    if (!(level.rms > 0) || !std::isfinite(level.rms) || level.samples < 1)
+      throw InputError("noise", "each level must be finite and > 0, from at least one sample");
   Validate(requested.base);
   // An evaluation (no free parameter): Ceres takes no empty parameter block, so the costs get one that
   // is held constant.
@@ -446,11 +459,7 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
         throw InputError(rec.name, "sample " + std::to_string(n) + " is not finite");
     data[r].record = &rec;
     data[r].drive = SampledDrive{rec.sample_rate_hz, rec.voltage_v};
-    double power = 0.0;
-    for (double v : rec.response) power += v * v;
-    const double rms = std::sqrt(power / static_cast<double>(rec.size()));
-    // A noiseless (synthetic) record: weights as if its noise were 1e-9 of its rms.
-    data[r].sigma = std::max(FourthDifferenceNoiseRms(rec.response), 1e-9 * rms);
+    data[r].sigma = options.noise.empty() ? ResponseNoiseRms(rec.response) : options.noise[r].rms;
     data[r].impact = ImpactSamples(rec.response, data[r].sigma);
     const std::vector<size_t> firsts = SegmentFirsts(rec.size(), rec.sample_rate_hz, options.segment_s);
     for (size_t k = 0; k < firsts.size(); ++k) {
@@ -602,9 +611,10 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   // from the same records, whose own spread (kNoiseEstimateVariance) widens chi-square / dof's beyond
   // chi-square's 2 / dof: var = 2 / dof + 4 sum_r (n_r / M)^2 kNoiseEstimateVariance / n_r.
   double variance = 2.0 / dof;
-  for (const Recording* r : records) {
-    const double share = static_cast<double>(r->size()) / static_cast<double>(samples);
-    variance += 4.0 * share * share * kNoiseEstimateVariance / static_cast<double>(r->size());
+  for (size_t r = 0; r < records.size(); ++r) {
+    const double share = static_cast<double>(records[r]->size()) / static_cast<double>(samples);
+    const size_t estimated_from = options.noise.empty() ? records[r]->size() : options.noise[r].samples;
+    variance += 4.0 * share * share * kNoiseEstimateVariance / static_cast<double>(estimated_from);
   }
   constexpr double kUpperTail1e3 = 3.0902;  // the standard normal's 1e-3 upper quantile
   const double limit = dof * (1.0 + kUpperTail1e3 * std::sqrt(variance));

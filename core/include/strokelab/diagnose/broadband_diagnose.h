@@ -8,7 +8,9 @@
 //   2. Base fit (identify/broadband_campaign.h) on the records' first parts; then the base model
 //      evaluated on every part, with only each part's segment starts, offset and hum fitted
 //      (FitBroadband with no free parameter; held-out parts as in step 4): the residuals the signatures
-//      read.
+//      read, and the base's figures. From here on every fit and evaluation weights a part by its
+//      record's noise level, estimated once from the whole record: four times the samples of a
+//      held-out part make the open-world test's limit tighter, and every chi-square shares one scale.
 //   3. Signatures (broadband_signatures.cc), needing no harmonics: the residual's chi-square per sample
 //      where the base model's motion is far out in displacement, slow, fast, or near a contact, against
 //      the rest of the record; the residual's coherence with the drive; its spectrum's excess over the
@@ -18,10 +20,14 @@
 //      warm start: broadband_fit.h). A candidate's held-out chi-square is its evaluation on the held-out
 //      parts (their starts, offsets and hum fitted, the model held), from the motion continued from the
 //      fit parts: the state the model reaches at the end of each record's fit part.
-//   5. Choice: as diagnose.h step 5, the same rules and numbers (selection.cc).
+//   5. Choice: as diagnose.h step 5, the same rules and numbers (diagnose/selection.h).
 //   6. Open world: the chosen model's held-out chi-square against its 1e-3 upper tail under noise alone,
 //      the noise levels' own spread included (broadband_fit.h's rejection test). Beyond it, the misfit is
-//      "unexplained", with the parts where it lives and the residual's dominant frequency there.
+//      "unexplained", with the parts where it lives and the residual's dominant frequency there. A named
+//      model must also explain the parts it was fitted to by the same test: where it does not, it is
+//      named only if it removed more of the fit parts' excess than it leaves (else, as for the held-out
+//      parts, "unexplained", with that candidate's share). Records with hard impacts can hold a fit in a
+//      valley away from its optimum, where a second effect "explains" part of what the fit left.
 #pragma once
 
 #include <nlohmann/json_fwd.hpp>
@@ -38,18 +44,22 @@ namespace strokelab {
 struct BroadbandRecordMatch {
   std::string name;
   double drive_rms_v = 0.0;
-  double noise_rms = 0.0;  // the fit part's white-noise level [response units]
+  double noise_rms = 0.0;  // the record's white-noise level [response units] (BroadbandParts::noise_rms)
   double nrmse = 0.0, heldout_nrmse = 0.0;  // rms(residual) / rms(response - offset)
   double chi2_per_sample = 0.0, heldout_chi2_per_sample = 0.0;  // 1 is noise
 };
 
 struct BroadbandUnexplained {
-  double heldout_chi2 = 0.0;
+  // The parts where the misfit is beyond noise: "held-out", or "fit" where the held-out parts pass but
+  // the model leaves the parts it was fitted to beyond noise (a fit stopped in a valley of the misfit
+  // away from its optimum, as records with hard impacts can make it, or physics the model lacks).
+  std::string parts = "held-out";
+  double chi2 = 0.0;            // the diagnosed model's chi-square on those parts
   double dof = 0.0;             // what noise alone gives on average
   double threshold_chi2 = 0.0;  // flagged beyond: its 1e-3 upper tail
-  double misfit_to_noise = 0.0; // sqrt(heldout_chi2 / dof): misfit RMS over noise's (1: noise)
-  // Held-out parts whose own chi-square per sample is beyond noise (Bonferroni over the parts at the
-  // same 1e-3), worst first.
+  double misfit_to_noise = 0.0; // sqrt(chi2 / dof): misfit RMS over noise's (1: noise)
+  // Parts whose own chi-square per sample is beyond noise (Bonferroni over the parts at the same
+  // 1e-3), worst first.
   struct Place {
     std::string record;
     double chi2_per_sample = 0.0;
@@ -92,6 +102,9 @@ struct BroadbandParts {
   std::vector<std::string> names;  // the records'
   std::vector<Recording> fit, heldout;
   std::vector<bool> heldout_first;  // the record's first part is held out
+  // The record's white-noise level [response units], from the whole record: both parts are weighted
+  // by it (internal::ResponseNoiseRms).
+  std::vector<double> noise_rms;
 };
 BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every,
                                      std::vector<std::string>* warnings = nullptr);

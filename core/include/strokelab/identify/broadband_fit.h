@@ -54,6 +54,15 @@ struct BroadbandFitOptions {
   // fitted, the misfit can then only go down: where the records hold impacts, starts fitted afresh at
   // another model can settle in a valley of their own (an impact missed or made up).
   const BroadbandFitResult* warm_start = nullptr;
+  // Each record's white-noise level, one per record in order, and how many samples it was estimated
+  // from (the rejection limit counts that estimate's spread). Empty: estimated from each record
+  // (ResponseNoiseRms). The diagnosis estimates it once from the whole record, whose parts it
+  // fits and evaluates: four times the samples make the held-out test's limit tighter.
+  struct NoiseLevel {
+    double rms = 0.0;  // [response units]
+    size_t samples = 0;
+  };
+  std::vector<NoiseLevel> noise;
 };
 
 // How the fitted model matches one record.
@@ -93,6 +102,9 @@ inline constexpr double kNoiseEstimateVariance = 2.5;
 // lies far below the sample rate: 1.4826 MAD(y[n-2] - 4 y[n-1] + 6 y[n] - 4 y[n+1] + y[n+2]) / sqrt(70)
 // (the median absolute deviation is blind to the few samples of an impact).
 double FourthDifferenceNoiseRms(std::span<const double> samples);
+// The noise level a fit weights a record's response by: FourthDifferenceNoiseRms, or 1e-9 of the
+// response's rms for a noiseless (synthetic) record.
+double ResponseNoiseRms(std::span<const double> response);
 
 // The samples of an impact: where the response's fourth difference stands out of its noise (70 sigma^2
 // for white noise of rms sigma) by more than 8 standard deviations, and the two samples either side.
