@@ -20,6 +20,7 @@
 #include "format.h"
 #include "option_flags.h"
 #include "strokelab/diagnose/diagnose.h"
+#include "strokelab/report/broadband_report.h"
 #include "strokelab/report/diagnose_report.h"
 #include "strokelab/report/diagnosis_maps.h"
 #include "strokelab/base/errors.h"
@@ -43,7 +44,10 @@ out, the candidates are fitted to the first parts, and their held-out chi-square
 parts' at the fitted model (each part's start, offset and hum fitted). The choice, the thresholds and
 the "unexplained" verdict are the same; the evidence is where the base model's residual stands out
 (far out in displacement, slow, fast, near contacts), its spectrum and its coherence with the drive.
---out writes diagnosis.json and model.json only (no HTML report or maps yet).
+--out writes its report (index.html: the verdict, the held-out parts where a misfit lives, the fit,
+parameters, candidates, evidence, each record's misfit per part against noise, the named effects'
+curves), records.csv, candidates.csv, candidate_parameters.csv, model.json and diagnosis.json; no
+saturation maps yet.
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper | linear                                             [paper]
@@ -174,17 +178,22 @@ void WriteJson(const std::string& dir, const char* name, const nlohmann::json& j
   if (!file) throw InputError("--out", "cannot write " + path.string());
 }
 
-// A campaign of broadband records only: diagnose/broadband_diagnose.h. --out gets diagnosis.json and
-// model.json (the HTML report and its maps are the stepped-sine diagnosis's so far).
+// A campaign of broadband records only: diagnose/broadband_diagnose.h. --out gets its report folder
+// (report/broadband_report.h; no saturation maps yet) and diagnosis.json.
 int RunBroadbandDiagnose(const Campaign& campaign, const DiagnoseOptions& options, const Args& args) {
   const BroadbandDiagnosis diagnosis = DiagnoseBroadbandCampaign(campaign, options);
   const nlohmann::json json = BroadbandDiagnosisToJson(diagnosis);
-  if (const auto out = args.Get("--out")) {
+  const auto out = args.Get("--out");
+  if (out) {
+    report::WriteBroadbandDiagnosisReport(diagnosis, *out);
     WriteJson(*out, "diagnosis.json", json);
-    WriteJson(*out, "model.json", json["model"]);
   }
-  if (args.Has("--json")) std::cout << json.dump(2) << "\n";
-  else PrintBroadbandDiagnosis(diagnosis, std::cout);
+  if (args.Has("--json")) {
+    std::cout << json.dump(2) << "\n";
+  } else {
+    PrintBroadbandDiagnosis(diagnosis, std::cout);
+    if (out) std::cout << "report: " << (std::filesystem::path(*out) / "index.html").string() << "\n";
+  }
   return 0;
 }
 

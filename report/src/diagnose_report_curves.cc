@@ -8,15 +8,15 @@
 
 namespace strokelab::report::diagnose_internal {
 
-Figure CurvesFigure(const Diagnosis& d) {
+Figure CurvesFigure(const std::vector<EffectCurve>& curves) {
   Figure fig{"curves", "The added physics as curves", {}, {}, ""};
-  if (d.curves.empty()) {
+  if (curves.empty()) {
     fig.caption = "Nothing was named, so there is no characteristic to draw.";
     return fig;
   }
   bool any_band = false;
   std::string widths;  // the bands' largest half-widths, in words
-  for (const EffectCurve& c : d.curves) {
+  for (const EffectCurve& c : curves) {
     double widest = 0.0;
     plot::Series base = Line("base model", kBaseColor, true), diagnosed = Line("diagnosed model", kChosenColor);
     plot::Series low = Line("+-2 standard errors", kChosenColor, true), high = Line("", kChosenColor, true);
@@ -40,7 +40,7 @@ Figure CurvesFigure(const Diagnosis& d) {
     fig.svgs.push_back(plot::LinePlot(series, axes));
   }
   fig.caption = std::string("Each added force law as the quantity a transducer analyser reports, over the range the "
-                            "records reach (") + d.curves.front().range +
+                            "records reach (") + curves.front().range +
                 "). The band is the diagnosed curve +-2 standard errors, from the fit's covariance of its "
                 "parameters (delta method)" +
                 (any_band ? " (" + widths + ": a band narrower than the line is not drawn apart from it)."

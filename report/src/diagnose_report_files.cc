@@ -77,11 +77,7 @@ AmplitudeLevels GroupAmplitudes(const std::vector<RecordMatch>& records) {
   return levels;
 }
 
-}  // namespace diagnose_internal
-
 namespace {
-
-using diagnose_internal::Format;
 
 // A CSV field: quoted when it holds a separator, a quote or a line break.
 std::string Field(const std::string& text) {
@@ -91,7 +87,8 @@ std::string Field(const std::string& text) {
   return quoted + "\"";
 }
 
-// "%.10g", or empty for a non-finite value (the CsvTable convention).
+}  // namespace
+
 std::string Cell(double value) { return std::isfinite(value) ? Format("%.10g", value) : std::string(); }
 
 void WriteRows(const std::filesystem::path& path, const std::vector<std::vector<std::string>>& rows) {
@@ -102,6 +99,49 @@ void WriteRows(const std::filesystem::path& path, const std::vector<std::vector<
   }
   if (!out) throw std::runtime_error("cannot write " + path.string());
 }
+
+void WriteCandidates(const std::vector<CandidateFit>& candidates, int chosen, const std::filesystem::path& path) {
+  std::vector<std::vector<std::string>> rows = {
+      {"label", "chosen", "fitted", "converged", "heldout_gain", "fit_gain", "nrmse", "heldout_nrmse", "chi2",
+       "heldout_chi2", "residual_variance", "passes", "wall_time_s", "decision", "note"}};
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const CandidateFit& c = candidates[i];
+    rows.push_back({c.label, static_cast<int>(i) == chosen ? "1" : "0", c.fitted ? "1" : "0",
+                    c.converged ? "1" : "0", Cell(c.heldout_gain), Cell(c.fit_gain), Cell(c.figures.nrmse),
+                    Cell(c.figures.heldout_nrmse), Cell(c.figures.chi2), Cell(c.figures.heldout_chi2),
+                    Cell(c.figures.residual_variance), std::to_string(c.passes), Cell(c.seconds), c.decision,
+                    c.note});
+  }
+  WriteRows(path, rows);
+}
+
+// The candidates' effect parameters, one per row (a parameter's unit is its own, so it is a column).
+void WriteCandidateParameters(const std::vector<CandidateFit>& candidates, const std::filesystem::path& path) {
+  std::vector<std::vector<std::string>> rows = {{"candidate", "parameter", "value", "standard_error", "unit"}};
+  for (const CandidateFit& c : candidates) {
+    for (const FitParameter& p : c.effect_parameters)
+      rows.push_back({c.label, p.name, Cell(p.value), p.fixed ? std::string() : Cell(p.standard_error), p.unit});
+  }
+  WriteRows(path, rows);
+}
+
+void WriteText(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream out(path);
+  out << text;
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+void CreateReportDirectory(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
+}
+
+}  // namespace diagnose_internal
+
+namespace {
+
+using namespace diagnose_internal;
 
 void WriteRecords(const Diagnosis& d, const std::filesystem::path& path) {
   std::vector<std::vector<std::string>> rows = {
@@ -120,31 +160,6 @@ void WriteRecords(const Diagnosis& d, const std::filesystem::path& path) {
       row.resize(rows[0].size());
     }
     rows.push_back(std::move(row));
-  }
-  WriteRows(path, rows);
-}
-
-void WriteCandidates(const Diagnosis& d, const std::filesystem::path& path) {
-  std::vector<std::vector<std::string>> rows = {
-      {"label", "chosen", "fitted", "converged", "heldout_gain", "fit_gain", "nrmse", "heldout_nrmse", "chi2",
-       "heldout_chi2", "residual_variance", "passes", "wall_time_s", "decision", "note"}};
-  for (size_t i = 0; i < d.candidates.size(); ++i) {
-    const CandidateFit& c = d.candidates[i];
-    rows.push_back({c.label, static_cast<int>(i) == d.chosen ? "1" : "0", c.fitted ? "1" : "0",
-                    c.converged ? "1" : "0", Cell(c.heldout_gain), Cell(c.fit_gain), Cell(c.figures.nrmse),
-                    Cell(c.figures.heldout_nrmse), Cell(c.figures.chi2), Cell(c.figures.heldout_chi2),
-                    Cell(c.figures.residual_variance), std::to_string(c.passes), Cell(c.seconds), c.decision,
-                    c.note});
-  }
-  WriteRows(path, rows);
-}
-
-// The candidates' effect parameters, one per row (a parameter's unit is its own, so it is a column).
-void WriteCandidateParameters(const Diagnosis& d, const std::filesystem::path& path) {
-  std::vector<std::vector<std::string>> rows = {{"candidate", "parameter", "value", "standard_error", "unit"}};
-  for (const CandidateFit& c : d.candidates) {
-    for (const FitParameter& p : c.effect_parameters)
-      rows.push_back({c.label, p.name, Cell(p.value), p.fixed ? std::string() : Cell(p.standard_error), p.unit});
   }
   WriteRows(path, rows);
 }
@@ -210,22 +225,15 @@ const std::vector<std::string>& DiagnosisReportFiles() {
 }
 
 void WriteDiagnosisReport(const Diagnosis& d, const std::filesystem::path& dir, const DiagnosisMaps* maps) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
-  auto write_text = [&](const char* name, const std::string& text) {
-    std::ofstream out(dir / name);
-    out << text;
-    if (!out) throw std::runtime_error("cannot write " + (dir / name).string());
-  };
-  write_text("index.html", DiagnosisHtml(d, maps));
+  CreateReportDirectory(dir);
+  WriteText(dir / "index.html", DiagnosisHtml(d, maps));
   WriteRecords(d, dir / "records.csv");
-  WriteCandidates(d, dir / "candidates.csv");
-  WriteCandidateParameters(d, dir / "candidate_parameters.csv");
+  WriteCandidates(d.candidates, d.chosen, dir / "candidates.csv");
+  WriteCandidateParameters(d.candidates, dir / "candidate_parameters.csv");
   WriteLevels(d, dir / "levels.csv");
   WriteThresholdShifts(maps, dir / "threshold_shift.csv");
   WriteJumpIntervals(maps, dir / "jump_intervals.csv");
-  write_text("model.json", ModelToJson(d.model).dump(2) + "\n");
+  WriteText(dir / "model.json", ModelToJson(d.model).dump(2) + "\n");
 }
 
 }  // namespace strokelab::report

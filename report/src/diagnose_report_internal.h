@@ -1,11 +1,13 @@
 // Helpers shared by the files of the diagnosis report (diagnose_report*.cc); not a public API.
 #pragma once
 
+#include <filesystem>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "format.h"
+#include "strokelab/diagnose/broadband_diagnose.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/plot/svg_plot.h"
 #include "strokelab/report/diagnosis_maps.h"
@@ -40,6 +42,7 @@ AmplitudeLevels GroupAmplitudes(const std::vector<RecordMatch>& records);
 std::string Esc(const std::string& text);
 std::string Td(const std::string& text, const char* css_class = nullptr);
 std::string NumTd(double value, int digits = 4);
+std::string YesNo(bool value);  // a "yes" or "no" cell
 std::string Table(const std::vector<std::string>& headers, const std::string& rows, const char* css_class = nullptr);
 
 // One figure of the page: its SVG (or SVGs), or the sentence that replaces it.
@@ -54,13 +57,50 @@ struct Figure {
 };
 std::vector<Figure> DiagnosisFigures(const Diagnosis& diagnosis);
 
+// What the stepped-sine and the broadband diagnosis pages show alike, as both results hold it.
+struct Outcome {
+  const std::vector<CandidateFit>* candidates = nullptr;
+  int chosen = -1;  // index into candidates (-1: nothing named)
+  std::vector<Effect> missing_physics;
+  bool unexplained = false;
+  FitFigures before, after;
+  std::string conclusion;
+  const std::vector<FitParameter>* base_parameters = nullptr;
+  const CandidateFit* Chosen() const;  // null when nothing is named
+};
+Outcome OutcomeOf(const Diagnosis& d);
+Outcome OutcomeOf(const BroadbandDiagnosis& d);
+
+// The shared sections (diagnose_report_sections.cc): the page's head with its style, up to <body>;
+// the verdict (the conclusion printed once); the fit before and after; the parameters of the base
+// and the chosen model; the candidates with their decisions; the evidence table (or a sentence when
+// there is none); the figures, each with its key and caption or the sentence that replaces it.
+std::string PageStart(const std::string& title);
+std::string VerdictSection(const Outcome& d);
+std::string FitTable(const Outcome& d);
+std::string ParametersTable(const Outcome& d);
+std::string CandidatesTable(const Outcome& d);
+std::string EvidenceTable(const std::vector<Evidence>& evidence);
+std::string FiguresSection(const std::vector<Figure>& figures);
+
 // The maps section of the page: the base and the diagnosed model's saturation maps side by side, the
 // threshold shift per frequency and the jump intervals (diagnose_report_maps.cc). `maps` may be null
 // (not computed: said on the page).
 std::string MapsSection(const Diagnosis& diagnosis, const DiagnosisMaps* maps);
 
+// The report folder's files (diagnose_report_files.cc): a number's CSV cell ("%.10g", empty when not
+// finite: the CsvTable convention); rows written as CSV (fields quoted where needed); the candidates,
+// one row each, and their effect parameters, one row per parameter; a text file; the folder itself.
+// Each throws std::runtime_error when it cannot write.
+std::string Cell(double value);
+void WriteRows(const std::filesystem::path& path, const std::vector<std::vector<std::string>>& rows);
+void WriteCandidates(const std::vector<CandidateFit>& candidates, int chosen, const std::filesystem::path& path);
+void WriteCandidateParameters(const std::vector<CandidateFit>& candidates, const std::filesystem::path& path);
+void WriteText(const std::filesystem::path& path, const std::string& text);
+void CreateReportDirectory(const std::filesystem::path& dir);
+
 // The named effects' characteristics with their bands (diagnose_report_curves.cc).
-Figure CurvesFigure(const Diagnosis& diagnosis);
+Figure CurvesFigure(const std::vector<EffectCurve>& curves);
 
 // The figures against drive amplitude, per Signatures::Level (diagnose_report_levels.cc).
 Figure ResonanceFigure(const Diagnosis& diagnosis);

@@ -359,7 +359,7 @@ Figure MissingForceFigure(const Diagnosis& d) {
 
 std::vector<Figure> DiagnosisFigures(const Diagnosis& d) {
   const char* unit = UnitOf(d.base.response);
-  std::vector<Figure> figures = {HarmonicsFigure(d, unit), FrfFigure(d, unit), CurvesFigure(d), ResidualFigure(d),
+  std::vector<Figure> figures = {HarmonicsFigure(d, unit), FrfFigure(d, unit), CurvesFigure(d.curves), ResidualFigure(d),
                                  ResonanceFigure(d), ContactFigure(d, unit), RatiosFigure(d)};
   if (d.unexplained) figures.push_back(MissingForceFigure(d));  // only an unexplained misfit has one
   return figures;

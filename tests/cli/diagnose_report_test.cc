@@ -30,6 +30,7 @@ namespace {
 
 using ::strokelab::testing::FreshDir;
 using ::strokelab::testing::Lines;
+using ::strokelab::testing::Parameter;
 using ::strokelab::testing::ReadFile;
 
 using ::testing::HasSubstr;
@@ -37,15 +38,6 @@ using ::testing::Not;
 
 constexpr const char* kOddName = "rec<&>7";
 constexpr int kHarmonics = 5;
-
-FitParameter Parameter(std::string name, std::string unit, double value, double se) {
-  FitParameter p;
-  p.name = std::move(name);
-  p.unit = std::move(unit);
-  p.value = value;
-  p.standard_error = se;
-  return p;
-}
 
 // A resonance near 32 Hz whose harmonics fall as 1/h^2; `error` is the model's relative error.
 std::vector<std::complex<double>> Harmonics(double f_hz, double v, double error) {

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/identify/fit.h"
+
 namespace strokelab::testing {
 
 inline std::string ReadFile(const std::filesystem::path& path) {
@@ -30,6 +32,16 @@ inline std::filesystem::path FreshDir(const std::string& name) {
   const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / name;
   std::filesystem::remove_all(dir);
   return dir;
+}
+
+// A fitted parameter with its standard error, as a diagnosis's tables hold it.
+inline FitParameter Parameter(std::string name, std::string unit, double value, double standard_error) {
+  FitParameter p;
+  p.name = std::move(name);
+  p.unit = std::move(unit);
+  p.value = value;
+  p.standard_error = standard_error;
+  return p;
 }
 
 }  // namespace strokelab::testing

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -306,6 +307,14 @@ TEST(DiagnoseCli, DiagnosesABroadbandCampaignByItsTimeSeries) {
   EXPECT_EQ(result["model"], model);
   EXPECT_EQ(result["records"].size(), 2u);
   EXPECT_GT(result["heldout_dof"].get<double>(), 0.0);
+  // The report folder (report/broadband_report.h), its page named on stdout.
+  EXPECT_THAT(text.stdout_text, HasSubstr("report: " + (out / "index.html").string()));
+  std::stringstream page;
+  page << std::ifstream(out / "index.html").rdbuf();
+  EXPECT_THAT(page.str(), HasSubstr("strokelab diagnosis (broadband records)"));
+  EXPECT_THAT(page.str(), HasSubstr("Held-out parts (no fit saw them)"));
+  for (const char* file : {"records.csv", "candidates.csv", "candidate_parameters.csv"})
+    EXPECT_TRUE(fs::exists(out / file)) << file;
   fs::remove_all(dir);
   fs::remove_all(out);
 }

@@ -1,0 +1,143 @@
+// The broadband diagnosis's report (report/broadband_report.h) on hand-made diagnoses: a named effect
+// with its figures and tables, an unexplained misfit with the parts where it lives, and the folder's
+// files read back.
+#include "strokelab/report/broadband_report.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "report_test_util.h"
+#include "strokelab/model/model_json.h"
+
+namespace strokelab::report {
+namespace {
+
+using ::strokelab::testing::FreshDir;
+using ::strokelab::testing::Lines;
+using ::strokelab::testing::Parameter;
+using ::strokelab::testing::ReadFile;
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+BroadbandRecordMatch Match(const std::string& name, double drive_v, double chi2, double heldout_chi2) {
+  BroadbandRecordMatch m;
+  m.name = name;
+  m.drive_rms_v = drive_v;
+  m.noise_rms = 1e-4;
+  m.nrmse = 0.1 * std::sqrt(chi2);
+  m.heldout_nrmse = 0.1 * std::sqrt(heldout_chi2);
+  m.chi2_per_sample = chi2;
+  m.heldout_chi2_per_sample = heldout_chi2;
+  return m;
+}
+
+// k3 named: the base misses the loudest record, the diagnosed model fits all three within noise.
+BroadbandDiagnosis NamedCubic() {
+  BroadbandDiagnosis d;
+  d.base.result.fit.parameters = {Parameter("k_p", "N/m", 122.1, 0.25), Parameter("g", "N/V", 0.2934, 2e-4)};
+  d.before = {Match("rec_001.csv", 0.1, 1.01, 0.99), Match("rec_002.csv", 0.25, 1.3, 1.4),
+              Match("rec_003.csv", 0.5, 9.0, 11.0)};
+  d.after = {Match("rec_001.csv", 0.1, 1.0, 0.99), Match("rec_002.csv", 0.25, 1.0, 1.01),
+             Match("rec_003.csv", 0.5, 1.02, 1.03)};
+  d.fit_before = {0.14, 0.15, 52000, 18000, 8.4};
+  d.fit_after = {0.05, 0.05, 6100, 2030, 1.0};
+  CandidateFit k3;
+  k3.effects = {Effect::kCubicStiffness};
+  k3.label = "cubic_stiffness";
+  k3.fitted = k3.converged = true;
+  k3.parameters = {Parameter("k_p", "N/m", 121.0, 0.2), Parameter("k3", "N/m^3", 1.49e7, 9.5e4)};
+  k3.effect_parameters = {k3.parameters[1]};
+  k3.figures = d.fit_after;
+  k3.heldout_gain = 15970;
+  k3.decision = "named";
+  CandidateFit friction;
+  friction.effects = {Effect::kDryFriction};
+  friction.label = "dry_friction";
+  friction.fitted = true;
+  friction.heldout_gain = 3.2;
+  friction.decision = "rejected: held-out gain 3.2 <= 10";
+  d.candidates = {k3, friction};
+  d.chosen = 0;
+  d.missing_physics = {Effect::kCubicStiffness};
+  d.model = PaperModel();
+  d.model.cubic_stiffness_n_per_m3 = 1.49e7;
+  d.conclusion = "missing physics: cubic_stiffness (held-out chi-square down by 15970 residual variances)";
+  Evidence far_out;
+  far_out.kind = "residual_far_out";
+  far_out.summary = "the residual's chi-square per sample is 9 far out against 1 elsewhere";
+  far_out.value = 8.0;
+  far_out.standard_error = 0.1;
+  far_out.significance = 80;
+  far_out.points_to = {Effect::kCubicStiffness};
+  d.evidence = {far_out};
+  d.seconds = 23.0;
+  return d;
+}
+
+TEST(BroadbandReportTest, NamedEffectPageHasTheVerdictTablesAndBothPartsFigures) {
+  const std::string html = BroadbandDiagnosisHtml(NamedCubic());
+  EXPECT_THAT(html, HasSubstr("Missing physics: <strong>cubic_stiffness</strong>"));
+  EXPECT_THAT(html, HasSubstr("k3 = (1.4900 \u00b1 0.0095)e+07 N/m^3 (0.64 %)"));
+  EXPECT_THAT(html, HasSubstr("rejected: held-out gain 3.2 &lt;= 10"));  // the candidates' decisions
+  EXPECT_THAT(html, HasSubstr("residual_far_out"));
+  EXPECT_THAT(html, HasSubstr("Not drawn for broadband campaigns yet"));
+  // The conclusion once; the parts figure's two panels (fit parts and held-out parts) with the noise
+  // line and both models; no unexplained section.
+  EXPECT_EQ(std::regex_search(html, std::regex("held-out chi-square down by 15970.*held-out chi-square down by 15970")),
+            false);
+  EXPECT_THAT(html, HasSubstr("Held-out parts (no fit saw them)"));
+  EXPECT_THAT(html, HasSubstr(">diagnosed model<"));
+  EXPECT_THAT(html, HasSubstr(">noise alone<"));
+  EXPECT_THAT(html, Not(HasSubstr("What is left unexplained")));
+  size_t svgs = 0;
+  for (size_t at = html.find("<svg"); at != std::string::npos; at = html.find("<svg", at + 1)) ++svgs;
+  EXPECT_EQ(svgs, 2u);  // the two panels; no curves (none in this diagnosis), said instead
+  EXPECT_THAT(html, HasSubstr("Nothing was named, so there is no characteristic to draw."));
+}
+
+TEST(BroadbandReportTest, AnUnexplainedMisfitNamesThePartsWhereItLives) {
+  BroadbandDiagnosis d = NamedCubic();
+  d.candidates[0].decision = "not named: removes only part";
+  d.chosen = -1;
+  d.missing_physics.clear();
+  d.after = d.before;
+  d.fit_after = d.fit_before;
+  BroadbandUnexplained u;
+  u.chi2 = 18000;
+  u.dof = 6100;
+  u.threshold_chi2 = 6900;
+  u.misfit_to_noise = std::sqrt(18000.0 / 6100.0);
+  u.places = {{"rec_003.csv", 11.0, 16.0, 0.4, 0.02}};
+  d.unexplained = u;
+  d.conclusion = "unexplained: the model misses something no library effect explains";
+  const std::string html = BroadbandDiagnosisHtml(d);
+  EXPECT_THAT(html, HasSubstr("<strong>Unexplained</strong>"));
+  EXPECT_THAT(html, HasSubstr("What is left unexplained"));
+  EXPECT_THAT(html, HasSubstr("<td>rec_003.csv</td><td class=\"num\">11</td><td class=\"num\">16</td>"));
+  EXPECT_THAT(html, HasSubstr("Nothing was named, so only the base model is drawn."));
+  EXPECT_THAT(html, Not(HasSubstr(">diagnosed model<")));
+}
+
+TEST(BroadbandReportTest, TheFolderHoldsItsFilesAndTheModelReadsBack) {
+  const BroadbandDiagnosis d = NamedCubic();
+  const auto dir = FreshDir("broadband_report");
+  WriteBroadbandDiagnosisReport(d, dir);
+  for (const std::string& name : BroadbandDiagnosisReportFiles()) EXPECT_TRUE(std::filesystem::exists(dir / name)) << name;
+  const std::vector<std::string> records = Lines(ReadFile(dir / "records.csv"));
+  ASSERT_EQ(records.size(), 4u);
+  EXPECT_EQ(records[3], "rec_003.csv,0.5,0.0001,0.3,9,0.331662479,11,0.1009950494,1.02,0.1014889157,1.03");
+  EXPECT_THAT(ReadFile(dir / "candidates.csv"), HasSubstr("dry_friction,0,1,0,3.2"));
+  EXPECT_THAT(ReadFile(dir / "candidate_parameters.csv"), HasSubstr("cubic_stiffness,k3,14900000,95000,N/m^3"));
+  const ActuatorModel model = ModelFromJson(nlohmann::json::parse(ReadFile(dir / "model.json")));
+  EXPECT_EQ(model.cubic_stiffness_n_per_m3, 1.49e7);
+}
+
+}  // namespace
+}  // namespace strokelab::report
