@@ -609,7 +609,8 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   // away from the optimum, where records with hard impacts can end from a start far from the truth)
   // when chi-square stands beyond its 1e-3 upper tail. The noise levels it is scaled by are estimates
   // from the same records, whose own spread (kNoiseEstimateVariance) widens chi-square / dof's beyond
-  // chi-square's 2 / dof: var = 2 / dof + 4 sum_r (n_r / M)^2 kNoiseEstimateVariance / n_r.
+  // chi-square's 2 / dof: var = 2 / dof + 4 sum_r (n_r / M)^2 kNoiseEstimateVariance / N_r, with N_r
+  // the samples record r's level was estimated from (n_r, its own, unless options.noise says).
   double variance = 2.0 / dof;
   for (size_t r = 0; r < records.size(); ++r) {
     const double share = static_cast<double>(records[r]->size()) / static_cast<double>(samples);
