@@ -87,10 +87,7 @@ Figure PartsFigure(const BroadbandDiagnosis& d) {
     if (after) series.push_back(chosen);
     plot::Axes axes = MakeAxes(heldout ? "Held-out parts (no fit saw them)" : "Fit parts", "drive [V rms]",
                                "chi-square per sample", kHalfWidthPx, 380);
-    double lo = 1.0, hi = 1.0;
-    for (const plot::Series& s : series)
-      for (double y : s.y)
-        if (std::isfinite(y) && y > 0) lo = std::min(lo, y), hi = std::max(hi, y);
+    const auto [lo, hi] = Extent(series, false, true);  // the noise line at 1 among them
     axes.log_y = hi / lo > 20.0;  // a record far beyond noise would flatten the others on a linear axis
     PadRange(series, false, axes.log_y, 0.08, 0.25, &axes.y_min, &axes.y_max);
     PadRange(series, true, false, 0.08, 0.08, &axes.x_min, &axes.x_max);

@@ -27,7 +27,6 @@ using internal::BroadbandRecordFit;
 using internal::EffectContext;
 using internal::ExtendedProblem;
 using internal::FormatFigure;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr size_t kMinHeldOutSamples = 256;  // a held-out part long enough for its start, offset and hum
 constexpr double kBeyondNoiseP = 1e-3;      // the open-world test's level (as FitBroadband's rejection)
