@@ -39,6 +39,8 @@ fail() {
 "$bin" synth --out "$tmp/data/clipping" --frequencies-hz 5,7,9,11 --amplitudes-v 0.1,0.3,0.5 --settle-s 5 \
   --noise-rms 5e-4 --seed 12 --set amplifier_limit_v=0.4 > "$tmp/synth.out" 2>&1 || fail "synth: $(cat "$tmp/synth.out")"
 
+# The log exists before the server starts: the background shell opens it later, and sed must not race it.
+: > "$tmp/server.err"
 "$bin" serve --port 0 --db "$tmp/jobs.db" --quiet --workers 1 --data-root "$tmp/data" 2> "$tmp/server.err" &
 server_pid=$!
 port=""

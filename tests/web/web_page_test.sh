@@ -53,6 +53,8 @@ fail() {
 start_server() {
   local name=$1
   shift
+  # The log exists before the server starts: the background shell opens it later, and sed must not race it.
+  : > "$tmp/$name.err"
   "$bin" serve --port 0 --db "$tmp/$name.db" --quiet "$@" 2> "$tmp/$name.err" &
   local pid=$!
   server_pids+=("$pid")
