@@ -9,11 +9,11 @@
 #include <unsupported/Eigen/FFT>
 
 #include "diagnose_internal.h"
+#include "strokelab/base/nan.h"
 
 namespace strokelab::internal {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kContactWindowS = 2e-3;  // "near a contact": within 2 ms of a sample in contact
 constexpr double kTailShare = 0.2;        // "far out", "slow", "fast": the outer fifth of the samples
 constexpr size_t kWelchLength = 512;      // spectra: Hann windows of 512 samples, half overlapping

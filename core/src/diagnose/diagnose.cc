@@ -12,6 +12,7 @@
 
 #include "diagnose_internal.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/nan.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/diagnose/effect_curves.h"
 #include "strokelab/steady/steady_state.h"
@@ -23,7 +24,6 @@ using internal::EffectContext;
 using internal::ExtendedFitOptions;
 using internal::ExtendedFitResult;
 using internal::ExtendedProblem;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 // Grid points per axis of the report's maps: a smooth model's sweep costs ~0.1 s per point today.
 constexpr int kMaxMapPoints = 400;

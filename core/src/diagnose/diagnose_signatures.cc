@@ -8,13 +8,13 @@
 #include <sstream>
 
 #include "diagnose_internal.h"
+#include "strokelab/base/nan.h"
 #include "strokelab/identify/frf_fit.h"
 
 namespace strokelab::internal {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kSignificant = 3.0;     // a figure this many standard errors from its null is evidence
 constexpr size_t kHotspots = 5;          // worst records listed
 constexpr double kWindowContactTimes = 2.0;  // half-width of a contact window, in contact times

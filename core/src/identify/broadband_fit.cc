@@ -16,6 +16,7 @@
 
 #include "step_callback.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/nan.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/engines/variational_flow.h"
 #include "strokelab/identify/fit.h"
@@ -23,7 +24,6 @@
 namespace strokelab::internal {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // The continuity residuals: a gap between segments of this fraction of the length scale costs one
 // noise standard error. The fit tightens it in steps (a penalty continuation): from a start model that
 // misses the records, the segments' ends lie far from the next starts, and at the final weight alone

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "orbit_cost.h"
 #include "step_callback.h"
 #include "strokelab/base/chi_square.h"
 #include "strokelab/base/errors.h"
@@ -29,100 +30,6 @@ constexpr double kSolveTolerancePerError = 0.01;
 // A fit's chi-square beyond this upper-tail probability of chi-square(M - P): the records reject the
 // model (its residuals are not noise), so its passes may stop once they stop converging.
 constexpr double kBeyondNoiseP = 1e-3;
-constexpr int kAperiodicSettlePeriods = 64;  // plain periods before harmonics of an aperiodic anchor
-const std::vector<double ActuatorModel::*> kNoFields;
-
-// One record's target: its measured harmonics, the orbit the next evaluations start from, and the
-// sampling correction (frozen during a solve).
-struct Target {
-  const RecordAnalysis* record = nullptr;
-  double weight = 1.0;  // 1 / harmonic standard error
-  Anchor anchor;        // on the current model's orbit
-  std::vector<Complex> correction;
-};
-
-// Residuals (Re, Im) of w (C_h - C_model,h - correction_h), with their exact Jacobian in theta.
-class OrbitCost : public ceres::CostFunction {
- public:
-  OrbitCost(const ExtendedProblem* problem, const Target* target, ResponseKind kind, int orders)
-      : problem_(problem), target_(target), kind_(kind), orders_(orders) {
-    set_num_residuals(2 * orders);
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(problem->parameters.size()));
-    for (const FreeParameter& p : problem->parameters) fields_.push_back(p.field);
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    const double* theta = parameters[0];
-    try {
-      const ActuatorModel model = problem_->Decode(theta);
-      const RecordAnalysis& record = *target_->record;
-      // The orbit near the anchor: Newton on its period; an aperiodic anchor is settled further.
-      // Ceres evaluates an accepted step twice, residuals alone and then with the Jacobian: the
-      // second reuses the first's orbit (a third of the cost's periods).
-      const int period = target_->anchor.period;
-      State start = target_->anchor.start;
-      const bool same = !last_theta_.empty() && std::equal(last_theta_.begin(), last_theta_.end(), theta) &&
-                        last_anchor_.start.x_m == start.x_m && last_anchor_.start.v_m_per_s == start.v_m_per_s &&
-                        last_anchor_.start.coil_force_n == start.coil_force_n && last_anchor_.period == period;
-      if (!same) {
-        const PeriodMap map(model, record.drive.frequency_hz, record.drive.amplitude_v);
-        if (period > 0) {
-          const std::optional<SteadyState> orbit = Shoot(map, start, period);
-          if (!orbit) return false;  // Ceres rejects the step
-          start = orbit->start;
-        } else {
-          for (int i = 0; i < kAperiodicSettlePeriods; ++i) start = map.Apply(start);
-        }
-        last_theta_.assign(theta, theta + fields_.size());
-        last_anchor_ = target_->anchor;
-        last_start_ = start;
-      } else {
-        start = last_start_;
-      }
-      // Ceres asks for residuals alone at trial steps: then the harmonics without their slopes.
-      const bool jacobian = jacobians != nullptr && jacobians[0] != nullptr;
-      const OrbitSlopes slopes =
-          OrbitHarmonicSlopes(model, record, start, period, kind_, orders_, jacobian ? fields_ : kNoFields);
-      const size_t p = fields_.size();
-      for (int h = 0; h < orders_; ++h) {
-        const double weight = record.usable[h] ? target_->weight : 0.0;
-        const Complex r = weight * (record.harmonics[h] - slopes.harmonics[h] - target_->correction[h]);
-        residuals[2 * h] = r.real();
-        residuals[2 * h + 1] = r.imag();
-        if (!jacobian) continue;
-        for (size_t j = 0; j < p; ++j) {
-          const Complex d = -weight * slopes.d_harmonics[j][h] * problem_->parameters[j].ValuePerTheta(theta[j]);
-          jacobians[0][(2 * h) * p + j] = d.real();
-          jacobians[0][(2 * h + 1) * p + j] = d.imag();
-        }
-      }
-      for (int i = 0; i < 2 * orders_; ++i)
-        if (!std::isfinite(residuals[i])) return false;
-      return true;
-    } catch (const std::exception&) {
-      return false;  // a model the engines refuse: Ceres rejects the step
-    }
-  }
-
- private:
-  const ExtendedProblem* problem_;
-  const Target* target_;
-  ResponseKind kind_;
-  int orders_;
-  std::vector<double ActuatorModel::*> fields_;
-  // The last theta and anchor whose orbit was solved, and that orbit's start (Ceres never evaluates
-  // one residual block from two threads at once; the anchors move between iterations).
-  mutable std::vector<double> last_theta_;
-  mutable Anchor last_anchor_;
-  mutable State last_start_;
-};
-
-// The sampling correction of a record at `model`, on the model's orbit through the record's anchor.
-std::vector<Complex> CorrectionAt(const ActuatorModel& model, const Target& t, ResponseKind kind, int orders) {
-  const std::optional<ModelOrbit> orbit = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
-  if (!orbit) return std::vector<Complex>(orders, 0.0);
-  return SamplingCorrection(model, *t.record, *orbit, kind, orders);
-}
 
 // Whether a chi-square of `dof` degrees of freedom is beyond noise: the records reject the model.
 bool BeyondNoise(double chi2, size_t dof) {
@@ -132,10 +39,10 @@ bool BeyondNoise(double chi2, size_t dof) {
 // Moves the anchor of each record whose best-matching orbit at `model` (BestMatchingOrbit) matches it
 // better than its anchor's orbit by more than the record's own expected chi-square (its residual
 // count): a difference noise does not make. Returns how many moved.
-size_t ReAnchor(const ActuatorModel& model, std::vector<Target>& targets, ResponseKind kind, int orders) {
+size_t ReAnchor(const ActuatorModel& model, std::vector<OrbitTarget>& targets, ResponseKind kind, int orders) {
   std::atomic<size_t> moved = 0;
   ParallelFor(targets.size(), [&](size_t i) {
-    Target& t = targets[i];
+    OrbitTarget& t = targets[i];
     try {
       const std::optional<ModelOrbit> now = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
       const std::optional<ModelOrbit> best = BestMatchingOrbit(model, *t.record, kind, orders);
@@ -325,12 +232,12 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     throw InputError("records", "too few records for " + std::to_string(p) + " parameters");
 
   std::vector<double> theta(p, 1.0);
-  std::vector<Target> targets(records.size());
+  std::vector<OrbitTarget> targets(records.size());
   {
     // Anchors: the orbit that matches each record best among the starting model's attractors.
     const ActuatorModel model = problem.Decode(theta.data());
     ParallelFor(records.size(), [&](size_t i) {
-      Target& t = targets[i];
+      OrbitTarget& t = targets[i];
       t.record = records[i];
       t.weight = 1.0 / records[i]->harmonic_se;
       std::optional<ModelOrbit> s;
@@ -344,7 +251,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   }
 
   ceres::Problem ceres_problem;
-  for (Target& t : targets) ceres_problem.AddResidualBlock(new OrbitCost(&problem, &t, kind, orders), nullptr, theta.data());
+  for (OrbitTarget& t : targets) ceres_problem.AddResidualBlock(new OrbitCost(&problem, &t, kind, orders), nullptr, theta.data());
   for (int i = 0; i < p; ++i) {
     ceres_problem.SetParameterLowerBound(theta.data(), i, problem.parameters[i].theta_min);
     ceres_problem.SetParameterUpperBound(theta.data(), i, problem.parameters[i].theta_max);

@@ -1,0 +1,11 @@
+// The quiet NaN that stands for a value not available (not measured, not identifiable, not reached).
+// One definition for the library: its files compile as unity sources, where file-scope copies clash.
+#pragma once
+
+#include <limits>
+
+namespace strokelab {
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+}  // namespace strokelab
