@@ -13,6 +13,7 @@
 #include "option_flags.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/broadband_campaign.h"
+#include "strokelab/identify/mixed_campaign.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/data/recordings.h"
 
@@ -32,7 +33,9 @@ A campaign of broadband records (noise, multisine, sweep) is fitted by its time 
 model driven by the measured voltage, in segments whose start states are unknowns (multiple shooting),
 from paper Eq. 3 fitted to the quietest record's FRF; the stop's d and k_s are fitted where a record
 shows impacts. Records with hard impacts can end away from the optimum: the report then says the
-records reject the fit. (Campaigns mixing both kinds are fitted on their stepped sines.)
+records reject the fit. A campaign of both kinds is fitted jointly: its stepped sines alone first, then
+every parameter refined on all records at once (the stepped records' harmonics and the broadband
+records' time series in one least-squares problem).
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper (linear suspension, one linear end stop) | linear (no stop) [paper]
@@ -122,6 +125,20 @@ void PrintReport(const FitResult& r, std::ostream& out) {
   }
 }
 
+// Each broadband record's noise level, offset, misfit before and after, and segments.
+void PrintBroadbandRecords(const std::vector<internal::BroadbandRecordFit>& records, std::ostream& out) {
+  char line[256];
+  std::snprintf(line, sizeof line, "%-16s %12s %12s %10s %10s %10s %9s\n", "record", "noise rms", "offset", "nrmse0",
+                "nrmse", "chi2/n", "segments");
+  out << line;
+  for (const internal::BroadbandRecordFit& x : records) {
+    std::snprintf(line, sizeof line, "%-16s %12s %12s %10s %10s %10s %9zu\n", x.name.c_str(),
+                  General(x.noise_rms, 3).c_str(), General(x.offset, 3).c_str(), General(x.nrmse_initial, 3).c_str(),
+                  General(x.nrmse, 3).c_str(), General(x.chi2_per_sample, 3).c_str(), x.segments);
+    out << line;
+  }
+}
+
 void PrintBroadbandReport(const BroadbandCampaignFit& fit, std::ostream& out) {
   const internal::ExtendedFitResult& r = fit.result.fit;
   out << "model " << ToString(fit.model_kind) << ", " << ToString(fit.response) << " response"
@@ -133,20 +150,39 @@ void PrintBroadbandReport(const BroadbandCampaignFit& fit, std::ostream& out) {
       << ": chi-square " << General(r.chi2, 6) << " over " << r.residuals << " samples, residual variance "
       << General(r.residual_variance, 3) << " (1: noise only), " << r.iterations << " iterations\n\n";
   PrintParameters(r.parameters, out);
-  char line[256];
   const FrfFitSummary& l = fit.linear_start;
   out << "\nstart: paper Eq. 3 on " << fit.start_record << "'s FRF: k_p " << General(l.stiffness_n_per_m, 6)
       << " N/m, c_p " << General(l.damping_n_s_per_m, 6) << " N s/m, g " << General(l.gain_n_per_v, 6) << " N/V"
       << (l.converged ? "" : " (NOT CONVERGED)") << "\n\n";
-  std::snprintf(line, sizeof line, "%-16s %12s %12s %10s %10s %10s %9s\n", "record", "noise rms", "offset", "nrmse0",
-                "nrmse", "chi2/n", "segments");
+  PrintBroadbandRecords(fit.result.records, out);
+  if (!fit.warnings.empty() || !r.converged || fit.result.rejected) out << "\n" << r.report << "\n";
+  for (const std::string& w : fit.warnings) out << "warning: " << w << "\n";
+}
+
+void PrintMixedReport(const MixedCampaignFit& fit, std::ostream& out) {
+  const internal::ExtendedFitResult& r = fit.result.fit;
+  out << "model " << ToString(fit.model_kind) << ", " << ToString(fit.response) << " response"
+      << (fit.absolute_scale ? "" : " (sensitivity nominal: only ratios identifiable)") << ", " << fit.stepped_used
+      << " stepped-sine records (their harmonics) and " << fit.result.records.size()
+      << " broadband records (their time series) fitted jointly, " << General(fit.seconds, 3) << " s\n";
+  out << (r.converged ? "converged" : "NOT CONVERGED") << (fit.result.rejected ? ", REJECTED by the records" : "")
+      << ": chi-square " << General(r.chi2, 6) << " over " << r.residuals
+      << " residuals (harmonics and samples), residual variance " << General(r.residual_variance, 3)
+      << " (1: noise only), " << r.iterations << " iterations\n\n";
+  PrintParameters(r.parameters, out);
+  out << "\nstart: the stepped-sine records alone (" << (fit.stepped.refinement.converged ? "converged" : "NOT CONVERGED")
+      << ", " << General(fit.stepped.seconds, 3) << " s):\n";
+  PrintParameters(fit.stepped.parameters, out);
+  char line[128];
+  std::snprintf(line, sizeof line, "\n%-16s %10s %10s\n", "stepped record", "chi2/n", "n");
   out << line;
-  for (const internal::BroadbandRecordFit& x : fit.result.records) {
-    std::snprintf(line, sizeof line, "%-16s %12s %12s %10s %10s %10s %9zu\n", x.name.c_str(),
-                  General(x.noise_rms, 3).c_str(), General(x.offset, 3).c_str(), General(x.nrmse_initial, 3).c_str(),
-                  General(x.nrmse, 3).c_str(), General(x.chi2_per_sample, 3).c_str(), x.segments);
+  for (const internal::SteppedRecordFit& x : fit.result.stepped) {
+    std::snprintf(line, sizeof line, "%-16s %10s %10zu\n", x.name.c_str(),
+                  General(x.chi2 / static_cast<double>(x.residuals), 3).c_str(), x.residuals);
     out << line;
   }
+  out << "\n";
+  PrintBroadbandRecords(fit.result.records, out);
   if (!fit.warnings.empty() || !r.converged || fit.result.rejected) out << "\n" << r.report << "\n";
   for (const std::string& w : fit.warnings) out << "warning: " << w << "\n";
 }
@@ -188,6 +224,14 @@ int RunFit(const std::vector<std::string>& argv) {
   const Campaign campaign = ReadCampaign(*data);
   const bool any_stepped = std::any_of(campaign.records.begin(), campaign.records.end(),
                                        [](const Recording& r) { return !r.broadband; });
+  const bool any_broadband = std::any_of(campaign.records.begin(), campaign.records.end(),
+                                         [](const Recording& r) { return r.broadband; });
+  if (any_stepped && any_broadband) {
+    const MixedCampaignFit fit = FitMixedCampaign(campaign, options);
+    if (args.Has("--json")) std::cout << MixedCampaignFitToJson(fit).dump(2) << "\n";
+    else PrintMixedReport(fit, std::cout);
+    return 0;
+  }
   if (!any_stepped) {
     const BroadbandCampaignFit fit = FitBroadbandCampaign(campaign, options);
     if (args.Has("--json")) std::cout << BroadbandCampaignFitToJson(fit).dump(2) << "\n";

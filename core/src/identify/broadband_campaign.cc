@@ -181,13 +181,13 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   return out;
 }
 
-nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit) {
+nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit) {
   using nlohmann::json;
-  const internal::ExtendedFitResult& r = fit.result.fit;
+  const internal::ExtendedFitResult& r = fit.fit;
   json parameters = json::object();
   for (const FitParameter& p : r.parameters) parameters[p.name] = FitParameterJson(p);
   json records = json::array();
-  for (const internal::BroadbandRecordFit& x : fit.result.records)
+  for (const internal::BroadbandRecordFit& x : fit.records)
     records.push_back({{"name", x.name},
                        {"noise_rms", JsonNumber(x.noise_rms)},
                        {"offset", JsonNumber(x.offset)},
@@ -196,30 +196,36 @@ nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit) {
                        {"nrmse", JsonNumber(x.nrmse)},
                        {"chi2_per_sample", JsonNumber(x.chi2_per_sample)},
                        {"segments", x.segments}});
-  const FrfFitSummary& l = fit.linear_start;
-  return {{"kind", "broadband"},
-          {"model", ToString(fit.model_kind)},
-          {"response", ToString(fit.response)},
-          {"absolute_scale", fit.absolute_scale},
-          {"parameters", parameters},
+  return {{"parameters", parameters},
           {"converged", r.converged},
-          {"rejected", fit.result.rejected},
+          {"rejected", fit.rejected},
           {"report", r.report},
           {"chi2", JsonNumber(r.chi2)},
           {"residuals", r.residuals},
           {"residual_variance", JsonNumber(r.residual_variance)},
           {"iterations", r.iterations},
-          {"linear_start",
-           {{"record", fit.start_record},
-            {"k_p", JsonNumber(l.stiffness_n_per_m)},
-            {"c_p", JsonNumber(l.damping_n_s_per_m)},
-            {"g", JsonNumber(l.gain_n_per_v)},
-            {"converged", l.converged}}},
-          {"stop_fitted", fit.stop_free},
-          {"starts_tried", fit.starts_tried},
-          {"records", records},
-          {"warnings", fit.warnings},
-          {"seconds", JsonNumber(fit.seconds)}};
+          {"records", records}};
+}
+
+nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit) {
+  using nlohmann::json;
+  const FrfFitSummary& l = fit.linear_start;
+  json out = BroadbandFitJson(fit.result);
+  out.update(json{{"kind", "broadband"},
+                  {"model", ToString(fit.model_kind)},
+                  {"response", ToString(fit.response)},
+                  {"absolute_scale", fit.absolute_scale},
+                  {"linear_start",
+                   {{"record", fit.start_record},
+                    {"k_p", JsonNumber(l.stiffness_n_per_m)},
+                    {"c_p", JsonNumber(l.damping_n_s_per_m)},
+                    {"g", JsonNumber(l.gain_n_per_v)},
+                    {"converged", l.converged}}},
+                  {"stop_fitted", fit.stop_free},
+                  {"starts_tried", fit.starts_tried},
+                  {"warnings", fit.warnings},
+                  {"seconds", JsonNumber(fit.seconds)}});
+  return out;
 }
 
 }  // namespace strokelab

@@ -14,12 +14,14 @@
 #include <memory>
 #include <numbers>
 
+#include "orbit_cost.h"
 #include "step_callback.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/nan.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/engines/variational_flow.h"
 #include "strokelab/identify/fit.h"
+#include "strokelab/identify/fit_orbit.h"
 
 namespace strokelab::internal {
 namespace {
@@ -32,6 +34,9 @@ constexpr double kContinuityGaps[] = {1e-2, 1e-4, 1e-6};
 constexpr double kMainsHz[] = {50.0, 60.0};
 // Per record: the response's offset, then sin and cos of each mains order.
 constexpr int kNuisance = 1 + 2 * 2 * kHumOrders;
+// A joint fit with stepped-sine records: at most this many solves at the final continuity weight, each
+// with the sampling corrections refreshed (extended_fit.h's passes).
+constexpr int kJointPasses = 8;
 
 // The unit of each state component: the solver sees x / L, v / (L w_n) and F_e / (k_p L).
 struct StateScale {
@@ -434,6 +439,9 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   for (const auto& level : options.noise)
     if (!(level.rms > 0) || !std::isfinite(level.rms) || level.samples < 1)
       throw InputError("noise", "each level must be finite and > 0, from at least one sample");
+  if (options.stepped_orders < 1) throw InputError("stepped_orders", "must be >= 1");
+  for (const RecordAnalysis* r : options.stepped)
+    if (r == nullptr) throw InputError("stepped", "holds no record");
   Validate(requested.base);
   // An evaluation (no free parameter): Ceres takes no empty parameter block, so the costs get one that
   // is held constant.
@@ -514,6 +522,29 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     BoundStart(&solver_problem, starts[s].data(), d);
   }
 
+  // The stepped-sine records of a joint fit: their harmonics' residuals share theta. Anchors: the orbit
+  // that matches each record best among the start model's attractors.
+  const int orders = options.stepped_orders;
+  std::vector<OrbitTarget> targets(options.stepped.size());
+  std::vector<ceres::ResidualBlockId> stepped_blocks;
+  ParallelFor(targets.size(), [&](size_t i) {
+    OrbitTarget& t = targets[i];
+    t.record = options.stepped[i];
+    t.weight = 1.0 / t.record->harmonic_se;
+    t.correction.assign(orders, 0.0);
+    std::optional<ModelOrbit> orbit;
+    try {
+      orbit = BestMatchingOrbit(start_model, *t.record, kind, orders);
+    } catch (const std::exception&) {
+    }
+    if (!orbit) throw NumericalError("no steady state of the starting model at record " + t.record->name);
+    t.anchor = orbit->anchor;
+  });
+  for (const OrbitTarget& t : targets)
+    stepped_blocks.push_back(solver_problem.AddResidualBlock(new OrbitCost(&problem, &t, kind, orders), nullptr, theta.data()));
+  size_t stepped_residuals = 0;
+  for (const RecordAnalysis* r : options.stepped) stepped_residuals += FittedResiduals(*r, orders);
+
   // Per-record residuals at the current unknowns: sum of squares of the sample rows, and of the raw
   // misfit in response units.
   auto record_misfit = [&](std::vector<double>* chi2, std::vector<double>* raw) {
@@ -539,19 +570,53 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   std::vector<double> chi2_initial, raw_initial;
   record_misfit(&chi2_initial, &raw_initial);
 
-  AfterSuccessfulStep callback([] {});
+  // After each successful step the stepped records' anchors move to the new iterate's orbits (and stay on
+  // each record's branch).
+  AfterSuccessfulStep callback([&] {
+    if (targets.empty()) return;
+    const ActuatorModel model = problem.Decode(theta.data());
+    ParallelFor(targets.size(), [&](size_t i) { MoveAnchor(model, *targets[i].record, kind, orders, &targets[i].anchor); });
+  });
   ceres::Solver::Options solver = RefinementSolverOptions(options.max_iterations, &callback);
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   if (options.threads > 0) solver.num_threads = options.threads;
   ceres::Solver::Summary summary;
   int iterations = 0;
-  // A warm start's gaps are closed already: its fit starts at the final weight.
-  for (size_t g = warm ? std::size(kContinuityGaps) - 1 : 0; g < std::size(kContinuityGaps); ++g) {
-    continuity_gap = kContinuityGaps[g];
+  auto solve = [&] {
+    RefreshCorrections(problem.Decode(theta.data()), targets, kind, orders);
     solver.max_solver_time_in_seconds = std::max(
         1.0, options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count());
     ceres::Solve(solver, &solver_problem, &summary);
     iterations += static_cast<int>(summary.iterations.size()) - 1;
+  };
+  // A warm start's gaps are closed already: its fit starts at the final weight.
+  for (size_t g = warm ? std::size(kContinuityGaps) - 1 : 0; g < std::size(kContinuityGaps); ++g) {
+    continuity_gap = kContinuityGaps[g];
+    solve();
+  }
+  // (J^T J)^-1 of the model's parameters at the current unknowns (ModelCovariance), or nothing.
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks.push_back(theta.data());
+  for (auto& s : starts) evaluate.parameter_blocks.push_back(s.data());
+  for (auto& q : nuisance) evaluate.parameter_blocks.push_back(q.data());
+  auto parameter_covariance = [&]() -> std::optional<Eigen::MatrixXd> {
+    ceres::CRSMatrix crs;
+    if (evaluation || !solver_problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return std::nullopt;
+    return ModelCovariance(crs, p);
+  };
+  // With stepped records, solves with refreshed sampling corrections until they move no parameter by
+  // more than kSolveTolerancePerError of its standard error (the residual variance taken as 1: the
+  // residuals are in noise standard errors).
+  bool corrections_settled = targets.empty() || evaluation;
+  for (int pass = 0; !corrections_settled && pass < kJointPasses; ++pass) {
+    if (summary.termination_type != ceres::CONVERGENCE) break;
+    const std::vector<double> before = theta;
+    solve();
+    const std::optional<Eigen::MatrixXd> covariance = parameter_covariance();
+    if (!covariance) break;
+    double move = 0.0;
+    for (int i = 0; i < p; ++i) move = std::max(move, std::abs(theta[i] - before[i]) / std::sqrt((*covariance)(i, i)));
+    corrections_settled = move <= kSolveTolerancePerError;
   }
 
   BroadbandFitResult out;
@@ -564,27 +629,37 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   record_misfit(&chi2, &raw);
   size_t samples = 0;
   for (const Recording* r : records) samples += r->size();
-  fit.residuals = samples;
+  fit.residuals = samples + stepped_residuals;
   fit.chi2 = 0.0;
   for (double c : chi2) fit.chi2 += c;
-  // Degrees of freedom: the samples less the model's parameters, one start state per record (the
-  // continuity rows tie the other segments' starts) and the nuisance.
+  for (size_t i = 0; i < targets.size(); ++i) {
+    SteppedRecordFit f;
+    f.name = targets[i].record->name;
+    f.residuals = FittedResiduals(*targets[i].record, orders);
+    std::vector<double> residuals(2 * static_cast<size_t>(orders));
+    const double* theta_block = theta.data();
+    const ceres::CostFunction* cost = solver_problem.GetCostFunctionForResidualBlock(stepped_blocks[i]);
+    f.chi2 = cost->Evaluate(&theta_block, residuals.data(), nullptr) ? 0.0 : kNaN;
+    for (double r : residuals) f.chi2 += r * r;
+    fit.chi2 += f.chi2;
+    out.stepped.push_back(f);
+  }
+  // Degrees of freedom: the samples and stepped residuals less the model's parameters, one start state
+  // per record (the continuity rows tie the other segments' starts) and the nuisance.
   const int free_parameters = evaluation ? 0 : p;
-  const double dof =
-      static_cast<double>(samples) - free_parameters - static_cast<double>(records.size()) * (d + kNuisance);
+  const double dof = static_cast<double>(fit.residuals) - free_parameters -
+                     static_cast<double>(records.size()) * (d + kNuisance);
   fit.residual_variance = fit.chi2 / dof;
   fit.report = summary.BriefReport();
   bool converged = summary.termination_type == ceres::CONVERGENCE && std::isfinite(fit.chi2);
+  if (converged && !corrections_settled) {
+    converged = false;
+    fit.report += "\nNOT CONVERGED: the stepped records' sampling corrections still moved the parameters after " +
+                  std::to_string(kJointPasses) + " solves";
+  }
 
   fit.covariance.assign(static_cast<size_t>(free_parameters) * free_parameters, kNaN);
-  ceres::CRSMatrix crs;
-  ceres::Problem::EvaluateOptions evaluate;
-  evaluate.parameter_blocks.push_back(theta.data());
-  for (auto& s : starts) evaluate.parameter_blocks.push_back(s.data());
-  for (auto& q : nuisance) evaluate.parameter_blocks.push_back(q.data());
-  std::optional<Eigen::MatrixXd> covariance;
-  if (!evaluation && solver_problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs))
-    covariance = ModelCovariance(crs, p);
+  const std::optional<Eigen::MatrixXd> covariance = parameter_covariance();
   if (!covariance && !evaluation) {
     converged = false;
     fit.report += "\nNOT CONVERGED: the parameters are not all identifiable from these records (J^T J is singular)";
@@ -610,10 +685,11 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   // when chi-square stands beyond its 1e-3 upper tail. The noise levels it is scaled by are estimates
   // from the same records, whose own spread (kNoiseEstimateVariance) widens chi-square / dof's beyond
   // chi-square's 2 / dof: var = 2 / dof + 4 sum_r (n_r / M)^2 kNoiseEstimateVariance / N_r, with N_r
-  // the samples record r's level was estimated from (n_r, its own, unless options.noise says).
+  // the samples record r's level was estimated from (n_r, its own, unless options.noise says) and M
+  // every residual (a stepped record's harmonic standard error is taken as known).
   double variance = 2.0 / dof;
   for (size_t r = 0; r < records.size(); ++r) {
-    const double share = static_cast<double>(records[r]->size()) / static_cast<double>(samples);
+    const double share = static_cast<double>(records[r]->size()) / static_cast<double>(fit.residuals);
     const size_t estimated_from = options.noise.empty() ? records[r]->size() : options.noise[r].samples;
     variance += 4.0 * share * share * kNoiseEstimateVariance / static_cast<double>(estimated_from);
   }

@@ -24,9 +24,6 @@ namespace {
 
 using Complex = std::complex<double>;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Solves end when the refreshed sampling corrections moved no identifiable theta by more than this
-// fraction of its standard error (a change no test on the estimate could see).
-constexpr double kSolveTolerancePerError = 0.01;
 // A fit's chi-square beyond this upper-tail probability of chi-square(M - P): the records reject the
 // model (its residuals are not noise), so its passes may stop once they stop converging.
 constexpr double kBeyondNoiseP = 1e-3;
@@ -283,14 +280,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     moved = true;
     last_move = kInf;
     for (int solve = result.passes; solve < options.max_passes && moved; ++solve) {
-      const ActuatorModel model = problem.Decode(theta.data());
-      ParallelFor(targets.size(), [&](size_t i) {
-        try {
-          targets[i].correction = CorrectionAt(model, targets[i], kind, orders);
-        } catch (const std::exception&) {
-          targets[i].correction.assign(orders, 0.0);
-        }
-      });
+      RefreshCorrections(problem.Decode(theta.data()), targets, kind, orders);
       const double seconds_left = std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
       if (seconds_left <= 0) {
         result.report = "time limit of " + std::to_string(options.max_seconds) + " s reached";

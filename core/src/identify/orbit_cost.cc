@@ -6,6 +6,7 @@
 #include <exception>
 #include <optional>
 
+#include "strokelab/base/parallel_for.h"
 #include "strokelab/steady/steady_state.h"
 
 namespace strokelab::internal {
@@ -77,10 +78,16 @@ bool OrbitCost::Evaluate(double const* const* parameters, double* residuals, dou
   }
 }
 
-std::vector<Complex> CorrectionAt(const ActuatorModel& model, const OrbitTarget& t, ResponseKind kind, int orders) {
-  const std::optional<ModelOrbit> orbit = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
-  if (!orbit) return std::vector<Complex>(orders, 0.0);
-  return SamplingCorrection(model, *t.record, *orbit, kind, orders);
+void RefreshCorrections(const ActuatorModel& model, std::span<OrbitTarget> targets, ResponseKind kind, int orders) {
+  ParallelFor(targets.size(), [&](size_t i) {
+    OrbitTarget& t = targets[i];
+    try {
+      const std::optional<ModelOrbit> orbit = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
+      t.correction = orbit ? SamplingCorrection(model, *t.record, *orbit, kind, orders) : std::vector<Complex>(orders, 0.0);
+    } catch (const std::exception&) {
+      t.correction.assign(orders, 0.0);
+    }
+  });
 }
 
 }  // namespace strokelab::internal

@@ -6,12 +6,17 @@
 #include <ceres/ceres.h>
 
 #include <complex>
+#include <span>
 #include <vector>
 
 #include "strokelab/identify/extended_fit.h"
 #include "strokelab/identify/fit_orbit.h"
 
 namespace strokelab::internal {
+
+// Solves end when the refreshed sampling corrections moved no identifiable theta by more than this
+// fraction of its standard error (a change no test on the estimate could see).
+inline constexpr double kSolveTolerancePerError = 0.01;
 
 // One record's target: its measured harmonics, the orbit the next evaluations start from, and the
 // sampling correction (frozen during a solve).
@@ -42,9 +47,8 @@ class OrbitCost : public ceres::CostFunction {
   mutable State last_start_;
 };
 
-// The sampling correction of a record at `model`, on the model's orbit through the record's anchor
-// (zero where that orbit is not found).
-std::vector<std::complex<double>> CorrectionAt(const ActuatorModel& model, const OrbitTarget& t, ResponseKind kind,
-                                               int orders);
+// Each target's sampling correction at `model`, on the model's orbit through the record's anchor (zero
+// where that orbit is not found), side by side.
+void RefreshCorrections(const ActuatorModel& model, std::span<OrbitTarget> targets, ResponseKind kind, int orders);
 
 }  // namespace strokelab::internal

@@ -51,6 +51,11 @@ std::vector<bool> RecordImpacts(const Recording& record, ResponseKind kind);
 // Throws InputError for a campaign without broadband records, bad options, or bad records (named).
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options);
 
+// A broadband (or joint) fit's parameters (by name, FitParameterJson), converged, rejected, report, chi2,
+// residuals, residual_variance, iterations and records (name, noise_rms, offset, hum_amplitude,
+// nrmse_initial, nrmse, chi2_per_sample, segments).
+nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit);
+
 // kind "broadband", model, response, absolute_scale, parameters (by name, FitParameterJson), converged,
 // rejected, report, chi2, residual_variance, residuals, iterations, linear_start, records, warnings, seconds.
 nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit);

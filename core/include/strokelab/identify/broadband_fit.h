@@ -63,6 +63,20 @@ struct BroadbandFitOptions {
     size_t samples = 0;
   };
   std::vector<NoiseLevel> noise;
+  // Stepped-sine records fitted jointly with the broadband ones (a mixed campaign): each record's
+  // harmonics 1..stepped_orders over their standard error, the extended fit's residuals with their exact
+  // Jacobian (extended_fit.h), in the same problem and sharing the model's parameters. Each starts on its
+  // best-matching orbit of the start model and follows it after every accepted step; the sampling
+  // corrections are frozen during a solve and refreshed between solves until the parameters stay.
+  std::vector<const RecordAnalysis*> stepped;
+  int stepped_orders = 10;
+};
+
+// How the fitted model matches one stepped-sine record of a joint fit.
+struct SteppedRecordFit {
+  std::string name;
+  double chi2 = 0.0;     // sum |(C_h - C_h^model) / se|^2 over the fitted harmonics
+  size_t residuals = 0;  // two per usable harmonic: chi2 / residuals ~1 when only noise remains
 };
 
 // How the fitted model matches one record.
@@ -88,6 +102,7 @@ struct BroadbandFitResult {
   double dof = 0.0;         // the samples less every fitted unknown that is not tied by continuity
   double chi2_limit = 0.0;  // rejected beyond it: that 1e-3 tail
   std::vector<BroadbandRecordFit> records;
+  std::vector<SteppedRecordFit> stepped;  // BroadbandFitOptions::stepped's, in order
   // The fitted unknowns besides the parameters (BroadbandFitOptions::warm_start): every segment's start
   // state, records in order (SegmentFirsts), and each record's offset and hum.
   std::vector<State> segment_starts;
@@ -114,11 +129,13 @@ std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
 // ends at the record's end and takes a tail shorter than half a segment).
 std::vector<size_t> SegmentFirsts(size_t samples, double sample_rate_hz, double segment_s);
 
-// Fits problem.parameters to the broadband `records` of a campaign whose response is of `kind`. With no
-// free parameters it evaluates problem.base: only the segments' starts, offsets and hum are fitted (the
-// diagnosis's held-out records), and the result's parameters and covariance are empty.
+// Fits problem.parameters to the broadband `records` of a campaign whose response is of `kind` (and to
+// options.stepped's stepped-sine records with them). With no free parameters it evaluates problem.base:
+// only the segments' starts, offsets and hum are fitted (the diagnosis's held-out records), and the
+// result's parameters and covariance are empty. The chi-square, residual count and degrees of freedom
+// count the stepped records' harmonics with the samples.
 // Throws InputError naming a record that is not broadband, too short (fewer than 16 samples) or not
-// finite, or bad options.
+// finite, or bad options; NumericalError when the start model has no steady state at a stepped record.
 BroadbandFitResult FitBroadband(std::span<const Recording* const> records, ResponseKind kind,
                                 const ExtendedProblem& problem, const BroadbandFitOptions& options = {});
 
