@@ -222,17 +222,14 @@ int RunFit(const std::vector<std::string>& argv) {
 
   const FitOptions options = FitOptionsFromArgs(args);
   const Campaign campaign = ReadCampaign(*data);
-  const bool any_stepped = std::any_of(campaign.records.begin(), campaign.records.end(),
-                                       [](const Recording& r) { return !r.broadband; });
-  const bool any_broadband = std::any_of(campaign.records.begin(), campaign.records.end(),
-                                         [](const Recording& r) { return r.broadband; });
-  if (any_stepped && any_broadband) {
+  const CampaignFitKind kind = FitKindOf(campaign);
+  if (kind == CampaignFitKind::kMixed) {
     const MixedCampaignFit fit = FitMixedCampaign(campaign, options);
     if (args.Has("--json")) std::cout << MixedCampaignFitToJson(fit).dump(2) << "\n";
     else PrintMixedReport(fit, std::cout);
     return 0;
   }
-  if (!any_stepped) {
+  if (kind == CampaignFitKind::kBroadband) {
     const BroadbandCampaignFit fit = FitBroadbandCampaign(campaign, options);
     if (args.Has("--json")) std::cout << BroadbandCampaignFitToJson(fit).dump(2) << "\n";
     else PrintBroadbandReport(fit, std::cout);

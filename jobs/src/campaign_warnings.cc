@@ -11,6 +11,8 @@ namespace {
 // a bound of its range ..." (core/src/identify/extended_fit.cc).
 constexpr std::string_view kFitOnBound = " ended on its bound";
 constexpr std::string_view kHeldNote = "held at a bound";
+// The broadband fit's note for a parameter that ended on a bound (core/src/identify/broadband_fit.cc).
+constexpr std::string_view kBroadbandOnBound = "ended on its bound";
 
 std::string HeldAtBound(const std::string& parameter) { return parameter + " held at a bound"; }
 
@@ -23,6 +25,15 @@ std::vector<std::string> FitWarnings(const FitResult& fit) {
     const size_t at = w.find(kFitOnBound);
     if (at != std::string::npos && at > 0 && w.find(' ') == at) out.push_back(HeldAtBound(w.substr(0, at)));
   }
+  return out;
+}
+
+std::vector<std::string> BroadbandFitWarnings(const strokelab::internal::BroadbandFitResult& fit) {
+  std::vector<std::string> out;
+  if (!fit.fit.converged) out.push_back("fit did not converge");
+  if (fit.rejected) out.push_back("the records reject the fit");
+  for (const FitParameter& p : fit.fit.parameters)
+    if (p.note == kBroadbandOnBound) out.push_back(HeldAtBound(p.name));
   return out;
 }
 

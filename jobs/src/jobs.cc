@@ -14,7 +14,9 @@
 #include "strokelab/report/sweep_tables.h"
 #include "strokelab/engines/engine.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/identify/broadband_campaign.h"
 #include "strokelab/identify/fit.h"
+#include "strokelab/identify/mixed_campaign.h"
 #include "strokelab/model/model_json.h"
 #include "strokelab/engines/record_summary.h"
 #include "strokelab/data/recordings.h"
@@ -82,10 +84,32 @@ std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data,
   if (type == "fit") {
     // The fit reports no stages of its own: one stage, with the time.
     if (progress) progress(clock.Report({1, 1, "fit on " + std::to_string(campaign.records.size()) + " records", {}}));
-    const FitResult fit = FitCampaign(campaign, FitOptionsFromJob(job));
-    std::vector<ResultRow> rows = {{"fit", FitResultToJson(fit)}};
+    // By the campaign's records: stepped sines, broadband records, or both (mixed_campaign.h).
+    const FitOptions options = FitOptionsFromJob(job);
+    std::vector<ResultRow> rows;
+    std::vector<std::string> warnings;
+    switch (FitKindOf(campaign)) {
+      case CampaignFitKind::kSteppedSine: {
+        const FitResult fit = FitCampaign(campaign, options);
+        rows = {{"fit", FitResultToJson(fit)}};
+        warnings = FitWarnings(fit);
+        break;
+      }
+      case CampaignFitKind::kBroadband: {
+        const BroadbandCampaignFit fit = FitBroadbandCampaign(campaign, options);
+        rows = {{"fit", BroadbandCampaignFitToJson(fit)}};
+        warnings = BroadbandFitWarnings(fit.result);
+        break;
+      }
+      case CampaignFitKind::kMixed: {
+        const MixedCampaignFit fit = FitMixedCampaign(campaign, options);
+        rows = {{"fit", MixedCampaignFitToJson(fit)}};
+        warnings = BroadbandFitWarnings(fit.result);
+        break;
+      }
+    }
     if (as_data) return rows;  // a remote fit's row alone (CampaignRowsFromWorker takes one row)
-    for (ResultRow& row : WarningRows(FitWarnings(fit))) rows.push_back(std::move(row));
+    for (ResultRow& row : WarningRows(warnings)) rows.push_back(std::move(row));
     return rows;
   }
   DiagnoseOptions options = DiagnoseOptionsFromJob(job);

@@ -637,6 +637,44 @@ TEST_F(CampaignJobsTest, AFitThatDidNotConvergeSucceedsWithAWarning) {
   EXPECT_EQ(fine["warnings"], json::array()) << fine.dump();
 }
 
+// Issue 14: a fit job on a broadband campaign, and on one of stepped sines and multisines, fits it as
+// `strokelab fit` does (its records' time series; identify/mixed_campaign.h): the result's kind, the
+// parameters, the fitted model as a download, and no warnings for fits the records accept.
+TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
+  SynthOptions o;
+  o.excitation = Excitation::kMultisine;
+  o.levels_v_rms = {0.1, 0.6};
+  o.settle_s = 2.0;
+  o.sample_rate_hz = 8192.0;
+  o.noise_rms_v = 2e-4;
+  o.seed = 13;
+  Synthesis broadband = Synthesize(PaperModel(), o);
+  for (Recording& r : broadband.campaign.records) r.name = "bb_" + r.name;
+  WriteSynthesis(broadband, root_ / "data" / "broadband", root_ / "broadband-truth.json");
+  Campaign mixed = ReadCampaign(campaign_dir());
+  mixed.records.insert(mixed.records.end(), broadband.campaign.records.begin(), broadband.campaign.records.end());
+  WriteCampaign(mixed, root_ / "data" / "mixed", broadband.write);
+  for (const std::string kind : {"broadband", "mixed"}) {
+    const int64_t job = Submit({{"kind", "fit"}, {"campaign", {{"path", kind}}}});
+    const json status = WaitFinished(job);
+    ASSERT_EQ(status["status"], "succeeded") << status.dump();
+    const std::string base = "/v1/jobs/" + std::to_string(job);
+    const json result = Get(base + "/result");
+    EXPECT_EQ(result["kind"], kind);
+    EXPECT_TRUE(result["converged"].get<bool>()) << result["report"];
+    EXPECT_FALSE(result["rejected"].get<bool>()) << result["report"];
+    EXPECT_EQ(status["warnings"], json::array()) << status.dump();
+    EXPECT_NEAR(result["parameters"]["k_p"]["value"].get<double>(), PaperModel().stiffness_n_per_m,
+                4.0 * result["parameters"]["k_p"]["standard_error"].get<double>())
+        << kind;
+    EXPECT_EQ(result["records"].size(), 2u) << kind;
+    if (kind == "mixed") EXPECT_GE(result["stepped_records"].size(), 10u);  // of campaign-a's 12
+    auto model = Client().Get(base + "/model", Auth(kReadToken));
+    ASSERT_TRUE(model && model->status == 200) << (model ? model->body.substr(0, 300) : "");
+    EXPECT_EQ(json::parse(model->body), result["fitted_model"]);
+  }
+}
+
 // A server without workers of its own takes fit jobs: a remote worker fetches the campaign and fits it
 // as the direct fit; one that cannot fetch campaigns (no cache directory) leaves the task waiting for it.
 TEST_F(CampaignJobsTest, WithoutInProcessWorkersARemoteWorkerRunsTheFit) {

@@ -12,6 +12,7 @@
 
 #include "strokelab/base/errors.h"
 #include "strokelab/base/json_number.h"
+#include "strokelab/model/model_json.h"
 #include "strokelab/signal/signal.h"
 
 namespace strokelab {
@@ -197,6 +198,7 @@ nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit) {
                        {"chi2_per_sample", JsonNumber(x.chi2_per_sample)},
                        {"segments", x.segments}});
   return {{"parameters", parameters},
+          {"fitted_model", ModelToJson(r.model)},
           {"converged", r.converged},
           {"rejected", fit.rejected},
           {"report", r.report},

@@ -33,6 +33,13 @@ std::vector<internal::FreeParameter> JointParameters(const ActuatorModel& m, boo
 
 }  // namespace
 
+CampaignFitKind FitKindOf(const Campaign& campaign) {
+  const size_t broadband = static_cast<size_t>(
+      std::count_if(campaign.records.begin(), campaign.records.end(), [](const Recording& r) { return r.broadband; }));
+  if (broadband == 0) return CampaignFitKind::kSteppedSine;
+  return broadband == campaign.records.size() ? CampaignFitKind::kBroadband : CampaignFitKind::kMixed;
+}
+
 MixedCampaignFit FitMixedCampaign(const Campaign& campaign, const FitOptions& options) {
   const auto clock_start = std::chrono::steady_clock::now();
   Validate(options);

@@ -51,7 +51,8 @@ std::vector<bool> RecordImpacts(const Recording& record, ResponseKind kind);
 // Throws InputError for a campaign without broadband records, bad options, or bad records (named).
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options);
 
-// A broadband (or joint) fit's parameters (by name, FitParameterJson), converged, rejected, report, chi2,
+// A broadband (or joint) fit's parameters (by name, FitParameterJson), fitted_model (ModelToJson: a model
+// file `sweep --model` takes), converged, rejected, report, chi2,
 // residuals, residual_variance, iterations and records (name, noise_rms, offset, hum_amplitude,
 // nrmse_initial, nrmse, chi2_per_sample, segments).
 nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit);

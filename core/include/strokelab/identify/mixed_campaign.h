@@ -17,6 +17,12 @@
 
 namespace strokelab {
 
+// Which fit a campaign takes, by its records: stepped sines only (fit.h, FitCampaign; also a campaign
+// without records, which it refuses), broadband only (broadband_campaign.h) or both (FitMixedCampaign).
+// `strokelab fit` and the service's fit job both ask.
+enum class CampaignFitKind { kSteppedSine, kBroadband, kMixed };
+CampaignFitKind FitKindOf(const Campaign& campaign);
+
 struct MixedCampaignFit {
   FitModelKind model_kind = FitModelKind::kPaper;
   ResponseKind response = ResponseKind::kForce;

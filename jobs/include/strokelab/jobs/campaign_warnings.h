@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "strokelab/diagnose/diagnose.h"
+#include "strokelab/identify/broadband_fit.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/jobs/task.h"
 
@@ -16,6 +17,11 @@ namespace strokelab::jobs {
 // "fit did not converge" (the refinement ran and did not converge), "k_s held at a bound" (per
 // parameter the refinement left on a bound of its range, as its warnings name it).
 std::vector<std::string> FitWarnings(const FitResult& fit);
+
+// Of a broadband or joint fit (broadband_fit.h): "fit did not converge", "the records reject the fit"
+// (its chi-square beyond the 1e-3 tail of noise alone), "k_s held at a bound" (per parameter that ended
+// on a bound of its range).
+std::vector<std::string> BroadbandFitWarnings(const strokelab::internal::BroadbandFitResult& fit);
 
 // Of the diagnosed model's fit: the chosen candidate's ("fit did not converge (cubic_stiffness)",
 // "k_s held at a bound", "k3 not identifiable"), or the base fit's (FitWarnings) when nothing is
