@@ -218,6 +218,53 @@ TEST(ContinuationTest, AStallFarFromGrazingStopsTheBranchInsteadOfJumping) {
   EXPECT_LT(branch.points.back().parameter, 0.85);  // it got near the fold before it stalled
 }
 
+// A smooth model's row whose continuation stops short (paper + dry friction at 0.53 V: the corrector
+// fails near 14 Hz, inside a bistable interval) is restarted past where it stopped. Every grid point's up
+// and down orbits are then the attractors a stepped sweep settles on: SolveAttractor frequency after
+// frequency, carrying the state from 5 Hz up and from 20 Hz down (the period map stepped in time, no
+// continuation). Before the restart, the down orbit at 13.68 Hz was the up orbit, and the jump interval
+// was missing; the interval across the restart's gap is one.
+TEST(SweepRowTest, ARowWhoseContinuationStopsShortIsRestarted) {
+  ActuatorModel model = PaperModel();
+  model.friction_force_n = 0.003;
+  constexpr double kAmplitudeV = 0.53;
+  std::vector<double> grid;
+  for (int i = 0; i < 20; ++i) grid.push_back(5.0 + 15.0 * i / 19.0);
+  const SweepRowResult row = SweepRow(model, kAmplitudeV, grid);
+  ASSERT_EQ(row.jumps.size(), 1u);
+  EXPECT_EQ(row.jumps[0].from_kind, "grazing");
+  EXPECT_EQ(row.jumps[0].to_kind, "fold");
+  EXPECT_LT(row.jumps[0].bistable_from_hz, grid[11]);  // 13.68 Hz is bistable
+  EXPECT_GT(row.jumps[0].bistable_to_hz, grid[11]);
+
+  // The first harmonic of the force [N] a stepped sweep settles on at each frequency of `order`.
+  auto stepped = [&](std::vector<double> order) {
+    std::vector<double> force(order.size());
+    State state = PeriodMap(model, order.front(), kAmplitudeV).ClippedLinearStart();
+    for (size_t i = 0; i < order.size(); ++i) {
+      const SteadyState settled = SolveAttractor(PeriodMap(model, order[i], kAmplitudeV), state);
+      state = settled.start;
+      const double omega = 2.0 * std::numbers::pi * order[i];
+      force[i] = model.mass_kg * omega * omega * std::abs(settled.figures.x1);
+    }
+    return force;
+  };
+  const std::vector<double> up = stepped(grid);
+  std::vector<double> down = stepped(std::vector<double>(grid.rbegin(), grid.rend()));
+  std::reverse(down.begin(), down.end());
+  size_t unstable = 0;
+  for (size_t i = 0; i < grid.size(); ++i) {
+    for (const SweepPoint& p : row.points) {
+      if (std::abs(p.frequency_hz - grid[i]) > 1e-9) continue;
+      if (p.branch == Branch::kUp) EXPECT_NEAR(p.first_harmonic_force_n, up[i], 1e-6 * up[i]) << grid[i] << " Hz, up";
+      if (p.branch == Branch::kDown) EXPECT_NEAR(p.first_harmonic_force_n, down[i], 1e-6 * down[i]) << grid[i] << " Hz, down";
+      if (p.branch == Branch::kUnstable) ++unstable;
+    }
+  }
+  EXPECT_GT(std::abs(up[11] / down[11] - 1.0), 0.1) << "13.68 Hz: two attractors";
+  EXPECT_EQ(unstable, 1u);  // the saddle between them at 13.68 Hz
+}
+
 TEST(PeriodDoublingTest, JustPastGrazingAt8HzTheResponseIsPeriod2) {
   // At 8 Hz, 0.262-0.267 V, the period-1 orbit is unstable (a Floquet
   // multiplier below -1) and the response is period-2.

@@ -26,6 +26,11 @@ namespace strokelab {
 namespace {
 
 constexpr double kRangeMargin = 0.02;  // continuation runs 2 % past the grid on each side
+// A row's continuation that stops short of the grid (its corrector fails, e.g. where a smooth model's
+// orbit grazes the stop or friction sticks) starts again on the attractor this fraction above the
+// highest frequency it reached, at most kMaxRowRestarts times.
+constexpr double kRestartGap = 0.01;
+constexpr int kMaxRowRestarts = 8;
 
 SweepPoint MakeSweepPoint(const ActuatorModel& model, double f_hz, double amplitude_v, Branch branch, bool stable,
                           int period, const OrbitFigures& figures, double max_multiplier) {
@@ -88,27 +93,34 @@ Boundary BoundaryInSegment(const ContinuedBranch& branch, size_t k) {
   return {0.5 * (branch.points[k].parameter + branch.points[k + 1].parameter), "unlocated"};
 }
 
-// Frequency intervals where two stable stretches of the branch overlap.
-std::vector<JumpInterval> JumpIntervals(const ContinuedBranch& branch, double amplitude_v, double f_lo, double f_hi) {
+// Frequency intervals where two stable stretches of the row's branches overlap. A branch's ends are the
+// grid's where it starts at the grid's lowest frequency or leaves the range; where it was restarted or
+// stopped short, the stretch is bounded there by something not located.
+std::vector<JumpInterval> JumpIntervals(const std::vector<ContinuedBranch>& branches, double amplitude_v, double f_lo,
+                                        double f_hi) {
   struct Run {
     Boundary lo, hi;
   };
   std::vector<Run> runs;
-  const auto& pts = branch.points;
-  for (size_t i = 0; i < pts.size();) {
-    if (!pts[i].stable) {
-      ++i;
-      continue;
+  for (const ContinuedBranch& branch : branches) {
+    const auto& pts = branch.points;
+    const char* first_end = &branch == &branches.front() ? "grid" : "unlocated";
+    const char* last_end = branch.stopped_because == "range" ? "grid" : "unlocated";
+    for (size_t i = 0; i < pts.size();) {
+      if (!pts[i].stable) {
+        ++i;
+        continue;
+      }
+      size_t j = i;
+      while (j + 1 < pts.size() && pts[j + 1].stable) ++j;
+      Boundary a = i == 0 ? Boundary{pts[0].parameter, first_end} : BoundaryInSegment(branch, i - 1);
+      Boundary b = j + 1 == pts.size() ? Boundary{pts[j].parameter, last_end} : BoundaryInSegment(branch, j);
+      if (a.frequency_hz > b.frequency_hz) std::swap(a, b);
+      if (a.frequency_hz < f_lo) a = {f_lo, "grid"};
+      if (b.frequency_hz > f_hi) b = {f_hi, "grid"};
+      if (b.frequency_hz > a.frequency_hz) runs.push_back({a, b});
+      i = j + 1;
     }
-    size_t j = i;
-    while (j + 1 < pts.size() && pts[j + 1].stable) ++j;
-    Boundary a = i == 0 ? Boundary{pts[0].parameter, "grid"} : BoundaryInSegment(branch, i - 1);
-    Boundary b = j + 1 == pts.size() ? Boundary{pts[j].parameter, "grid"} : BoundaryInSegment(branch, j);
-    if (a.frequency_hz > b.frequency_hz) std::swap(a, b);
-    if (a.frequency_hz < f_lo) a = {f_lo, "grid"};
-    if (b.frequency_hz > f_hi) b = {f_hi, "grid"};
-    if (b.frequency_hz > a.frequency_hz) runs.push_back({a, b});
-    i = j + 1;
   }
   std::vector<JumpInterval> jumps;
   for (size_t a = 0; a < runs.size(); ++a) {
@@ -121,7 +133,22 @@ std::vector<JumpInterval> JumpIntervals(const ContinuedBranch& branch, double am
   }
   std::sort(jumps.begin(), jumps.end(),
             [](const JumpInterval& x, const JumpInterval& y) { return x.bistable_from_hz < y.bistable_from_hz; });
-  return jumps;
+  // An interval cut by a restart (it ends where one branch stopped and the next begins within the
+  // restart's gap, both ends unlocated) is one interval: bistable on both sides of the gap.
+  std::vector<JumpInterval> merged;
+  for (const JumpInterval& j : jumps) {
+    if (!merged.empty()) {
+      JumpInterval& last = merged.back();
+      if (last.to_kind == "unlocated" && j.from_kind == "unlocated" &&
+          j.bistable_from_hz <= last.bistable_to_hz * (1 + 2 * kRestartGap) && j.bistable_from_hz >= last.bistable_to_hz) {
+        last.bistable_to_hz = j.bistable_to_hz;
+        last.to_kind = j.to_kind;
+        continue;
+      }
+    }
+    merged.push_back(j);
+  }
+  return merged;
 }
 
 std::optional<FieldError> AxisError(const GridAxis& axis, const std::string& name, double lowest) {
@@ -135,6 +162,59 @@ std::optional<FieldError> AxisError(const GridAxis& axis, const std::string& nam
 }
 
 }  // namespace
+
+// The branches of one amplitude over the grid, by continuation in frequency from its lowest frequency.
+// A branch that ends below the top of the range (its corrector failed, or it turned at a fold and left
+// the range at the bottom) is followed by one from the attractor kRestartGap above the highest frequency
+// it reached, seeded by its orbit there; where no period-1 orbit is found, the next grid frequency above
+// is tried. At most 1 + kMaxRowRestarts branches.
+std::vector<ContinuedBranch> RowBranches(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
+                                         const ContinuationOptions& continuation, const std::atomic<bool>* cancel) {
+  const double p_min = grid_hz.front() * (1 - kRangeMargin), p_max = grid_hz.back() * (1 + kRangeMargin);
+  std::vector<ContinuedBranch> branches;
+  double from = grid_hz.front();
+  std::optional<State> seed;  // the orbit of the branch before, near `from`
+  for (int attempt = 0; attempt <= kMaxRowRestarts && from <= p_max; ++attempt) {
+    const PeriodMap map(model, from, amplitude_v);
+    std::optional<SteadyState> start = seed ? std::nullopt : Shoot(map, map.ClippedLinearStart(), 1);
+    if (!start) start = Shoot(map, SolveAttractor(map, seed.value_or(map.ClippedLinearStart())).start, 1);
+    if (!start) {
+      const auto next = std::upper_bound(grid_hz.begin(), grid_hz.end(), from);
+      if (next == grid_hz.end()) break;  // the points above come from SolveAttractor
+      from = *next;
+      continue;
+    }
+    branches.push_back(ContinueBranch(model, ContinuationParameter::kFrequencyHz, amplitude_v, from, start->start,
+                                      p_min, p_max, true, continuation, cancel));
+    const ContinuedBranch& last = branches.back();
+    if (last.stopped_because == "cancelled") break;
+    const BranchPoint& highest = *std::max_element(
+        last.points.begin(), last.points.end(),
+        [](const BranchPoint& a, const BranchPoint& b) { return a.parameter < b.parameter; });
+    if (highest.parameter > p_max) break;  // the branch covered the range
+    from = std::max(highest.parameter, from) * (1 + kRestartGap);
+    seed = highest.start;
+  }
+  return branches;
+}
+
+// The orbits of the row's branches at frequency f, in the branches' order, each orbit once (a restarted
+// branch that turns back at a fold can trace an orbit an earlier branch holds).
+std::vector<BranchPoint> RowSolutionsAt(const ActuatorModel& model, const std::vector<ContinuedBranch>& branches,
+                                        double f) {
+  if (branches.size() == 1) return SolutionsAt(model, branches.front(), f);
+  const double length = LengthScaleM(model), speed = length * 2.0 * std::numbers::pi * f;
+  std::vector<BranchPoint> out;
+  for (const ContinuedBranch& branch : branches)
+    for (BranchPoint& s : SolutionsAt(model, branch, f)) {
+      const bool known = std::any_of(out.begin(), out.end(), [&](const BranchPoint& o) {
+        return std::abs(o.start.x_m - s.start.x_m) < 1e-6 * length &&
+               std::abs(o.start.v_m_per_s - s.start.v_m_per_s) < 1e-6 * speed;
+      });
+      if (!known) out.push_back(std::move(s));
+    }
+  return out;
+}
 
 // The steady states of one amplitude at every grid frequency, by continuation in frequency.
 SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
@@ -150,20 +230,12 @@ SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const st
       if (n > reached) passed(reached = n);
     };
   const double f_lo = grid_hz.front(), f_hi = grid_hz.back();
-  const PeriodMap first(model, f_lo, amplitude_v);
-  std::optional<SteadyState> start = Shoot(first, first.ClippedLinearStart(), 1);
-  if (!start) start = Shoot(first, SolveAttractor(first, first.ClippedLinearStart()).start, 1);
-  std::optional<ContinuedBranch> branch;
-  if (start) {
-    branch = ContinueBranch(model, ContinuationParameter::kFrequencyHz, amplitude_v, f_lo, start->start,
-                            f_lo * (1 - kRangeMargin), f_hi * (1 + kRangeMargin), true, continuation, cancel);
-    row.jumps = JumpIntervals(*branch, amplitude_v, f_lo, f_hi);
-  }
+  const std::vector<ContinuedBranch> branches = RowBranches(model, amplitude_v, grid_hz, continuation, cancel);
+  row.jumps = JumpIntervals(branches, amplitude_v, f_lo, f_hi);
   for (double f : grid_hz) {
     if (cancel && cancel->load()) throw Cancelled();
     const PeriodMap map(model, f, amplitude_v);
-    std::vector<BranchPoint> solutions;
-    if (branch) solutions = SolutionsAt(model, *branch, f);
+    const std::vector<BranchPoint> solutions = RowSolutionsAt(model, branches, f);
     std::vector<const BranchPoint*> stable;
     for (const BranchPoint& s : solutions)
       if (s.stable) stable.push_back(&s);
