@@ -45,9 +45,10 @@ parts' at the fitted model (each part's start, offset and hum fitted). The choic
 the "unexplained" verdict are the same; the evidence is where the base model's residual stands out
 (far out in displacement, slow, fast, near contacts), its spectrum and its coherence with the drive.
 --out writes its report (index.html: the verdict, the held-out parts where a misfit lives, the fit,
-parameters, candidates, evidence, each record's misfit per part against noise, the named effects'
-curves), records.csv, candidates.csv, candidate_parameters.csv, model.json and diagnosis.json; no
-saturation maps yet.
+parameters, both models' saturation maps over the drives' band and from the quietest drive's rms
+sqrt 2 to the largest drive peak, candidates, evidence, each record's misfit per part against noise,
+the named effects' curves), records.csv, candidates.csv, candidate_parameters.csv,
+threshold_shift.csv, jump_intervals.csv, model.json and diagnosis.json.
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper | linear                                             [paper]
@@ -179,19 +180,22 @@ void WriteJson(const std::string& dir, const char* name, const nlohmann::json& j
 }
 
 // A campaign of broadband records only: diagnose/broadband_diagnose.h. --out gets its report folder
-// (report/broadband_report.h; no saturation maps yet) and diagnosis.json.
+// (report/broadband_report.h, with both models' maps) and diagnosis.json.
 int RunBroadbandDiagnose(const Campaign& campaign, const DiagnoseOptions& options, const Args& args) {
   const BroadbandDiagnosis diagnosis = DiagnoseBroadbandCampaign(campaign, options);
   const nlohmann::json json = BroadbandDiagnosisToJson(diagnosis);
   const auto out = args.Get("--out");
+  std::optional<report::DiagnosisMaps> maps;
   if (out) {
-    report::WriteBroadbandDiagnosisReport(diagnosis, *out);
+    maps = report::SweepBroadbandDiagnosisMaps(diagnosis, campaign, options);
+    report::WriteBroadbandDiagnosisReport(diagnosis, *out, &*maps);
     WriteJson(*out, "diagnosis.json", json);
   }
   if (args.Has("--json")) {
     std::cout << json.dump(2) << "\n";
   } else {
     PrintBroadbandDiagnosis(diagnosis, std::cout);
+    if (maps) PrintMaps(*maps, std::cout);
     if (out) std::cout << "report: " << (std::filesystem::path(*out) / "index.html").string() << "\n";
   }
   return 0;

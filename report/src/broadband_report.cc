@@ -138,30 +138,31 @@ void WriteRecords(const BroadbandDiagnosis& d, const std::filesystem::path& path
 
 }  // namespace
 
-std::string BroadbandDiagnosisHtml(const BroadbandDiagnosis& d) {
+std::string BroadbandDiagnosisHtml(const BroadbandDiagnosis& d, const DiagnosisMaps* maps) {
   const Outcome outcome = OutcomeOf(d);
-  const std::string maps =
-      "<h2>Saturation maps</h2>\n<p class=\"skipped\">Not drawn for broadband campaigns yet: sweep the diagnosed "
-      "model with <code>strokelab sweep --model model.json</code> (the base model's parameters are in the table "
-      "above).</p>\n";
   return PageStart("strokelab diagnosis (broadband)") + Header(d) + VerdictSection(outcome) + UnexplainedSection(d) +
-         FitTable(outcome) + ParametersTable(outcome) + maps + CandidatesTable(outcome) + "<h2>Evidence</h2>\n" +
+         FitTable(outcome) + ParametersTable(outcome) + MapsSection(d.model_note, d.missing_physics, maps) +
+         CandidatesTable(outcome) + "<h2>Evidence</h2>\n" +
          EvidenceTable(d.evidence) + FiguresSection({PartsFigure(d), CurvesFigure(d.curves)}) +
          RecordsSection(d) + "</body>\n</html>\n";
 }
 
 const std::vector<std::string>& BroadbandDiagnosisReportFiles() {
-  static const std::vector<std::string> files = {"index.html", "records.csv", "candidates.csv",
-                                                 "candidate_parameters.csv", "model.json"};
+  static const std::vector<std::string> files = {"index.html",          "records.csv",        "candidates.csv",
+                                                 "candidate_parameters.csv", "threshold_shift.csv", "jump_intervals.csv",
+                                                 "model.json"};
   return files;
 }
 
-void WriteBroadbandDiagnosisReport(const BroadbandDiagnosis& d, const std::filesystem::path& dir) {
+void WriteBroadbandDiagnosisReport(const BroadbandDiagnosis& d, const std::filesystem::path& dir,
+                                   const DiagnosisMaps* maps) {
   CreateReportDirectory(dir);
-  WriteText(dir / "index.html", BroadbandDiagnosisHtml(d));
+  WriteText(dir / "index.html", BroadbandDiagnosisHtml(d, maps));
   WriteRecords(d, dir / "records.csv");
   WriteCandidates(d.candidates, d.chosen, dir / "candidates.csv");
   WriteCandidateParameters(d.candidates, dir / "candidate_parameters.csv");
+  WriteThresholdShifts(maps, dir / "threshold_shift.csv");
+  WriteJumpIntervals(maps, dir / "jump_intervals.csv");
   WriteText(dir / "model.json", ModelToJson(d.model).dump(2) + "\n");
 }
 

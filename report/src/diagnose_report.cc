@@ -86,7 +86,7 @@ std::string RecordsSection(const Diagnosis& d) {
 std::string DiagnosisHtml(const Diagnosis& d, const DiagnosisMaps* maps) {
   const Outcome outcome = OutcomeOf(d);
   return PageStart("strokelab diagnosis") + Header(d) + VerdictSection(outcome) + FitTable(outcome) +
-         ParametersTable(outcome) + MapsSection(d, maps) + CandidatesTable(outcome) + EvidenceSection(d) +
+         ParametersTable(outcome) + MapsSection(d.model_note, d.missing_physics, maps) + CandidatesTable(outcome) + EvidenceSection(d) +
          FiguresSection(DiagnosisFigures(d)) + RecordsSection(d) + "</body>\n</html>\n";
 }
 

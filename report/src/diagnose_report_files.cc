@@ -137,6 +137,44 @@ void CreateReportDirectory(const std::filesystem::path& dir) {
   if (ec) throw std::runtime_error("cannot create " + dir.string() + ": " + ec.message());
 }
 
+// Both models' maps, when both were swept.
+namespace {
+bool HaveBothMaps(const DiagnosisMaps* maps) { return maps && maps->note.empty() && maps->base && maps->diagnosed; }
+}  // namespace
+
+void WriteThresholdShifts(const DiagnosisMaps* maps, const std::filesystem::path& path) {
+  const std::vector<std::string> columns = {
+      "frequency_hz",          "grazing_base_v",           "grazing_diagnosed_v",
+      "grazing_shift_v",       "grazing_shift_percent",    "lowest_contact_base_v",
+      "lowest_contact_diagnosed_v", "lowest_contact_shift_v", "lowest_contact_shift_percent"};
+  std::vector<std::vector<double>> values(columns.size());
+  if (HaveBothMaps(maps)) {
+    for (const ThresholdShift& t : ThresholdShifts(*maps->base, *maps->diagnosed)) {
+      const double row[] = {t.frequency_hz,          t.base_grazing_v,           t.diagnosed_grazing_v,
+                            t.GrazingShiftV(),       t.GrazingShiftPercent(),    t.base_lowest_contact_v,
+                            t.diagnosed_lowest_contact_v, t.LowestContactShiftV(), t.LowestContactShiftPercent()};
+      for (size_t k = 0; k < columns.size(); ++k) values[k].push_back(row[k]);
+    }
+  }
+  CsvTable table(columns);
+  for (size_t k = 0; k < columns.size(); ++k) table.SetColumn(columns[k], values[k]);
+  table.Write(path);
+}
+
+void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& path) {
+  std::vector<std::vector<std::string>> rows = {
+      {"model", "amplitude_v", "bistable_from_hz", "bistable_to_hz", "from_kind", "to_kind"}};
+  if (HaveBothMaps(maps)) {
+    for (const auto& [name, result] : {std::pair{"base", &*maps->base}, std::pair{"diagnosed", &*maps->diagnosed}}) {
+      for (const JumpInterval& j : result->jump)
+        rows.push_back({name, Cell(j.amplitude_v), Cell(j.bistable_from_hz), Cell(j.bistable_to_hz), j.from_kind,
+                        j.to_kind});
+    }
+  }
+  WriteRows(path, rows);
+}
+
+
 }  // namespace diagnose_internal
 
 namespace {
@@ -178,41 +216,6 @@ void WriteLevels(const Diagnosis& d, const std::filesystem::path& path) {
   CsvTable table(columns);
   for (size_t k = 0; k < columns.size(); ++k) table.SetColumn(columns[k], values[k]);
   table.Write(path);
-}
-
-// Both models' maps, when both were swept.
-bool HaveBothMaps(const DiagnosisMaps* maps) { return maps && maps->note.empty() && maps->base && maps->diagnosed; }
-
-void WriteThresholdShifts(const DiagnosisMaps* maps, const std::filesystem::path& path) {
-  const std::vector<std::string> columns = {
-      "frequency_hz",          "grazing_base_v",           "grazing_diagnosed_v",
-      "grazing_shift_v",       "grazing_shift_percent",    "lowest_contact_base_v",
-      "lowest_contact_diagnosed_v", "lowest_contact_shift_v", "lowest_contact_shift_percent"};
-  std::vector<std::vector<double>> values(columns.size());
-  if (HaveBothMaps(maps)) {
-    for (const ThresholdShift& t : ThresholdShifts(*maps->base, *maps->diagnosed)) {
-      const double row[] = {t.frequency_hz,          t.base_grazing_v,           t.diagnosed_grazing_v,
-                            t.GrazingShiftV(),       t.GrazingShiftPercent(),    t.base_lowest_contact_v,
-                            t.diagnosed_lowest_contact_v, t.LowestContactShiftV(), t.LowestContactShiftPercent()};
-      for (size_t k = 0; k < columns.size(); ++k) values[k].push_back(row[k]);
-    }
-  }
-  CsvTable table(columns);
-  for (size_t k = 0; k < columns.size(); ++k) table.SetColumn(columns[k], values[k]);
-  table.Write(path);
-}
-
-void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& path) {
-  std::vector<std::vector<std::string>> rows = {
-      {"model", "amplitude_v", "bistable_from_hz", "bistable_to_hz", "from_kind", "to_kind"}};
-  if (HaveBothMaps(maps)) {
-    for (const auto& [name, result] : {std::pair{"base", &*maps->base}, std::pair{"diagnosed", &*maps->diagnosed}}) {
-      for (const JumpInterval& j : result->jump)
-        rows.push_back({name, Cell(j.amplitude_v), Cell(j.bistable_from_hz), Cell(j.bistable_to_hz), j.from_kind,
-                        j.to_kind});
-    }
-  }
-  WriteRows(path, rows);
 }
 
 }  // namespace

@@ -86,7 +86,8 @@ std::string FiguresSection(const std::vector<Figure>& figures);
 // The maps section of the page: the base and the diagnosed model's saturation maps side by side, the
 // threshold shift per frequency and the jump intervals (diagnose_report_maps.cc). `maps` may be null
 // (not computed: said on the page).
-std::string MapsSection(const Diagnosis& diagnosis, const DiagnosisMaps* maps);
+// `model_note` and `missing` are the diagnosis's (Diagnosis::model_note, missing_physics).
+std::string MapsSection(const std::string& model_note, const std::vector<Effect>& missing, const DiagnosisMaps* maps);
 
 // The report folder's files (diagnose_report_files.cc): a number's CSV cell ("%.10g", empty when not
 // finite: the CsvTable convention); rows written as CSV (fields quoted where needed); the candidates,
@@ -98,6 +99,9 @@ void WriteCandidates(const std::vector<CandidateFit>& candidates, int chosen, co
 void WriteCandidateParameters(const std::vector<CandidateFit>& candidates, const std::filesystem::path& path);
 void WriteText(const std::filesystem::path& path, const std::string& text);
 void CreateReportDirectory(const std::filesystem::path& dir);
+// threshold_shift.csv and jump_intervals.csv of both models' maps (headers only when either is missing).
+void WriteThresholdShifts(const DiagnosisMaps* maps, const std::filesystem::path& path);
+void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& path);
 
 // The named effects' characteristics with their bands (diagnose_report_curves.cc).
 Figure CurvesFigure(const std::vector<EffectCurve>& curves);

@@ -129,9 +129,9 @@ std::string JumpTable(const DiagnosisMaps& maps) {
 
 }  // namespace
 
-std::string MapsSection(const Diagnosis& d, const DiagnosisMaps* maps) {
+std::string MapsSection(const std::string& model_note, const std::vector<Effect>& missing, const DiagnosisMaps* maps) {
   std::string out = "<h2 id=\"maps\">What the missing physics changes for the control loop</h2>\n";
-  out += "<p>" + Esc("Diagnosed model: " + d.model_note + ".") +
+  out += "<p>" + Esc("Diagnosed model: " + model_note + ".") +
          " Model file: <a href=\"model.json\">model.json</a> (for <code>strokelab sweep --model</code>, "
          "<code>strokelab simulate --model</code> and a sweep job's <code>model</code>).</p>\n";
   if (maps == nullptr || !maps->note.empty()) {
@@ -156,7 +156,7 @@ std::string MapsSection(const Diagnosis& d, const DiagnosisMaps* maps) {
   } else {
     out += MapFigure(m.base, m.base_note, "Base model: stroke saturation, up-sweep branch", range);
     out += MapFigure(m.diagnosed, m.diagnosed_note,
-                     "Diagnosed model (+ " + EffectIds(d.missing_physics) + "): stroke saturation, up-sweep branch",
+                     "Diagnosed model (+ " + EffectIds(missing) + "): stroke saturation, up-sweep branch",
                      range);
   }
   out += "</div>\n";

@@ -16,7 +16,9 @@
 #include "format.h"
 #include "strokelab/base/cancel.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/identify/broadband_campaign.h"
 #include "strokelab/model/model_json.h"
+#include "strokelab/signal/signal.h"
 
 namespace strokelab::report {
 namespace {
@@ -99,10 +101,13 @@ std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const Diagn
 
 }  // namespace
 
-DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& options) {
+namespace {
+
+// Both models' maps over [f_lo, f_hi] x [v_lo, v_hi] (DiagnosisMaps), in what is left of the diagnosis's
+// time budget after `spent_s`, reported as the last two of `stages` progress stages.
+DiagnosisMaps SweepBothModels(const ActuatorModel& base, const ActuatorModel& diagnosed, double f_lo, double f_hi,
+                              double v_lo, double v_hi, double spent_s, int stages, const DiagnoseOptions& options) {
   const Clock::time_point start = Clock::now();
-  // The diagnosis's last two progress stages (diagnose.h), each with its sweep's grid points.
-  const int stages = DiagnosisProgressStages(d, options);
   auto progress = [&](int stage, const std::string& name) {
     if (options.progress) options.progress({stage, stages, name, {}});
   };
@@ -118,38 +123,57 @@ DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& opti
     maps.note = "not computed (map_frequency_points or map_amplitude_points is 0)";
     return maps;
   }
-  double f_lo = INFINITY, f_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
-  for (const RecordMatch& r : d.before) {
-    if (!std::isfinite(r.frequency_hz) || !std::isfinite(r.amplitude_v)) continue;
-    f_lo = std::min(f_lo, r.frequency_hz), f_hi = std::max(f_hi, r.frequency_hz);
-    v_lo = std::min(v_lo, r.amplitude_v), v_hi = std::max(v_hi, r.amplitude_v);
-  }
   if (!(f_lo > 0 && f_hi > f_lo && v_lo > 0 && v_hi > v_lo)) {
     maps.note = "not computed: the campaign's records do not span a range of both frequency and amplitude";
     return maps;
   }
   maps.frequency_hz = {f_lo, f_hi, options.map_frequency_points, true};
   maps.amplitude_v = {v_lo, v_hi, options.map_amplitude_points, false};
-  maps.same_model = ModelToJson(d.base.model) == ModelToJson(d.model);
+  maps.same_model = ModelToJson(base) == ModelToJson(diagnosed);
   const Clock::time_point deadline =
       start + std::chrono::duration_cast<Clock::duration>(
-                  std::chrono::duration<double>(std::max(0.0, options.max_seconds - d.seconds)));
+                  std::chrono::duration<double>(std::max(0.0, options.max_seconds - spent_s)));
   const std::string grid = Format("%d x %d", options.map_frequency_points, options.map_amplitude_points);
   const std::string base_name = "map of the base model (" + grid + ")";
   progress(stages - 1, base_name);
-  maps.base = SweepOneModel(d.base.model, maps, deadline, options.max_seconds, &maps.base_note,
-                            points_of(stages - 1, base_name));
+  maps.base = SweepOneModel(base, maps, deadline, options.max_seconds, &maps.base_note, points_of(stages - 1, base_name));
   if (maps.same_model) {
     maps.diagnosed = maps.base;
     maps.diagnosed_note = maps.base_note;
   } else {
     const std::string diagnosed_name = "map of the diagnosed model (" + grid + ")";
     progress(stages, diagnosed_name);
-    maps.diagnosed = SweepOneModel(d.model, maps, deadline, options.max_seconds, &maps.diagnosed_note,
+    maps.diagnosed = SweepOneModel(diagnosed, maps, deadline, options.max_seconds, &maps.diagnosed_note,
                                    points_of(stages, diagnosed_name));
   }
   maps.seconds = SecondsSince(start);
   return maps;
+}
+
+}  // namespace
+
+DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& options) {
+  double f_lo = INFINITY, f_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
+  for (const RecordMatch& r : d.before) {
+    if (!std::isfinite(r.frequency_hz) || !std::isfinite(r.amplitude_v)) continue;
+    f_lo = std::min(f_lo, r.frequency_hz), f_hi = std::max(f_hi, r.frequency_hz);
+    v_lo = std::min(v_lo, r.amplitude_v), v_hi = std::max(v_hi, r.amplitude_v);
+  }
+  return SweepBothModels(d.base.model, d.model, f_lo, f_hi, v_lo, v_hi, d.seconds,
+                         DiagnosisProgressStages(d, options), options);
+}
+
+DiagnosisMaps SweepBroadbandDiagnosisMaps(const BroadbandDiagnosis& d, const Campaign& campaign,
+                                          const DiagnoseOptions& options) {
+  double f_lo = INFINITY, f_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
+  for (const Recording& r : campaign.records) {
+    if (!r.broadband || r.size() < 256) continue;
+    for (const FrfSample& s : BroadbandFrf(r)) f_lo = std::min(f_lo, s.frequency_hz), f_hi = std::max(f_hi, s.frequency_hz);
+    v_lo = std::min(v_lo, std::sqrt(2.0) * RmsAboutMean(r.voltage_v));
+    for (double u : r.voltage_v) v_hi = std::max(v_hi, std::abs(u));
+  }
+  return SweepBothModels(d.base.result.fit.model, d.model, f_lo, f_hi, v_lo, v_hi, d.seconds,
+                         BroadbandDiagnosisProgressStages(options), options);
 }
 
 std::vector<ThresholdShift> ThresholdShifts(const SweepResult& base, const SweepResult& diagnosed) {

@@ -14,13 +14,16 @@
 #include <nlohmann/json.hpp>
 
 #include "report_test_util.h"
+#include "strokelab/data/synth.h"
 #include "strokelab/model/model_json.h"
+#include "strokelab/report/diagnosis_maps.h"
 
 namespace strokelab::report {
 namespace {
 
 using ::strokelab::testing::FreshDir;
 using ::strokelab::testing::Lines;
+using ::strokelab::testing::MapsOf;
 using ::strokelab::testing::Parameter;
 using ::strokelab::testing::ReadFile;
 using ::testing::HasSubstr;
@@ -87,7 +90,7 @@ TEST(BroadbandReportTest, NamedEffectPageHasTheVerdictTablesAndBothPartsFigures)
   EXPECT_THAT(html, HasSubstr("k3 = (1.4900 \u00b1 0.0095)e+07 N/m^3 (0.64 %)"));
   EXPECT_THAT(html, HasSubstr("rejected: held-out gain 3.2 &lt;= 10"));  // the candidates' decisions
   EXPECT_THAT(html, HasSubstr("residual_far_out"));
-  EXPECT_THAT(html, HasSubstr("Not drawn for broadband campaigns yet"));
+  EXPECT_THAT(html, HasSubstr("Saturation maps not computed."));  // no maps given
   // The conclusion once; the parts figure's two panels (fit parts and held-out parts) with the noise
   // line and both models; no unexplained section.
   EXPECT_EQ(std::regex_search(html, std::regex("held-out chi-square down by 15970.*held-out chi-square down by 15970")),
@@ -137,6 +140,59 @@ TEST(BroadbandReportTest, TheFolderHoldsItsFilesAndTheModelReadsBack) {
   EXPECT_THAT(ReadFile(dir / "candidate_parameters.csv"), HasSubstr("cubic_stiffness,k3,14900000,95000,N/m^3"));
   const ActuatorModel model = ModelFromJson(nlohmann::json::parse(ReadFile(dir / "model.json")));
   EXPECT_EQ(model.cubic_stiffness_n_per_m3, 1.49e7);
+}
+
+// With both models' maps, the page has the stepped report's maps section (both maps, the threshold's
+// shift per frequency, the jump intervals) and the folder their tables.
+TEST(BroadbandReportTest, TheMapsOfBothModelsAndTheThresholdShift) {
+  const BroadbandDiagnosis d = NamedCubic();
+  const DiagnosisMaps maps = MapsOf();
+  const auto dir = FreshDir("broadband_report_maps");
+  WriteBroadbandDiagnosisReport(d, dir, &maps);
+  const std::string html = ReadFile(dir / "index.html");
+  EXPECT_THAT(html, HasSubstr("<h2 id=\"maps\">What the missing physics changes for the control loop</h2>"));
+  EXPECT_THAT(html, HasSubstr("Diagnosed model (+ cubic_stiffness): stroke saturation, up-sweep branch"));
+  EXPECT_THAT(html, HasSubstr("<td class=\"num\">-0.0300</td><td class=\"num\">-10.00</td>"));  // 5 Hz: 0.3 -> 0.27 V
+  EXPECT_THAT(html, HasSubstr("<tr><td class=\"num\">0.3</td><td>10 \u2013 14 Hz (fold \u2013 grazing)</td><td>none</td></tr>"));
+  EXPECT_THAT(html, Not(HasSubstr("class=\"skipped\">Saturation maps")));
+  const std::vector<std::string> shifts = Lines(ReadFile(dir / "threshold_shift.csv"));
+  ASSERT_EQ(shifts.size(), 4u);  // the header and 5, 10, 20 Hz
+  EXPECT_EQ(shifts[1].rfind("5,0.3,0.27,", 0), 0u) << shifts[1];
+  EXPECT_THAT(ReadFile(dir / "jump_intervals.csv"), HasSubstr("base,0.3,10,14,fold,grazing"));
+}
+
+// The maps' grid from the records: their drives' band (multisines over 2-200 Hz) and sine amplitudes
+// from the quietest drive's rms times sqrt 2 to the largest drive peak; the paper model swept on it
+// (the diagnosed model is the base model: one sweep).
+TEST(BroadbandReportTest, TheMapsGridSpansTheDrivesBandAndLevels) {
+  SynthOptions o;
+  o.excitation = Excitation::kMultisine;
+  o.levels_v_rms = {0.1, 0.3};
+  o.duration_s = 0.5;
+  o.settle_s = 0.5;
+  o.sample_rate_hz = 4096.0;
+  const Campaign campaign = Synthesize(PaperModel(), o).campaign;
+  BroadbandDiagnosis d;
+  d.base.result.fit.model = PaperModel();
+  d.model = PaperModel();
+  DiagnoseOptions options;
+  options.map_frequency_points = 4;
+  options.map_amplitude_points = 3;
+  const DiagnosisMaps maps = SweepBroadbandDiagnosisMaps(d, campaign, options);
+  ASSERT_EQ(maps.note, "");
+  EXPECT_NEAR(maps.frequency_hz.from, 2.0, 0.1);  // the multisine's lowest line (2 Hz: 1 / duration apart)
+  EXPECT_NEAR(maps.frequency_hz.to, 200.0, 2.0);
+  EXPECT_TRUE(maps.frequency_hz.geometric);
+  EXPECT_NEAR(maps.amplitude_v.from, 0.1 * std::sqrt(2.0), 1e-3);
+  double peak = 0.0;
+  for (const Recording& r : campaign.records)
+    for (double u : r.voltage_v) peak = std::max(peak, std::abs(u));
+  EXPECT_DOUBLE_EQ(maps.amplitude_v.to, peak);
+  EXPECT_GT(peak, 0.3 * std::sqrt(2.0));  // a multisine's crest factor is above a sine's
+  EXPECT_TRUE(maps.same_model);
+  ASSERT_TRUE(maps.base);
+  EXPECT_EQ(maps.base->points.size() >= 12u, true);
+  EXPECT_EQ(maps.base->saturation_threshold.size(), 4u);
 }
 
 }  // namespace

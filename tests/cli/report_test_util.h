@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "strokelab/identify/fit.h"
+#include "strokelab/report/diagnosis_maps.h"
+#include "strokelab/sweep/sweep.h"
 
 namespace strokelab::testing {
 
@@ -42,6 +44,38 @@ inline FitParameter Parameter(std::string name, std::string unit, double value, 
   p.value = value;
   p.standard_error = standard_error;
   return p;
+}
+
+// A map on the grid of MapsOf (5, 10, 20 Hz x 0.1, 0.3 V), every point stable on the up branch with
+// the spike factor `spikes` x (1 + frequency index): the two maps below span different ranges.
+inline SweepResult MapOf(const std::vector<double>& grazing_v, const std::vector<double>& lowest_v, double spikes,
+                  std::vector<JumpInterval> jumps) {
+  SweepResult r;
+  r.frequency_hz = GridAxis{5, 20, 3, true}.Values();
+  r.amplitude_v = {0.1, 0.3};
+  for (double v : r.amplitude_v) {
+    for (size_t j = 0; j < r.frequency_hz.size(); ++j) {
+      SweepPoint p;
+      p.frequency_hz = r.frequency_hz[j];
+      p.amplitude_v = v;
+      p.first_harmonic_force_n = 0.5;
+      p.peak_force_n = 0.5 * spikes * static_cast<double>(1 + j);
+      r.points.push_back(p);
+    }
+  }
+  for (size_t j = 0; j < r.frequency_hz.size(); ++j) r.saturation_threshold.push_back({r.frequency_hz[j], grazing_v[j], lowest_v[j]});
+  r.jump = std::move(jumps);
+  return r;
+}
+
+inline report::DiagnosisMaps MapsOf() {
+  report::DiagnosisMaps m;
+  m.frequency_hz = {5, 20, 3, true};
+  m.amplitude_v = {0.1, 0.3, 2, false};
+  m.base = MapOf({0.3, 0.2, NAN}, {0.28, 0.19, NAN}, 1.0, {{0.3, 10, 14, "fold", "grazing"}});
+  m.diagnosed = MapOf({0.27, 0.21, 0.4}, {0.25, 0.2, 0.38}, 2.0, {});
+  m.seconds = 1.5;
+  return m;
 }
 
 }  // namespace strokelab::testing

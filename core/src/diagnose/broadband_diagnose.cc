@@ -277,6 +277,12 @@ BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every
   return parts;
 }
 
+int BroadbandDiagnosisProgressStages(const DiagnoseOptions& options) {
+  const auto library = static_cast<int>(std::count_if(EffectLibrary().begin(), EffectLibrary().end(),
+                                                      [&](const EffectInfo& info) { return internal::Requested(info, options); }));
+  return 3 + library + (options.pairs ? 1 : 0) + internal::MapStages(options);
+}
+
 BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const DiagnoseOptions& options) {
   Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();
@@ -295,8 +301,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   const Split split(SplitBroadbandRecords(campaign, options.heldout_every, &d.warnings));
   std::vector<const EffectInfo*> library;
   for (const EffectInfo& info : EffectLibrary())
-    if (info.effect != Effect::kCoilInductance || options.coil_inductance) library.push_back(&info);
-  stages = 3 + static_cast<int>(library.size()) + (options.pairs ? 1 : 0);
+    if (internal::Requested(info, options)) library.push_back(&info);
+  stages = BroadbandDiagnosisProgressStages(options);
 
   // 2. The base fit on the first parts, and the base model on every part.
   progress(1, "base fit on the first parts of " + std::to_string(split.fit.size()) + " records");

@@ -200,19 +200,9 @@ void RingingOfWorstPlaces(const Campaign& campaign, std::span<const RecordAnalys
   u->description += internal::DescribeRinging(*u, kind, kPlaces);
 }
 
-// The report's maps, when the options ask for them: the diagnosis's last two progress stages.
-int MapStages(const DiagnoseOptions& options) {
-  return options.map_frequency_points > 0 && options.map_amplitude_points > 0 ? 2 : 0;
-}
-
 // The diagnosis's progress stages with `effects` candidate effects (DiagnoseOptions::progress).
 int PlannedStages(size_t effects, const DiagnoseOptions& options) {
-  return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + MapStages(options);
-}
-
-// Whether the options let the effect be a candidate at all: coil_inductance on request only.
-bool Requested(const EffectInfo& info, const DiagnoseOptions& options) {
-  return info.effect != Effect::kCoilInductance || options.coil_inductance;
+  return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + internal::MapStages(options);
 }
 
 // Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
@@ -317,7 +307,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   const int orders = options.fit.harmonic_orders;
   // Progress: stage k of `stages` (diagnose.h); every effect is planned until the base fit says which apply.
   int stages = PlannedStages(std::count_if(EffectLibrary().begin(), EffectLibrary().end(),
-                                           [&](const EffectInfo& info) { return Requested(info, options); }),
+                                           [&](const EffectInfo& info) { return internal::Requested(info, options); }),
                              options);
   auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
     if (options.progress) options.progress({stage, stages, name, step});
@@ -346,7 +336,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // 3. Signatures.
   std::vector<const EffectInfo*> applicable;
   for (const EffectInfo& info : EffectLibrary())
-    if (internal::Applicable(info.effect, options.fit.model, context) && Requested(info, options))
+    if (internal::Applicable(info.effect, options.fit.model, context) && internal::Requested(info, options))
       applicable.push_back(&info);
   stages = PlannedStages(applicable.size(), options);
   progress(3, "signatures of the base model's mismatch");

@@ -90,4 +90,14 @@ nlohmann::json CandidatesJson(const std::vector<CandidateFit>& candidates, int c
 // (diagnose_signatures.cc).
 std::pair<double, double> LineSlope(const std::vector<double>& x, const std::vector<double>& y);
 
+// Whether the options let the effect be a candidate at all: coil_inductance on request only.
+inline bool Requested(const EffectInfo& info, const DiagnoseOptions& options) {
+  return info.effect != Effect::kCoilInductance || options.coil_inductance;
+}
+
+// The report's maps, when the options ask for them: a diagnosis's last two progress stages.
+inline int MapStages(const DiagnoseOptions& options) {
+  return options.map_frequency_points > 0 && options.map_amplitude_points > 0 ? 2 : 0;
+}
+
 }  // namespace strokelab::internal

@@ -113,6 +113,11 @@ BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every
 // hold a part out (named).
 BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
 
+// N of the progress's "stage k of N" (DiagnoseOptions::progress): the base fit, the base model on every
+// part, the signatures, one stage per candidate effect, the pairs when asked for, and the report's two
+// maps when the options ask for them (report/diagnosis_maps.h).
+int BroadbandDiagnosisProgressStages(const DiagnoseOptions& options);
+
 // kind "broadband", missing_physics (effect, parameters), model, model_note, fit_before, fit_after, heldout_dof,
 // base (BroadbandCampaignFitToJson), evidence, candidates, records (before and after), unexplained
 // (null or its figures), curves, conclusion, warnings, seconds.

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "strokelab/diagnose/broadband_diagnose.h"
+#include "strokelab/report/diagnosis_maps.h"
 
 namespace strokelab::report {
 
@@ -17,9 +18,10 @@ namespace strokelab::report {
 //   parts   each record's chi-square per sample (1 is noise) on its fit and its held-out part, base
 //           and diagnosed model, against the record's drive level
 //   curves  the named effects' characteristics with their bands (as the stepped report's)
-// and the records' table. The saturation maps of the stepped report are not drawn for broadband
-// campaigns yet: a sentence says so and points to the model file.
-std::string BroadbandDiagnosisHtml(const BroadbandDiagnosis& diagnosis);
+// the records' table, and the saturation maps of both models with the threshold's shift and the jump
+// intervals, as the stepped report's (`maps` from SweepBroadbandDiagnosisMaps; null: not computed, said on
+// the page).
+std::string BroadbandDiagnosisHtml(const BroadbandDiagnosis& diagnosis, const DiagnosisMaps* maps = nullptr);
 
 // The files WriteBroadbandDiagnosisReport writes, in order.
 const std::vector<std::string>& BroadbandDiagnosisReportFiles();
@@ -28,9 +30,11 @@ const std::vector<std::string>& BroadbandDiagnosisReportFiles();
 //   index.html                BroadbandDiagnosisHtml
 //   records.csv               per record: drive rms, noise rms, and nrmse and chi-square per sample of
 //                             its fit and held-out part, base and diagnosed model
-//   candidates.csv, candidate_parameters.csv   as the stepped report's
+//   candidates.csv, candidate_parameters.csv, threshold_shift.csv, jump_intervals.csv   as the
+//                             stepped report's
 //   model.json                the diagnosed model (the model file of sweep --model, simulate --model)
 // Non-finite numbers as empty cells. Throws std::runtime_error if a file cannot be written.
-void WriteBroadbandDiagnosisReport(const BroadbandDiagnosis& diagnosis, const std::filesystem::path& dir);
+void WriteBroadbandDiagnosisReport(const BroadbandDiagnosis& diagnosis, const std::filesystem::path& dir,
+                                   const DiagnosisMaps* maps = nullptr);
 
 }  // namespace strokelab::report

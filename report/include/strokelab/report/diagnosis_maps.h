@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/diagnose/broadband_diagnose.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/sweep/sweep.h"
 
@@ -36,6 +37,13 @@ struct DiagnosisMaps {
 // cut off at its next row or column and reported in its note. The two sweeps are the diagnosis's last
 // two progress stages (options.progress, diagnose.h), with their grid points as they pass.
 DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& diagnosis, const DiagnoseOptions& options);
+
+// The same for a broadband diagnosis (diagnose/broadband_diagnose.h), base model its base fit's: the
+// frequencies span the records' drive band (where a drive's power is within 20 dB of its largest,
+// BroadbandFrf), the sine amplitudes run from the quietest record's rms drive times sqrt 2 (a sine of
+// that rms) to the largest peak of any record's drive.
+DiagnosisMaps SweepBroadbandDiagnosisMaps(const BroadbandDiagnosis& diagnosis, const Campaign& campaign,
+                                          const DiagnoseOptions& options);
 
 // Where the saturation threshold moved, at one grid frequency [V]: base and diagnosed model's
 // grazing amplitude (the non-contacting response first touches the stop) and lowest amplitude with a
