@@ -149,7 +149,7 @@ void PrintBroadbandReport(const BroadbandCampaignFit& fit, std::ostream& out) {
   out << (r.converged ? "converged" : "NOT CONVERGED") << (fit.result.rejected ? ", REJECTED by the records" : "")
       << ": chi-square " << General(r.chi2, 6) << " over " << r.residuals << " samples, residual variance "
       << General(r.residual_variance, 3) << " (1: noise only), " << r.iterations << " iterations\n\n";
-  PrintParameters(r.parameters, out);
+  PrintParameters(ReportedBroadbandParameters(r, fit.absolute_scale), out);
   const FrfFitSummary& l = fit.linear_start;
   out << "\nstart: paper Eq. 3 on " << fit.start_record << "'s FRF: k_p " << General(l.stiffness_n_per_m, 6)
       << " N/m, c_p " << General(l.damping_n_s_per_m, 6) << " N s/m, g " << General(l.gain_n_per_v, 6) << " N/V"
@@ -169,7 +169,7 @@ void PrintMixedReport(const MixedCampaignFit& fit, std::ostream& out) {
       << ": chi-square " << General(r.chi2, 6) << " over " << r.residuals
       << " residuals (harmonics and samples), residual variance " << General(r.residual_variance, 3)
       << " (1: noise only), " << r.iterations << " iterations\n\n";
-  PrintParameters(r.parameters, out);
+  PrintParameters(ReportedBroadbandParameters(r, fit.absolute_scale), out);
   out << "\nstart: the stepped-sine records alone (" << (fit.stepped.refinement.converged ? "converged" : "NOT CONVERGED")
       << ", " << General(fit.stepped.seconds, 3) << " s):\n";
   PrintParameters(fit.stepped.parameters, out);

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <functional>
+#include <map>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -304,6 +305,51 @@ TEST(BroadbandCampaignFit, DisplacementAndAccelerationRecordsAreFittedToo) {
       EXPECT_LT(std::abs(p.value - truth), 4.0 * p.standard_error) << ToString(kind) << " " << p.name;
     }
   }
+}
+
+// A nominal sensitivity whose sensor truly reads 10 % high: g and d come out 10 % high and are
+// reported as not identifiable; k_p/m_p, c_p/m_p, k_s/m_p and d/g, which the sensitivity does not touch,
+// are reported in their place, within 4 standard errors of the truth (d/g's error from the covariance
+// of d and g, which the 10 % moves together).
+TEST(BroadbandCampaignFit, ANominalSensitivityIsReportedAsTheSteppedFitReportsIt) {
+  SynthOptions options;
+  options.excitation = Excitation::kMultisine;
+  options.levels_v_rms = {0.1, 0.6};
+  options.settle_s = 2.0;
+  options.sample_rate_hz = 8192.0;
+  options.noise_rms_v = 2e-4;
+  options.nominal = true;
+  options.sensitivity_error = 0.1;
+  options.seed = 23;
+  const Synthesis synthesis = Synthesize(PaperModel(), options);
+  ASSERT_FALSE(synthesis.campaign.absolute_scale);
+  const BroadbandCampaignFit fit = FitBroadbandCampaign(synthesis.campaign, FitOptions{});
+  ASSERT_TRUE(fit.result.fit.converged && !fit.result.rejected) << fit.result.fit.report;
+  const ActuatorModel& t = synthesis.model;
+  const double m = t.mass_kg;
+  const std::vector<FitParameter> reported = ReportedBroadbandParameters(fit.result.fit, false);
+  std::map<std::string, double> truths = {{"k_p/m_p", t.stiffness_n_per_m / m},
+                                          {"c_p/m_p", t.damping_n_s_per_m / m},
+                                          {"k_s/m_p", t.contact_stiffness / m},
+                                          {"d/g", t.lower_stop_m / t.gain_n_per_v}};
+  size_t seen = 0;
+  for (const FitParameter& p : reported) {
+    if (p.name == "g" || p.name == "d") {
+      EXPECT_FALSE(p.identifiable) << p.name;
+      const double truth = p.name == "g" ? t.gain_n_per_v : t.lower_stop_m;
+      EXPECT_NEAR(p.value / truth, 1.1, 0.01) << p.name << ": carries the sensor's 10 %";
+      ++seen;
+      continue;
+    }
+    ASSERT_TRUE(truths.count(p.name)) << p.name;
+    EXPECT_TRUE(p.identifiable) << p.name;
+    EXPECT_LT(std::abs(p.value - truths[p.name]), 4.0 * p.standard_error)
+        << p.name << " = " << p.value << " +- " << p.standard_error << ", truth " << truths[p.name];
+    ++seen;
+  }
+  EXPECT_EQ(seen, 6u);
+  // With an absolute sensitivity the parameters are reported as fitted.
+  EXPECT_EQ(ReportedBroadbandParameters(fit.result.fit, true).size(), fit.result.fit.parameters.size());
 }
 
 // White noise of rms 0.01 on a 40 Hz sine of amplitude 1 sampled at 8192 Hz, with ten impact-like

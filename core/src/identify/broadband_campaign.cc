@@ -12,6 +12,7 @@
 
 #include "strokelab/base/errors.h"
 #include "strokelab/base/json_number.h"
+#include "strokelab/base/nan.h"
 #include "strokelab/model/model_json.h"
 #include "strokelab/signal/signal.h"
 
@@ -182,11 +183,53 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   return out;
 }
 
-nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit) {
+std::vector<FitParameter> ReportedBroadbandParameters(const internal::ExtendedFitResult& fit, bool absolute_scale) {
+  if (absolute_scale) return fit.parameters;
+  const std::string scaled = "scaled by the response's unknown sensitivity (absolute_scale false)";
+  const double mass = fit.model.mass_kg;
+  const size_t n = fit.parameters.size();
+  std::vector<FitParameter> out;
+  size_t g = n, d = n;
+  for (size_t i = 0; i < n; ++i) {
+    FitParameter p = fit.parameters[i];
+    if (p.name == "g" || p.name == "d") {
+      (p.name == "g" ? g : d) = i;
+      p.identifiable = false;
+      p.note = scaled;
+    } else if (p.name == "k_p" || p.name == "c_p" || p.name == "k_s" || p.name == "c_s") {
+      p.name += "/m_p";
+      p.unit = p.name[0] == 'c' ? "1/s" : "1/s^2";
+      p.value /= mass;
+      p.standard_error /= mass;
+      p.note = "independent of the sensitivity";
+    }
+    out.push_back(p);
+  }
+  if (g < n && d < n) {
+    // Var(d / g) = (d / g)^2 (C_dd / d^2 + C_gg / g^2 - 2 C_dg / (d g)), the delta method.
+    const FitParameter& pg = fit.parameters[g];
+    const FitParameter& pd = fit.parameters[d];
+    const auto c = [&](size_t i, size_t j) { return fit.covariance.size() == n * n ? fit.covariance[i * n + j] : kNaN; };
+    const double ratio = pd.value / pg.value;
+    const double relative = c(d, d) / (pd.value * pd.value) + c(g, g) / (pg.value * pg.value) -
+                            2.0 * c(d, g) / (pd.value * pg.value);
+    FitParameter r;
+    r.name = "d/g";
+    r.unit = "m V/N";
+    r.value = ratio;
+    r.standard_error = std::abs(ratio) * std::sqrt(std::max(0.0, relative));
+    r.identifiable = std::isfinite(r.standard_error);
+    r.note = "stop position over gain: independent of the sensitivity";
+    out.push_back(r);
+  }
+  return out;
+}
+
+nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit, bool absolute_scale) {
   using nlohmann::json;
   const internal::ExtendedFitResult& r = fit.fit;
   json parameters = json::object();
-  for (const FitParameter& p : r.parameters) parameters[p.name] = FitParameterJson(p);
+  for (const FitParameter& p : ReportedBroadbandParameters(r, absolute_scale)) parameters[p.name] = FitParameterJson(p);
   json records = json::array();
   for (const internal::BroadbandRecordFit& x : fit.records)
     records.push_back({{"name", x.name},
@@ -212,7 +255,7 @@ nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit) {
 nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit) {
   using nlohmann::json;
   const FrfFitSummary& l = fit.linear_start;
-  json out = BroadbandFitJson(fit.result);
+  json out = BroadbandFitJson(fit.result, fit.absolute_scale);
   out.update(json{{"kind", "broadband"},
                   {"model", ToString(fit.model_kind)},
                   {"response", ToString(fit.response)},

@@ -90,7 +90,7 @@ nlohmann::json MixedCampaignFitToJson(const MixedCampaignFit& fit) {
   json stepped_records = json::array();
   for (const internal::SteppedRecordFit& x : fit.result.stepped)
     stepped_records.push_back({{"name", x.name}, {"chi2", JsonNumber(x.chi2)}, {"residuals", x.residuals}});
-  json out = BroadbandFitJson(fit.result);
+  json out = BroadbandFitJson(fit.result, fit.absolute_scale);
   out.update(json{{"kind", "mixed"},
                   {"model", ToString(fit.model_kind)},
                   {"response", ToString(fit.response)},

@@ -51,11 +51,17 @@ std::vector<bool> RecordImpacts(const Recording& record, ResponseKind kind);
 // Throws InputError for a campaign without broadband records, bad options, or bad records (named).
 BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOptions& options);
 
-// A broadband (or joint) fit's parameters (by name, FitParameterJson), fitted_model (ModelToJson: a model
-// file `sweep --model` takes), converged, rejected, report, chi2,
+// The parameters of a broadband (or joint) fit as reported: as fitted where the response's sensitivity
+// is absolute; where it is only nominal, as the stepped fit reports them (fit.h): k_p, c_p and k_s as
+// ratios to m_p (k_p/m_p, c_p/m_p, k_s/m_p, with their errors), g and d marked not identifiable (they
+// carry the unknown sensitivity), and d/g with its error from their covariance (independent of it).
+std::vector<FitParameter> ReportedBroadbandParameters(const internal::ExtendedFitResult& fit, bool absolute_scale);
+
+// A broadband (or joint) fit's parameters (ReportedBroadbandParameters, by name, FitParameterJson),
+// fitted_model (ModelToJson: a model file `sweep --model` takes), converged, rejected, report, chi2,
 // residuals, residual_variance, iterations and records (name, noise_rms, offset, hum_amplitude,
 // nrmse_initial, nrmse, chi2_per_sample, segments).
-nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit);
+nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit, bool absolute_scale);
 
 // kind "broadband", model, response, absolute_scale, parameters (by name, FitParameterJson), converged,
 // rejected, report, chi2, residual_variance, residuals, iterations, linear_start, records, warnings, seconds.
