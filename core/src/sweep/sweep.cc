@@ -104,7 +104,7 @@ std::vector<JumpInterval> JumpIntervals(const std::vector<ContinuedBranch>& bran
   std::vector<Run> runs;
   for (const ContinuedBranch& branch : branches) {
     const auto& pts = branch.points;
-    const char* first_end = &branch == &branches.front() ? "grid" : "unlocated";
+    const char* first_end = pts.front().parameter <= f_lo ? "grid" : "unlocated";
     const char* last_end = branch.stopped_because == "range" ? "grid" : "unlocated";
     for (size_t i = 0; i < pts.size();) {
       if (!pts[i].stable) {
@@ -161,8 +161,6 @@ std::optional<FieldError> AxisError(const GridAxis& axis, const std::string& nam
   return std::nullopt;
 }
 
-}  // namespace
-
 // The branches of one amplitude over the grid, by continuation in frequency from its lowest frequency.
 // A branch that ends below the top of the range (its corrector failed, or it turned at a fold and left
 // the range at the bottom) is followed by one from the attractor kRestartGap above the highest frequency
@@ -215,6 +213,8 @@ std::vector<BranchPoint> RowSolutionsAt(const ActuatorModel& model, const std::v
     }
   return out;
 }
+
+}  // namespace
 
 // The steady states of one amplitude at every grid frequency, by continuation in frequency.
 SweepRowResult SweepRow(const ActuatorModel& model, double amplitude_v, const std::vector<double>& grid_hz,
