@@ -170,12 +170,18 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
     const bool under_root = job.at("campaign").contains("path");
     const std::string digest =
         CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path(), campaigns.max_campaign_bytes);
-    if (under_root) {  // uploads were read when they were stored
+    // Uploads were read when they were stored; a diagnosis reads the campaign for its kind of records.
+    if (under_root || kind == "diagnose") {
+      Campaign campaign;
       try {
-        (void)ReadCampaign(dir);
+        campaign = ReadCampaign(dir);
       } catch (const InputError& e) {
         throw CampaignError(e.field(), e.bare_message());
       }
+      if (kind == "diagnose" && FitKindOf(campaign) == CampaignFitKind::kBroadband)
+        throw InputError("/campaign", "holds broadband records only: the service's diagnose jobs take stepped sines "
+                                      "(`strokelab diagnose --data DIR` diagnoses it by its time series; a fit job "
+                                      "fits it)");
     }
     nlohmann::json spec_job = job;
     spec_job.erase("name");

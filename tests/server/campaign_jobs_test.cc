@@ -673,6 +673,10 @@ TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
     ASSERT_TRUE(model && model->status == 200) << (model ? model->body.substr(0, 300) : "");
     EXPECT_EQ(json::parse(model->body), result["fitted_model"]);
   }
+  // A diagnose job on broadband records only is refused at submission, saying what takes them.
+  const json refused = Error(Post({{"kind", "diagnose"}, {"campaign", {{"path", "broadband"}}}}), 400);
+  EXPECT_EQ(refused["field"], "/campaign");
+  EXPECT_THAT(refused["message"].get<std::string>(), HasSubstr("the service's diagnose jobs take stepped sines"));
 }
 
 // A server without workers of its own takes fit jobs: a remote worker fetches the campaign and fits it
