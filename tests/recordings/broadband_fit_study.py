@@ -14,6 +14,10 @@ fit, and per parameter over the accepted fits n, mean z, sd z and the two-sided 
 hypothesis that z has unit variance (chi-square of sum z^2 with n degrees of freedom). A rejected fit is
 the fit saying it failed; an accepted fit with a z beyond 5 would be a wrong answer given as right.
 
+With --mixed, each campaign also holds stepped sines of the same actuator (`strokelab synth` with the same
+seed and perturbations: 5, 7, 9 and 11 Hz at 0.1, 0.3 and 0.5 V, 3 s of settling, 0.5 mV noise, 51.2 kHz),
+and `fit` fits both kinds jointly (identify/mixed_campaign.h).
+
 Seeds: --first-seed .. --first-seed + --seeds - 1 (default 7001-7040). The fit's stop positions and
 rejection test were tuned on seeds 6-12, 41-43 and 101 at 8192 Hz; the unit tests use 12, 41-43, 101.
 
@@ -50,20 +54,51 @@ def parse_args(argv):
     parser.add_argument("--first-seed", type=int, default=7001)
     parser.add_argument("--levels", default="0.1,0.6", help="rms drive levels [V] (default %(default)s)")
     parser.add_argument("--sample-rate-hz", type=float, default=8192.0)
+    parser.add_argument("--mixed", action="store_true", help="add stepped sines: a joint fit")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--out", default=None, help="JSONL of every campaign (replaced)")
     return parser.parse_args(argv)
 
 
-def run_one(binary, seed, levels, sample_rate_hz):
+PERTURB = "k_p=0.1,c_p=0.1,g=0.1,d=0.05,k_s=0.1"
+
+
+def add_stepped_sines(binary, campaign, work, seed):
+    """Stepped sines of the campaign's actuator (the same seed and perturbations) joined to its manifest."""
+    stepped = os.path.join(work, "stepped")
+    subprocess.run([binary, "synth", "--out", stepped, "--frequencies-hz", "5,7,9,11", "--amplitudes-v", "0.1,0.3,0.5",
+                    "--settle-s", "3", "--noise-rms", "5e-4", "--seed", str(seed), "--perturb", PERTURB],
+                   check=True, capture_output=True, text=True)
+    with open(os.path.join(stepped, "truth.json")) as f, open(os.path.join(campaign, "truth.json")) as g:
+        if json.load(f)["model"] != json.load(g)["model"]:
+            raise RuntimeError(f"seed {seed}: the stepped and broadband campaigns simulate different models")
+    with open(os.path.join(campaign, "manifest.json")) as f:
+        manifest = json.load(f)
+    with open(os.path.join(stepped, "manifest.json")) as f:
+        other = json.load(f)
+    for record in manifest["records"]:
+        record["sample_rate_hz"] = manifest["sample_rate_hz"]
+    for record in other["records"]:
+        name = "stepped_" + record["file"]
+        shutil.copy(os.path.join(stepped, record["file"]), os.path.join(campaign, name))
+        record["file"] = name
+        manifest["records"].append(record)
+    manifest["sample_rate_hz"] = other["sample_rate_hz"]
+    with open(os.path.join(campaign, "manifest.json"), "w") as f:
+        json.dump(manifest, f, indent=1)
+
+
+def run_one(binary, seed, levels, sample_rate_hz, mixed):
     work = tempfile.mkdtemp(prefix="broadband-study-")
     try:
         campaign = os.path.join(work, "campaign")
         subprocess.run([binary, "synth", "--out", campaign, "--excitation", "multisine", "--levels-v-rms", levels,
                         "--duration-s", "1", "--settle-s", "2", "--sample-rate-hz", str(sample_rate_hz),
                         "--noise-rms", "2e-4", "--offset-v", "3e-3", "--hum-v", "5e-4", "--seed", str(seed),
-                        "--perturb", "k_p=0.1,c_p=0.1,g=0.1,d=0.05,k_s=0.1"],
+                        "--perturb", PERTURB],
                        check=True, capture_output=True, text=True)
+        if mixed:
+            add_stepped_sines(binary, campaign, work, seed)
         start = time.time()
         fit = subprocess.run([binary, "fit", "--json", "--data", campaign], check=True, capture_output=True, text=True)
         wall = time.time() - start
@@ -72,7 +107,7 @@ def run_one(binary, seed, levels, sample_rate_hz):
             truth = json.load(f)["model"]
         line = {"seed": seed, "accepted": result["converged"] and not result["rejected"],
                 "converged": result["converged"], "rejected": result["rejected"],
-                "starts_tried": result["starts_tried"], "seconds": wall, "parameters": {}}
+                "starts_tried": result.get("starts_tried", 1), "seconds": wall, "parameters": {}}
         for name, p in result["parameters"].items():
             value, se, true = p["value"], p["standard_error"], truth[TRUTH_FIELDS[name]]
             z = (value - true) / se if se else None
@@ -85,11 +120,12 @@ def run_one(binary, seed, levels, sample_rate_hz):
 def main(argv):
     args = parse_args(argv)
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    print(f"seeds {seeds[0]}-{seeds[-1]}, levels {args.levels} V rms, {args.sample_rate_hz:g} Hz", flush=True)
+    print(f"seeds {seeds[0]}-{seeds[-1]}, levels {args.levels} V rms, {args.sample_rate_hz:g} Hz"
+          f"{', with stepped sines (a joint fit)' if args.mixed else ''}", flush=True)
     lines = []
     out = open(args.out, "w") if args.out else None
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(run_one, args.binary, s, args.levels, args.sample_rate_hz) for s in seeds]
+        futures = [pool.submit(run_one, args.binary, s, args.levels, args.sample_rate_hz, args.mixed) for s in seeds]
         for future in concurrent.futures.as_completed(futures):
             line = future.result()
             lines.append(line)
