@@ -99,10 +99,6 @@ std::optional<SweepResult> SweepOneModel(const ActuatorModel& model, const Diagn
   return std::nullopt;
 }
 
-}  // namespace
-
-namespace {
-
 // Both models' maps over [f_lo, f_hi] x [v_lo, v_hi] (DiagnosisMaps), in what is left of the diagnosis's
 // time budget after `spent_s`, reported as the last two of `stages` progress stages.
 DiagnosisMaps SweepBothModels(const ActuatorModel& base, const ActuatorModel& diagnosed, double f_lo, double f_hi,
