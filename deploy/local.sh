@@ -117,10 +117,13 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # report and map code they reach runs in DiagnoseReportMapsTest and SweepDiagnosisMapsTest.
 # readme_commands runs the README's commands, a diagnosis among them (~20 s in Release), and
 # CeresLogTest.ADiagnosisPrintsOnlyItsProgress a small diagnosis (~6 s); the code they reach runs
-# in the CLI and server tests.
+# in the CLI and server tests. MixedCampaign.FitsJointlyToTheParametersOfEachHalf and
+# BroadbandCampaignFit.ANominalSensitivityIsReportedAsTheSteppedFitReportsIt fit campaigns with impacts
+# (3-7 s in Release) whose fits run past their 120 s budget here and end unconverged; the joint fit
+# runs in MixedFitCli, the broadband campaign fit in BroadbandCampaignFit's other tests.
 # Then each harness's corpus is replayed (ctest) and each harness fuzzed for FUZZ_SECONDS.
 ASAN_DIR=build/asan
-ASAN_EXCLUDE='^(web_page|web_page_diagnosis|web_status_badge|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|Library/BroadbandDiagnoseTest\..*|OpenWorldTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*)$'
+ASAN_EXCLUDE='^(web_page|web_page_diagnosis|web_status_badge|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|Library/BroadbandDiagnoseTest\..*|OpenWorldTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*|MixedCampaign\.FitsJointlyToTheParametersOfEachHalf|BroadbandCampaignFit\.ANominalSensitivityIsReportedAsTheSteppedFitReportsIt)$'
 asan_build() {
   configure_clang "$ASAN_DIR" -DSTROKELAB_SANITIZE=address,undefined -DSTROKELAB_FUZZ=ON
   cmake --build "$ASAN_DIR" -j "$(nproc)"
