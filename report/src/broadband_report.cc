@@ -7,7 +7,6 @@
 #include <numeric>
 
 #include "diagnose_report_internal.h"
-#include "strokelab/model/model_json.h"
 
 namespace strokelab::report {
 namespace {
@@ -159,11 +158,7 @@ void WriteBroadbandDiagnosisReport(const BroadbandDiagnosis& d, const std::files
   CreateReportDirectory(dir);
   WriteText(dir / "index.html", BroadbandDiagnosisHtml(d, maps));
   WriteRecords(d, dir / "records.csv");
-  WriteCandidates(d.candidates, d.chosen, dir / "candidates.csv");
-  WriteCandidateParameters(d.candidates, dir / "candidate_parameters.csv");
-  WriteThresholdShifts(maps, dir / "threshold_shift.csv");
-  WriteJumpIntervals(maps, dir / "jump_intervals.csv");
-  WriteText(dir / "model.json", ModelToJson(d.model).dump(2) + "\n");
+  WriteSharedFiles(d.candidates, d.chosen, maps, d.model, dir);
 }
 
 }  // namespace strokelab::report

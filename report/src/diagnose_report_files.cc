@@ -139,8 +139,8 @@ void CreateReportDirectory(const std::filesystem::path& dir) {
 
 // Both models' maps, when both were swept.
 namespace {
+
 bool HaveBothMaps(const DiagnosisMaps* maps) { return maps && maps->note.empty() && maps->base && maps->diagnosed; }
-}  // namespace
 
 void WriteThresholdShifts(const DiagnosisMaps* maps, const std::filesystem::path& path) {
   const std::vector<std::string> columns = {
@@ -174,6 +174,17 @@ void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& 
   WriteRows(path, rows);
 }
 
+
+}  // namespace
+
+void WriteSharedFiles(const std::vector<CandidateFit>& candidates, int chosen, const DiagnosisMaps* maps,
+                      const ActuatorModel& model, const std::filesystem::path& dir) {
+  WriteCandidates(candidates, chosen, dir / "candidates.csv");
+  WriteCandidateParameters(candidates, dir / "candidate_parameters.csv");
+  WriteThresholdShifts(maps, dir / "threshold_shift.csv");
+  WriteJumpIntervals(maps, dir / "jump_intervals.csv");
+  WriteText(dir / "model.json", ModelToJson(model).dump(2) + "\n");
+}
 
 }  // namespace diagnose_internal
 
@@ -231,12 +242,8 @@ void WriteDiagnosisReport(const Diagnosis& d, const std::filesystem::path& dir, 
   CreateReportDirectory(dir);
   WriteText(dir / "index.html", DiagnosisHtml(d, maps));
   WriteRecords(d, dir / "records.csv");
-  WriteCandidates(d.candidates, d.chosen, dir / "candidates.csv");
-  WriteCandidateParameters(d.candidates, dir / "candidate_parameters.csv");
   WriteLevels(d, dir / "levels.csv");
-  WriteThresholdShifts(maps, dir / "threshold_shift.csv");
-  WriteJumpIntervals(maps, dir / "jump_intervals.csv");
-  WriteText(dir / "model.json", ModelToJson(d.model).dump(2) + "\n");
+  WriteSharedFiles(d.candidates, d.chosen, maps, d.model, dir);
 }
 
 }  // namespace strokelab::report

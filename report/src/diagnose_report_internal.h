@@ -99,9 +99,11 @@ void WriteCandidates(const std::vector<CandidateFit>& candidates, int chosen, co
 void WriteCandidateParameters(const std::vector<CandidateFit>& candidates, const std::filesystem::path& path);
 void WriteText(const std::filesystem::path& path, const std::string& text);
 void CreateReportDirectory(const std::filesystem::path& dir);
-// threshold_shift.csv and jump_intervals.csv of both models' maps (headers only when either is missing).
-void WriteThresholdShifts(const DiagnosisMaps* maps, const std::filesystem::path& path);
-void WriteJumpIntervals(const DiagnosisMaps* maps, const std::filesystem::path& path);
+// The files both reports' folders hold, into `dir`: candidates.csv and candidate_parameters.csv,
+// threshold_shift.csv and jump_intervals.csv of both models' maps (headers only when either is missing),
+// and the diagnosed model as model.json.
+void WriteSharedFiles(const std::vector<CandidateFit>& candidates, int chosen, const DiagnosisMaps* maps,
+                      const ActuatorModel& model, const std::filesystem::path& dir);
 
 // The named effects' characteristics with their bands (diagnose_report_curves.cc).
 Figure CurvesFigure(const std::vector<EffectCurve>& curves);
