@@ -1,10 +1,10 @@
 // A remote worker's rows for a fit or diagnose task, checked and turned into the rows stored
 // (task_rows.h).
 #include <cmath>
+#include <utility>
 
 #include "campaign_rows_internal.h"
 #include "strokelab/base/errors.h"
-#include "strokelab/jobs/campaign_warnings.h"
 #include "strokelab/jobs/task_rows.h"
 #include "strokelab/model/model_json.h"
 #include "strokelab/report/diagnosis_data.h"
@@ -45,17 +45,24 @@ std::vector<ResultRow> CampaignRowsFromWorker(const json& task, std::vector<Resu
     return rows;
   }
   if (type != "diagnose") throw InputError("/rows", "a " + type + " task is not a campaign task");
-  RequireOneRow(rows, "diagnosis_data", type);
-  report::DiagnosisData data;
-  try {
-    data = report::DiagnosisDataFromJson(rows[0].values);
-  } catch (const InputError& e) {
-    throw InputError("/rows/0/values" + e.field(), e.bare_message());
+  // A campaign of broadband records only is diagnosed by its time series (jobs.cc), the others by
+  // their stepped sines: the worker's row says which.
+  const bool broadband = rows.size() == 1 && rows[0].table == "broadband_diagnosis_data";
+  RequireOneRow(rows, broadband ? "broadband_diagnosis_data" : "diagnosis_data", type);
+  // The member a worker's data spoils, as a pointer into its completion.
+  const auto read = [&](auto from_json) {
+    try {
+      return from_json(rows[0].values);
+    } catch (const InputError& e) {
+      throw InputError("/rows/0/values" + e.field(), e.bare_message());
+    }
+  };
+  if (broadband) {
+    report::BroadbandDiagnosisData data = read(report::BroadbandDiagnosisDataFromJson);
+    return BroadbandDiagnosisRows(data.diagnosis, std::move(data.base_fit), data.maps);
   }
-  std::vector<ResultRow> stored = {{"diagnosis", DiagnosisToJson(data.diagnosis)}};
-  for (ResultRow& row : WarningRows(DiagnosisWarnings(data.diagnosis))) stored.push_back(std::move(row));
-  for (ResultRow& row : DiagnosisReportRows(data.diagnosis, data.maps)) stored.push_back(std::move(row));
-  return stored;
+  const report::DiagnosisData data = read(report::DiagnosisDataFromJson);
+  return DiagnosisRows(data.diagnosis, data.maps);
 }
 
 }  // namespace strokelab::jobs

@@ -37,9 +37,11 @@ std::vector<std::string> BroadbandFitWarnings(const strokelab::internal::Broadba
   return out;
 }
 
-std::vector<std::string> DiagnosisWarnings(const Diagnosis& d) {
-  if (d.chosen < 0) return FitWarnings(d.base);
-  const CandidateFit& c = d.candidates[d.chosen];
+namespace {
+
+// Of a diagnosis's chosen candidate: its parameters held at a bound or not identifiable, and whether
+// its fit did not converge.
+std::vector<std::string> CandidateWarnings(const CandidateFit& c) {
   std::vector<std::string> out;
   for (const FitParameter& p : c.parameters) {
     if (p.note.rfind(kHeldNote, 0) == 0) out.push_back(HeldAtBound(p.name));
@@ -50,6 +52,16 @@ std::vector<std::string> DiagnosisWarnings(const Diagnosis& d) {
   if (!c.converged && (out.empty() || c.note.find("NOT CONVERGED") != std::string::npos))
     out.insert(out.begin(), "fit did not converge (" + c.label + ")");
   return out;
+}
+
+}  // namespace
+
+std::vector<std::string> DiagnosisWarnings(const Diagnosis& d) {
+  return d.chosen < 0 ? FitWarnings(d.base) : CandidateWarnings(d.candidates[d.chosen]);
+}
+
+std::vector<std::string> BroadbandDiagnosisWarnings(const BroadbandDiagnosis& d) {
+  return d.chosen < 0 ? BroadbandFitWarnings(d.base.result) : CandidateWarnings(d.candidates[d.chosen]);
 }
 
 std::vector<ResultRow> WarningRows(const std::vector<std::string>& warnings) {

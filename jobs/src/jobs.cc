@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 
 #include "strokelab/base/cancel.h"
 #include "strokelab/base/json_number.h"
 #include "strokelab/diagnose/diagnose.h"
+#include "strokelab/report/broadband_report.h"
 #include "strokelab/report/diagnose_report.h"
 #include "strokelab/report/diagnosis_data.h"
 #include "strokelab/report/diagnosis_maps.h"
@@ -48,15 +50,16 @@ std::string ContentTypeOf(const std::string& name) {
 
 }  // namespace
 
-// The HTML report of a diagnosis with its maps (WriteDiagnosisReport into a scratch directory) as
-// result rows. The report's files are UTF-8 text (an HTML page, CSV tables, the model file), stored
-// as JSON strings.
-std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis, const report::DiagnosisMaps& maps) {
+namespace {
+
+// A report's files (`write` into a scratch directory, then `files` read back) as result rows. They are
+// UTF-8 text (an HTML page, CSV tables, the model file), stored as JSON strings.
+std::vector<ResultRow> ReportRows(const std::function<void(const fs::path&)>& write, const std::vector<std::string>& files) {
   const fs::path dir = fs::temp_directory_path() / ("strokelab-report-" + NewCampaignId());
   std::vector<ResultRow> rows;
   try {
-    report::WriteDiagnosisReport(diagnosis, dir, &maps);
-    for (const std::string& name : report::DiagnosisReportFiles())
+    write(dir);
+    for (const std::string& name : files)
       rows.push_back({"report_files",
                       {{"name", name}, {"content_type", ContentTypeOf(name)}, {"text", ReadFileBytes(dir / name)}}});
   } catch (...) {
@@ -66,6 +69,30 @@ std::vector<ResultRow> DiagnosisReportRows(const Diagnosis& diagnosis, const rep
   }
   fs::remove_all(dir);
   return rows;
+}
+
+std::vector<ResultRow> WithWarningsAndReport(std::vector<ResultRow> rows, const std::vector<std::string>& warnings,
+                                             std::vector<ResultRow> report) {
+  for (ResultRow& row : WarningRows(warnings)) rows.push_back(std::move(row));
+  for (ResultRow& row : report) rows.push_back(std::move(row));
+  return rows;
+}
+
+}  // namespace
+
+std::vector<ResultRow> DiagnosisRows(const Diagnosis& diagnosis, const report::DiagnosisMaps& maps) {
+  return WithWarningsAndReport(
+      {{"diagnosis", DiagnosisToJson(diagnosis)}}, DiagnosisWarnings(diagnosis),
+      ReportRows([&](const fs::path& dir) { report::WriteDiagnosisReport(diagnosis, dir, &maps); },
+                 report::DiagnosisReportFiles()));
+}
+
+std::vector<ResultRow> BroadbandDiagnosisRows(const BroadbandDiagnosis& diagnosis, nlohmann::json base_fit,
+                                              const report::DiagnosisMaps& maps) {
+  return WithWarningsAndReport(
+      {{"diagnosis", BroadbandDiagnosisToJson(diagnosis, std::move(base_fit))}}, BroadbandDiagnosisWarnings(diagnosis),
+      ReportRows([&](const fs::path& dir) { report::WriteBroadbandDiagnosisReport(diagnosis, dir, &maps); },
+                 report::BroadbandDiagnosisReportFiles()));
 }
 
 namespace {
@@ -114,14 +141,18 @@ std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data,
   }
   DiagnoseOptions options = DiagnoseOptionsFromJob(job);
   if (progress) options.progress = [&](const ProgressStage& stage) { progress(clock.Report(stage)); };
-  const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
+  // As `strokelab diagnose`: broadband records only by their time series, otherwise the stepped sines.
   // The report's maps of the base and the diagnosed model, within what is left of max_seconds.
+  if (FitKindOf(campaign) == CampaignFitKind::kBroadband) {
+    const BroadbandDiagnosis diagnosis = DiagnoseBroadbandCampaign(campaign, options);
+    const report::DiagnosisMaps maps = report::SweepBroadbandDiagnosisMaps(diagnosis, campaign, options);
+    if (as_data) return {{"broadband_diagnosis_data", report::BroadbandDiagnosisDataToJson(diagnosis, maps)}};
+    return BroadbandDiagnosisRows(diagnosis, BroadbandCampaignFitToJson(diagnosis.base), maps);
+  }
+  const Diagnosis diagnosis = DiagnoseCampaign(campaign, options);
   const report::DiagnosisMaps maps = report::SweepDiagnosisMaps(diagnosis, options);
   if (as_data) return {{"diagnosis_data", report::DiagnosisDataToJson(diagnosis, maps)}};
-  std::vector<ResultRow> rows = {{"diagnosis", DiagnosisToJson(diagnosis)}};
-  for (ResultRow& row : WarningRows(DiagnosisWarnings(diagnosis))) rows.push_back(std::move(row));
-  for (ResultRow& row : DiagnosisReportRows(diagnosis, maps)) rows.push_back(std::move(row));
-  return rows;
+  return DiagnosisRows(diagnosis, maps);
 }
 
 }  // namespace
@@ -170,18 +201,12 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
     const bool under_root = job.at("campaign").contains("path");
     const std::string digest =
         CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path(), campaigns.max_campaign_bytes);
-    // Uploads were read when they were stored; a diagnosis reads the campaign for its kind of records.
-    if (under_root || kind == "diagnose") {
-      Campaign campaign;
+    if (under_root) {  // uploads were read when they were stored
       try {
-        campaign = ReadCampaign(dir);
+        (void)ReadCampaign(dir);
       } catch (const InputError& e) {
         throw CampaignError(e.field(), e.bare_message());
       }
-      if (kind == "diagnose" && FitKindOf(campaign) == CampaignFitKind::kBroadband)
-        throw InputError("/campaign", "holds broadband records only: the service's diagnose jobs take stepped sines "
-                                      "(`strokelab diagnose --data DIR` diagnoses it by its time series; a fit job "
-                                      "fits it)");
     }
     nlohmann::json spec_job = job;
     spec_job.erase("name");

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <regex>
 #include <string>
 #include <vector>
@@ -16,6 +17,8 @@
 #include "report_test_util.h"
 #include "strokelab/data/synth.h"
 #include "strokelab/model/model_json.h"
+#include "strokelab/base/errors.h"
+#include "strokelab/report/diagnosis_data.h"
 #include "strokelab/report/diagnosis_maps.h"
 
 namespace strokelab::report {
@@ -193,6 +196,127 @@ TEST(BroadbandReportTest, TheMapsGridSpansTheDrivesBandAndLevels) {
   ASSERT_TRUE(maps.base);
   EXPECT_EQ(maps.base->points.size() >= 12u, true);
   EXPECT_EQ(maps.base->saturation_threshold.size(), 4u);
+}
+
+
+// ---- A broadband diagnosis as data (what a remote worker sends) ----------------------------------
+
+// The result document and the report written from the data, after a text round trip as over HTTP.
+void ExpectSameReportFromData(const BroadbandDiagnosis& d, const DiagnosisMaps& maps, const std::string& name) {
+  const nlohmann::json sent = nlohmann::json::parse(BroadbandDiagnosisDataToJson(d, maps).dump());
+  const BroadbandDiagnosisData got = BroadbandDiagnosisDataFromJson(sent);
+  EXPECT_EQ(BroadbandDiagnosisToJson(got.diagnosis, got.base_fit).dump(), BroadbandDiagnosisToJson(d).dump()) << name;
+  const auto direct = FreshDir("bb_data_direct_" + name), rebuilt = FreshDir("bb_data_rebuilt_" + name);
+  WriteBroadbandDiagnosisReport(d, direct, &maps);
+  WriteBroadbandDiagnosisReport(got.diagnosis, rebuilt, &got.maps);
+  for (const std::string& file : BroadbandDiagnosisReportFiles())
+    EXPECT_EQ(ReadFile(rebuilt / file), ReadFile(direct / file)) << name << ": " << file;
+}
+
+BroadbandDiagnosis Unexplained() {
+  BroadbandDiagnosis d = NamedCubic();
+  d.chosen = -1;
+  d.missing_physics.clear();
+  d.after.clear();
+  BroadbandUnexplained u;
+  u.parts = "fit";
+  u.chi2 = 18000;
+  u.dof = 6100;
+  u.threshold_chi2 = 6900;
+  u.misfit_to_noise = std::sqrt(18000.0 / 6100.0);
+  u.places = {{"rec_003.csv", 11.0, 16.0, 0.4, NAN}};
+  u.description = "rings at about 40 Hz after every impact";
+  d.unexplained = u;
+  return d;
+}
+
+TEST(BroadbandDiagnosisDataTest, TheReportFromDataIsTheReportFromTheDiagnosis) {
+  BroadbandDiagnosis named = NamedCubic();  // and base members NamedCubic leaves at their defaults
+  named.base.model_kind = FitModelKind::kLinear;
+  named.base.response = ResponseKind::kAcceleration;
+  named.base.absolute_scale = false;
+  named.base.result.rejected = true;
+  named.base.result.fit.converged = false;
+  named.base.start_record = "rec_002.csv";
+  named.heldout_every = 3;
+  named.heldout_dof = 2048;
+  named.warnings = {"record rec_9.csv is a stepped sine: not used"};
+  ExpectSameReportFromData(named, MapsOf(), "named");
+  DiagnosisMaps none;
+  none.note = "no maps: map_frequency_points is 0";
+  ExpectSameReportFromData(Unexplained(), none, "unexplained");
+  ExpectSameReportFromData(BroadbandDiagnosis{}, none, "empty");
+}
+
+// A diagnosis of real records (the paper model's quiet multisines: nothing missing) with its maps.
+TEST(BroadbandDiagnosisDataTest, ADiagnosisOfRecordsComesBackWhole) {
+  SynthOptions o;
+  o.excitation = Excitation::kMultisine;
+  o.levels_v_rms = {0.05, 0.1};
+  o.duration_s = 0.5;
+  o.settle_s = 1.0;
+  o.sample_rate_hz = 4096.0;
+  o.noise_rms_v = 2e-4;
+  o.seed = 13;
+  const Campaign campaign = Synthesize(PaperModel(), o).campaign;
+  DiagnoseOptions options;
+  options.map_frequency_points = 4;
+  options.map_amplitude_points = 3;
+  const BroadbandDiagnosis d = DiagnoseBroadbandCampaign(campaign, options);
+  ASSERT_FALSE(d.base.result.fit.parameters.empty());
+  const DiagnosisMaps maps = SweepBroadbandDiagnosisMaps(d, campaign, options);
+  ASSERT_TRUE(maps.base);
+  ExpectSameReportFromData(d, maps, "records");
+}
+
+TEST(BroadbandDiagnosisDataTest, AWorkersMarkupIsRenderedAsText) {
+  BroadbandDiagnosis d = Unexplained();
+  const std::string markup = "<script>alert(1)</script><img src=x onerror=alert(2)>";
+  d.conclusion = d.model_note = d.candidates[1].decision = d.evidence[0].summary = markup;
+  d.before[0].name = d.unexplained->places[0].record = d.unexplained->description = markup;
+  d.warnings = {markup};
+  const BroadbandDiagnosisData got = BroadbandDiagnosisDataFromJson(BroadbandDiagnosisDataToJson(d, MapsOf()));
+  const std::string html = BroadbandDiagnosisHtml(got.diagnosis, &got.maps);
+  EXPECT_THAT(html, Not(HasSubstr("<script")));
+  EXPECT_THAT(html, Not(HasSubstr("<img")));
+  EXPECT_THAT(html, HasSubstr("&lt;script&gt;alert(1)&lt;/script&gt;"));
+}
+
+// Each damaged document is refused naming the member, as the server answers a worker's completion.
+TEST(BroadbandDiagnosisDataTest, BadDataIsRefusedNamingTheMember) {
+  const nlohmann::json good = BroadbandDiagnosisDataToJson(Unexplained(), MapsOf());
+  ASSERT_NO_THROW(BroadbandDiagnosisDataFromJson(good));
+  using nlohmann::json;
+  const auto field_of = [&](const std::function<void(json&)>& spoil) -> std::string {
+    json bad = good;
+    spoil(bad);
+    try {
+      BroadbandDiagnosisDataFromJson(bad);
+    } catch (const InputError& e) {
+      return e.field();
+    }
+    return "(accepted)";
+  };
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"].erase("conclusion"); }), "/diagnosis/conclusion");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["before"][1]["chi2_per_sample"] = "small"; }),
+            "/diagnosis/before/1/chi2_per_sample");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["after"] = json::array({json::object()}); }), "/diagnosis/after/0/name");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["after"] = json::array({j["diagnosis"]["before"][0]}); }),
+            "/diagnosis/after");  // not record for record
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["base"]["fit"] = "a page"; }), "/diagnosis/base/fit");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["base"]["fit"].erase("parameters"); }), "/diagnosis/base/fit/parameters");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["base"]["response"] = "smell"; }), "/diagnosis/base/response");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["base"]["converged"] = 1; }), "/diagnosis/base/converged");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["heldout_every"] = 1; }), "/diagnosis/heldout_every");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["candidates"][0]["effects"][0] = "magic"; }),
+            "/diagnosis/candidates/0/effects/0");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["chosen"] = 0; }), "/diagnosis/chosen");  // yet nothing named
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["parts"] = "all"; }), "/diagnosis/unexplained/parts");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["unexplained"]["places"][0]["peak_frequency_hz"] = json::array(); }),
+            "/diagnosis/unexplained/places/0/peak_frequency_hz");
+  EXPECT_EQ(field_of([](json& j) { j["diagnosis"]["warnings"][0] = std::string(70'000, 'x'); }), "/diagnosis/warnings/0");
+  EXPECT_EQ(field_of([](json& j) { j["maps"]["base"]["points"][0]["peak_force_n"] = "big"; }).rfind("/maps/base/points/0", 0), 0u);
+  EXPECT_EQ(field_of([](json& j) { j.erase("maps"); }), "/maps");
 }
 
 }  // namespace

@@ -642,7 +642,8 @@ TEST_F(CampaignJobsTest, AFitThatDidNotConvergeSucceedsWithAWarning) {
 // parameters, the fitted model as a download, and no warnings for fits the records accept.
 // The multisines stay clear of the stop (two short quiet records: their fits take seconds under ASan,
 // where records with impacts take minutes); campaign-a's stepped sines reach it.
-TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
+// Two short multisines of the paper model that stay clear of the stop (0.05 and 0.1 V rms, 0.5 s at 4096 Hz).
+Synthesis QuietMultisines(uint64_t seed) {
   SynthOptions o;
   o.excitation = Excitation::kMultisine;
   o.levels_v_rms = {0.05, 0.1};
@@ -650,8 +651,12 @@ TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
   o.settle_s = 1.0;
   o.sample_rate_hz = 4096.0;
   o.noise_rms_v = 2e-4;
-  o.seed = 13;
-  Synthesis broadband = Synthesize(PaperModel(), o);
+  o.seed = seed;
+  return Synthesize(PaperModel(), o);
+}
+
+TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
+  Synthesis broadband = QuietMultisines(13);
   for (Recording& r : broadband.campaign.records) r.name = "bb_" + r.name;
   WriteSynthesis(broadband, root_ / "data" / "broadband", root_ / "broadband-truth.json");
   Campaign mixed = ReadCampaign(campaign_dir());
@@ -671,15 +676,67 @@ TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
                 4.0 * result["parameters"]["k_p"]["standard_error"].get<double>())
         << kind;
     EXPECT_EQ(result["records"].size(), 2u) << kind;
-    if (kind == "mixed") EXPECT_GE(result["stepped_records"].size(), 10u);  // of campaign-a's 12
+    if (kind == "mixed") {
+      EXPECT_GE(result["stepped_records"].size(), 10u);  // of campaign-a's 12
+    }
     auto model = Client().Get(base + "/model", Auth(kReadToken));
     ASSERT_TRUE(model && model->status == 200) << (model ? model->body.substr(0, 300) : "");
     EXPECT_EQ(json::parse(model->body), result["fitted_model"]);
   }
-  // A diagnose job on broadband records only is refused at submission, saying what takes them.
-  const json refused = Error(Post({{"kind", "diagnose"}, {"campaign", {{"path", "broadband"}}}}), 400);
-  EXPECT_EQ(refused["field"], "/campaign");
-  EXPECT_THAT(refused["message"].get<std::string>(), HasSubstr("the service's diagnose jobs take stepped sines"));
+}
+
+// A diagnose job on broadband records only diagnoses them by their time series, as `strokelab diagnose`
+// does: the result's kind, its conclusion, the report rendered by the server with both models' maps,
+// and the diagnosed model as a download; run by the server's own workers, and by a remote worker,
+// whose data the server renders (jobs/task_rows.h). Nothing is missing from the paper model's records.
+TEST_F(CampaignJobsTest, BroadbandCampaignsAreDiagnosedByTheirTimeSeries) {
+  WriteSynthesis(QuietMultisines(14), root_ / "data" / "broadband-quiet", root_ / "broadband-quiet-truth.json");
+  const json job_spec = {{"kind", "diagnose"},
+                         {"campaign", {{"path", "broadband-quiet"}}},
+                         {"options", {{"map_frequency_points", 4}, {"map_amplitude_points", 3}}}};
+  auto check = [&](int64_t job, const std::string& who) {
+    const std::string base = "/v1/jobs/" + std::to_string(job);
+    const json result = Get(base + "/result");
+    EXPECT_EQ(result["kind"], "broadband") << who;
+    EXPECT_EQ(result["missing_physics"], json::array()) << who << ": " << result["conclusion"];
+    EXPECT_TRUE(result["unexplained"].is_null()) << who << ": " << result["conclusion"];
+    EXPECT_EQ(result["records"].size(), 2u) << who;
+    EXPECT_EQ(result["base"]["kind"], "broadband") << who;  // the base fit's whole document
+    EXPECT_TRUE(result["base"]["parameters"].contains("k_p")) << who;
+    auto page = Client().Get(base + "/report", Auth(kReadToken));
+    ASSERT_TRUE(page && page->status == 200) << who;
+    EXPECT_THAT(page->body, HasSubstr("<h1>strokelab diagnosis (broadband records)</h1>")) << who;
+    EXPECT_THAT(page->body, HasSubstr("Base model = diagnosed model: stroke saturation")) << who;
+    auto records = Client().Get(base + "/report/records.csv", Auth(kReadToken));
+    ASSERT_TRUE(records && records->status == 200) << who;
+    EXPECT_EQ(records->body.rfind("name,drive_rms_v,noise_rms,", 0), 0u) << who;
+    auto model = Client().Get(base + "/model", Auth(kReadToken));
+    ASSERT_TRUE(model && model->status == 200) << who;
+    EXPECT_EQ(json::parse(model->body), result["model"]) << who;
+  };
+  const int64_t local = Submit(job_spec);
+  const json status = WaitFor(local, [](const json& j) { return j["status"] != "queued" && j["status"] != "running"; }, 600);
+  ASSERT_EQ(status["status"], "succeeded") << status.dump();
+  EXPECT_EQ(status["warnings"], json::array()) << status.dump();
+  check(local, "in-process worker");
+
+  options_.workers = 0;
+  Restart();
+  json remote_spec = job_spec;  // another task (an identical one would be served from the cache)
+  remote_spec["options"]["map_amplitude_points"] = 2;
+  const int64_t remote_job = Submit(remote_spec);
+  worker::RemoteWorkerOptions remote;
+  remote.server_url = "http://127.0.0.1:" + std::to_string(port_);
+  remote.token = kWorkerToken;
+  remote.idle_poll_ms = 20;
+  remote.exit_when_idle_ms = 300;
+  remote.campaign_cache_dir = (dir_ / "cache").string();
+  remote.max_tasks = 1;
+  std::atomic<bool> stop{false};
+  EXPECT_EQ(worker::RunRemoteWorker(remote, stop), 1);
+  ASSERT_EQ(WaitFor(remote_job, [](const json& j) { return j["status"] != "queued" && j["status"] != "running"; }, 600)["status"],
+            "succeeded");
+  check(remote_job, "remote worker");
 }
 
 // A server without workers of its own takes fit jobs: a remote worker fetches the campaign and fits it

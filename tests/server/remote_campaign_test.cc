@@ -241,6 +241,12 @@ TEST_F(RemoteCampaignTest, AWorkersMarkupNeverReachesTheServedReport) {
   d.before = d.after = {record};
   report::DiagnosisMaps maps;
   maps.note = script;
+  // Broadband data (a campaign of broadband records only) whose base fit is markup, not its document.
+  BroadbandDiagnosis broadband;
+  broadband.model = PaperModel();
+  json bad = report::BroadbandDiagnosisDataToJson(broadband, maps);
+  bad["diagnosis"]["base"]["fit"] = script;
+  EXPECT_EQ(Refusal(Complete(lease, {{{"table", "broadband_diagnosis_data"}, {"values", bad}}}), 400), "invalid_rows");
   const json data = report::DiagnosisDataToJson(d, maps);
   auto done = Complete(lease, {{{"table", "diagnosis_data"}, {"values", data}}});
   ASSERT_TRUE(done && done->status == 200) << (done ? done->body : "no reply");

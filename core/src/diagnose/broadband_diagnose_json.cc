@@ -1,4 +1,6 @@
 // BroadbandDiagnosisToJson (diagnose/broadband_diagnose.h).
+#include <utility>
+
 #include <nlohmann/json.hpp>
 
 #include "diagnose_internal.h"
@@ -30,6 +32,10 @@ nlohmann::json UnexplainedJson(const std::optional<BroadbandUnexplained>& u) {
 }  // namespace
 
 nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& d) {
+  return BroadbandDiagnosisToJson(d, BroadbandCampaignFitToJson(d.base));
+}
+
+nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& d, nlohmann::json base_fit) {
   nlohmann::json out;
   out["kind"] = "broadband";
   out["conclusion"] = d.conclusion;
@@ -42,7 +48,7 @@ nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& d) {
   out["fit_after"] = internal::Figures(d.fit_after);
   out["heldout_every"] = d.heldout_every;
   out["heldout_dof"] = JsonNumber(d.heldout_dof);
-  out["base"] = BroadbandCampaignFitToJson(d.base);
+  out["base"] = std::move(base_fit);
   out["candidates"] = internal::CandidatesJson(d.candidates, d.chosen);
   out["evidence"] = nlohmann::json::array();
   for (const Evidence& e : d.evidence) out["evidence"].push_back(internal::EvidenceJson(e));

@@ -39,8 +39,8 @@ std::vector<RecordAnalysis> AnalyseCampaign(const Campaign& campaign, const FitO
   if (stepped.empty())
     throw InputError("records",
                      "the campaign holds no stepped-sine record (broadband campaigns are fitted and diagnosed by "
-                     "their time series: `strokelab fit` and the service's fit jobs, `strokelab diagnose`; the "
-                     "service's diagnose jobs take stepped sines)");
+                     "their time series: `strokelab fit`, `strokelab diagnose` and the service's fit and diagnose "
+                     "jobs)");
   // Records are independent: analysed side by side, the first error (in campaign order) re-thrown.
   std::vector<RecordAnalysis> analyses(stepped.size());
   ParallelFor(stepped.size(), [&](size_t i) { analyses[i] = AnalyseRecord(*stepped[i], campaign.response, options); });

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/diagnose/broadband_diagnose.h"
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/identify/broadband_fit.h"
 #include "strokelab/identify/fit.h"
@@ -27,6 +28,9 @@ std::vector<std::string> BroadbandFitWarnings(const strokelab::internal::Broadba
 // "k_s held at a bound", "k3 not identifiable"), or the base fit's (FitWarnings) when nothing is
 // missing.
 std::vector<std::string> DiagnosisWarnings(const Diagnosis& diagnosis);
+
+// The same for a broadband diagnosis: the chosen candidate's, or its base fit's (BroadbandFitWarnings).
+std::vector<std::string> BroadbandDiagnosisWarnings(const BroadbandDiagnosis& diagnosis);
 
 // The warnings as result rows of table "warnings" ({"warning": ...}).
 std::vector<ResultRow> WarningRows(const std::vector<std::string>& warnings);

@@ -54,7 +54,8 @@ TaskResult RunTask(const nlohmann::json& task_spec, const std::atomic<bool>* can
 
 // What a remote worker runs: RunTask (under `cancel` the same way) with every row as JSON (AllRows),
 // except that a diagnose task's result is one row of table "diagnosis_data" (report/diagnosis_data.h:
-// the diagnosis and its maps as data) instead of the rendered report, which the server renders itself.
+// the diagnosis and its maps as data; "broadband_diagnosis_data" for a campaign of broadband records
+// only) instead of the rendered report, which the server renders itself.
 // The task's campaign_dir must name the campaign.
 std::vector<ResultRow> RunTaskForRemote(const nlohmann::json& task_spec, const std::atomic<bool>* cancel = nullptr,
                                         const TaskProgressHook& progress = {});

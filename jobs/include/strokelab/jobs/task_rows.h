@@ -24,8 +24,10 @@ void ValidateTaskRows(const nlohmann::json& task_spec, const std::vector<ResultR
 // ModelBounds; at most 16 MiB of JSON; served as JSON only), unchanged; a diagnose task's one
 // "diagnosis_data" row, read by report::DiagnosisDataFromJson, becomes the "diagnosis" row
 // (DiagnosisToJson) and the report's files rendered here ("report_files"): a worker's text reaches
-// the page only as escaped text. Any other table (a worker's own "report_files") is refused. Throws
-// InputError with the JSON pointer of the offending part ("/rows/0/values/diagnosis/conclusion").
+// the page only as escaped text. A "broadband_diagnosis_data" row (a campaign of broadband records
+// only) likewise, by BroadbandDiagnosisDataFromJson, BroadbandDiagnosisToJson and its report. Any
+// other table (a worker's own "report_files") is refused. Throws InputError with the JSON pointer of
+// the offending part ("/rows/0/values/diagnosis/conclusion").
 std::vector<ResultRow> CampaignRowsFromWorker(const nlohmann::json& task_spec, std::vector<ResultRow> rows);
 
 }  // namespace strokelab::jobs
