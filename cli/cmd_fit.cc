@@ -46,7 +46,8 @@ records' time series in one least-squares problem).
   --mains-hz F             mains hum removed: 0 both 50 and 60 Hz, F that one, < 0 none [0]
   --max-distortion X       harmonic distortion below which a spike-free record is clear [0.05]
   --max-iterations N       iterations of the joint refinement                          [50]
-  --no-refine              stop at the staged estimates (standard errors at them)
+  --no-refine              stop at the staged estimates (standard errors at them); a mixed campaign
+                           then takes its stepped sines alone, a broadband one is refused
 
 Exit codes: 0 fitted (a refinement that did not converge is a warning in the report), 2 bad input
 (the message names the file and line or the flag), 3 numerical failure.
@@ -222,7 +223,12 @@ int RunFit(const std::vector<std::string>& argv) {
 
   const FitOptions options = FitOptionsFromArgs(args);
   const Campaign campaign = ReadCampaign(*data);
-  const CampaignFitKind kind = FitKindOf(campaign);
+  CampaignFitKind kind;
+  try {
+    kind = FitKindOf(campaign, options);
+  } catch (const InputError& e) {
+    throw InputError("--no-refine", e.bare_message());
+  }
   if (kind == CampaignFitKind::kMixed) {
     const MixedCampaignFit fit = FitMixedCampaign(campaign, options);
     if (args.Has("--json")) std::cout << MixedCampaignFitToJson(fit).dump(2) << "\n";

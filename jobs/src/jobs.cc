@@ -115,7 +115,7 @@ std::vector<ResultRow> RunCampaignTask(const nlohmann::json& task, bool as_data,
     const FitOptions options = FitOptionsFromJob(job);
     std::vector<ResultRow> rows;
     std::vector<std::string> warnings;
-    switch (FitKindOf(campaign)) {
+    switch (FitKindOf(campaign, options)) {
       case CampaignFitKind::kSteppedSine: {
         const FitResult fit = FitCampaign(campaign, options);
         rows = {{"fit", FitResultToJson(fit)}};
@@ -201,11 +201,22 @@ std::vector<TaskSpec> PlanTasks(const nlohmann::json& job, const CampaignDirs& c
     const bool under_root = job.at("campaign").contains("path");
     const std::string digest =
         CampaignDigest(dir, under_root ? fs::canonical(campaigns.data_root) : fs::path(), campaigns.max_campaign_bytes);
-    if (under_root) {  // uploads were read when they were stored
+    // Uploads were read when they were stored; a fit without the refinement reads the campaign for its
+    // kind of records (FitKindOf: a broadband campaign has no staged estimates to stop at).
+    const bool staged_only = kind == "fit" && !FitOptionsFromJob(job).refine;
+    if (under_root || staged_only) {
+      Campaign campaign;
       try {
-        (void)ReadCampaign(dir);
+        campaign = ReadCampaign(dir);
       } catch (const InputError& e) {
         throw CampaignError(e.field(), e.bare_message());
+      }
+      if (staged_only) {
+        try {
+          (void)FitKindOf(campaign, FitOptionsFromJob(job));
+        } catch (const InputError& e) {
+          throw InputError("/options/refine", e.bare_message());
+        }
       }
     }
     nlohmann::json spec_job = job;

@@ -75,6 +75,19 @@ TEST(MixedFitCli, FitsBothKindsJointly) {
   EXPECT_THAT(text.stdout_text, HasSubstr("and 2 broadband records (their time series) fitted jointly"));
   EXPECT_THAT(text.stdout_text, HasSubstr("start: the stepped-sine records alone (converged"));
   EXPECT_THAT(text.stdout_text, HasSubstr("bb_rec_002.csv"));
+
+  // Without the refinement ("stop at the staged estimates", which only the stepped fit has): the
+  // stepped sines' staged fit, saying that the broadband records were left out; a campaign of
+  // broadband records only is refused, naming the flag.
+  const CliResult staged = RunCli("fit --data " + campaign + " --no-refine --json");
+  ASSERT_EQ(staged.exit_code, 0) << staged.stderr_text;
+  const nlohmann::json s = nlohmann::json::parse(staged.stdout_text);
+  EXPECT_FALSE(s.contains("kind"));  // the stepped-sine fit's document
+  EXPECT_FALSE(s["stages"]["refinement"]["ran"].get<bool>());
+  EXPECT_THAT(s["warnings"].dump(), HasSubstr("record bb_rec_001.csv is broadband: not used"));
+  const CliResult refused = RunCli("fit --data " + (fs::path(campaign).parent_path() / "broadband").string() + " --no-refine");
+  EXPECT_EQ(refused.exit_code, 2);
+  EXPECT_THAT(refused.stderr_text, HasSubstr("--no-refine: a campaign of broadband records only has no staged estimates"));
   fs::remove_all(fs::path(campaign).parent_path());
 }
 

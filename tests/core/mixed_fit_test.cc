@@ -149,6 +149,27 @@ TEST(MixedCampaign, FitsJointlyToTheParametersOfEachHalf) {
   for (const internal::BroadbandRecordFit& r : joint.result.records) EXPECT_NEAR(r.chi2_per_sample, 1.0, 0.08) << r.name;
 }
 
+// Without the refinement only the stepped-sine fit has staged estimates to stop at.
+TEST(MixedCampaign, WithoutTheRefinementOnlyTheSteppedSinesAreFitted) {
+  Campaign stepped, broadband, mixed;
+  stepped.records.resize(2);
+  broadband.records.resize(2);
+  for (Recording& r : broadband.records) r.broadband = true;
+  mixed.records = {stepped.records[0], broadband.records[0]};
+  FitOptions staged;
+  staged.refine = false;
+  EXPECT_EQ(FitKindOf(mixed), CampaignFitKind::kMixed);
+  EXPECT_EQ(FitKindOf(mixed, staged), CampaignFitKind::kSteppedSine);
+  EXPECT_EQ(FitKindOf(stepped, staged), CampaignFitKind::kSteppedSine);
+  EXPECT_EQ(FitKindOf(broadband, FitOptions{}), CampaignFitKind::kBroadband);
+  try {
+    FitKindOf(broadband, staged);
+    FAIL() << "a broadband campaign has no staged estimates";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.field(), "refine");
+  }
+}
+
 TEST(MixedCampaign, RefusesACampaignOfOneKind) {
   const Campaign stepped = SteppedHalf(MixedTruth());
   try {

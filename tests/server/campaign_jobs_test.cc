@@ -683,6 +683,12 @@ TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
     ASSERT_TRUE(model && model->status == 200) << (model ? model->body.substr(0, 300) : "");
     EXPECT_EQ(json::parse(model->body), result["fitted_model"]);
   }
+  // Without the refinement (staged estimates, which only the stepped fit has): the broadband campaign
+  // is refused at submission, naming the option.
+  const json refused =
+      Error(Post({{"kind", "fit"}, {"campaign", {{"path", "broadband"}}}, {"options", {{"refine", false}}}}), 400);
+  EXPECT_EQ(refused["field"], "/options/refine");
+  EXPECT_THAT(refused["message"].get<std::string>(), HasSubstr("no staged estimates"));
 }
 
 // A diagnose job on broadband records only diagnoses them by their time series, as `strokelab diagnose`

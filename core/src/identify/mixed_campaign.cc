@@ -40,6 +40,15 @@ CampaignFitKind FitKindOf(const Campaign& campaign) {
   return broadband == campaign.records.size() ? CampaignFitKind::kBroadband : CampaignFitKind::kMixed;
 }
 
+CampaignFitKind FitKindOf(const Campaign& campaign, const FitOptions& options) {
+  const CampaignFitKind kind = FitKindOf(campaign);
+  if (options.refine) return kind;
+  if (kind == CampaignFitKind::kBroadband)
+    throw InputError("refine", "a campaign of broadband records only has no staged estimates to stop at: its fit by "
+                               "the time series is the refinement (fit it without turning the refinement off)");
+  return CampaignFitKind::kSteppedSine;
+}
+
 MixedCampaignFit FitMixedCampaign(const Campaign& campaign, const FitOptions& options) {
   const auto clock_start = std::chrono::steady_clock::now();
   Validate(options);

@@ -22,6 +22,11 @@ namespace strokelab {
 // `strokelab fit` and the service's fit job both ask.
 enum class CampaignFitKind { kSteppedSine, kBroadband, kMixed };
 CampaignFitKind FitKindOf(const Campaign& campaign);
+// The fit `options` ask of the campaign: as above, except without the refinement (options.refine false,
+// "stop at the staged estimates"), which only the stepped-sine fit has: a mixed campaign then takes the
+// stepped-sine fit of its stepped sines (FitCampaign warns of each broadband record left out), and a
+// campaign of broadband records only is refused (InputError, field "refine").
+CampaignFitKind FitKindOf(const Campaign& campaign, const FitOptions& options);
 
 struct MixedCampaignFit {
   FitModelKind model_kind = FitModelKind::kPaper;
