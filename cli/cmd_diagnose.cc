@@ -39,9 +39,10 @@ amplifier_saturation, quadratic_damping, force_factor, and with --coil-inductanc
 and names the ones that improve the held-out records beyond noise, or says "nothing missing".
 
 A campaign of broadband records only (noise, multisine, sweep) is diagnosed by the records' time
-series instead (as strokelab fit fits them): the last 1/N of each record (--heldout-every N) is held
-out, the candidates are fitted to the first parts, and their held-out chi-square is the held-out
-parts' at the fitted model (each part's start, offset and hum fitted). The choice, the thresholds and
+series instead (as strokelab fit fits them): the first or last 1/N of each record (--heldout-every N),
+one that shows some of the record's impacts where it can, is held out, the candidates are fitted to the
+other parts, and their held-out chi-square is the held-out parts' at the fitted model (each part's
+start, offset and hum fitted). The choice, the thresholds and
 the "unexplained" verdict are the same; the evidence is where the base model's residual stands out
 (far out in displacement, slow, fast, near contacts), its spectrum and its coherence with the drive.
 --out writes its report (index.html: the verdict, the held-out parts where a misfit lives, the fit,

@@ -53,7 +53,7 @@ void PrintBroadbandDiagnosis(const BroadbandDiagnosis& d, std::ostream& out) {
           << ", residual peaks at " << General(p.peak_frequency_hz, 4) << " Hz\n";
   out << "normalised RMS error of the time series: before " << General(d.fit_before.nrmse, 4) << ", after "
       << General(d.fit_after.nrmse, 4) << "; held-out parts (1/" << d.heldout_every
-      << " of each record, the last unless its impacts all fall there): before " << General(d.fit_before.heldout_nrmse, 4) << ", after "
+      << " of each record, an end that shows some of its impacts where one can): before " << General(d.fit_before.heldout_nrmse, 4) << ", after "
       << General(d.fit_after.heldout_nrmse, 4) << "\n";
   out << "\nper record (chi-square per sample, 1 is noise): fit part before -> after, held-out part before -> after\n";
   for (size_t i = 0; i < d.before.size(); ++i) {

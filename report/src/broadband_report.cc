@@ -23,7 +23,8 @@ std::string Header(const BroadbandDiagnosis& d) {
   std::string out = "<h1>strokelab diagnosis (broadband records)</h1>\n";
   out += "<p class=\"meta\">" +
          Esc(Format("Base model: %s; response: %s%s; %zu records fitted by their time series, 1/%d of each held out "
-                    "of every fit (the last part, or the first where all of a record's impacts fall in the last); "
+                    "of every fit (the first or the last part: one that shows some of the record's impacts where one "
+                    "can); "
                     "diagnosis took %s s.",
                     ToString(b.model_kind), ToString(b.response), b.absolute_scale ? "" : " (scale only nominal)",
                     d.before.size(), d.heldout_every, Num(d.seconds, 3).c_str())) +

@@ -13,8 +13,11 @@ is estimated from the part, and that estimate's own spread (var 2.5 / n) moves t
 sqrt(10 n) per part, while the drop between two models on the same parts is exact (the halving against
 the true model's chi-square is broadband_diagnose_test.cc's).
 
-Seeds: 8101-8110 were looked at while choosing CASES' sizes and levels; the study's default seeds are
-8201 onwards, looked at only through this script's summary.
+Seeds: 8101-8110 were looked at while choosing CASES' sizes and levels, and (8105) the held-out end's
+rule and the second stop's start of version 0.16.0; the study's default seeds are 8201 onwards, looked
+at only through this script's summary and per-campaign lines (at 0.16.0, 8202's second stop showed that
+an end with no impact must not be held out when the other end has some); 8205-8208 were first run at
+0.16.0's final code.
 
     tests/diagnose/broadband_diagnose_study.py --seeds 4 --jobs 2 --out var/broadband_diagnose_study.jsonl
 """

@@ -154,9 +154,11 @@ TEST(BroadbandDiagnoseTest, SplitsEachRecordIntoItsFirstAndLastParts) {
   EXPECT_TRUE(parts.heldout[0].broadband);
 }
 
-// A record whose impacts all fall in its last quarter has its first quarter held out, so that the fit
-// parts show the stop; one with impacts in both, or none, has its last quarter held out.
-TEST(BroadbandDiagnoseTest, HoldsOutTheFirstPartWhenTheImpactsAllFallInTheLast) {
+// The held-out quarter is the end whose share of the record's impacts is nearer a quarter: the first
+// where the impacts all fall in the last quarter (the fit parts then show the stop too), or where the
+// first quarter holds some and the last none; the last with impacts in both ends alike, in the middle
+// only, or none.
+TEST(BroadbandDiagnoseTest, HoldsOutTheEndWhoseShareOfTheImpactsIsNearerItsShareOfTheSamples) {
   std::mt19937 random(5);
   std::normal_distribution<double> noise(0.0, 1.0);
   auto record = [&](std::vector<size_t> spikes) {
@@ -165,9 +167,10 @@ TEST(BroadbandDiagnoseTest, HoldsOutTheFirstPartWhenTheImpactsAllFallInTheLast) 
     return r;
   };
   Campaign campaign;
-  campaign.records = {record({1700, 1900}), record({300, 1800}), record({})};
+  campaign.records = {record({1700, 1900}), record({300, 1800}), record({}), record({100, 800, 1200}),
+                      record({800, 1200})};
   const BroadbandParts parts = SplitBroadbandRecords(campaign, 4);
-  EXPECT_EQ(parts.heldout_first, (std::vector<bool>{true, false, false}));
+  EXPECT_EQ(parts.heldout_first, (std::vector<bool>{true, false, false, true, false}));
   EXPECT_EQ(parts.fit[0].response[1200 - 500], campaign.records[0].response[1200]);
   EXPECT_EQ(parts.heldout[0].response[0], campaign.records[0].response[0]);
 }

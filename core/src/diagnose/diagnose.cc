@@ -217,7 +217,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.label = internal::Label(effects);
   const int orders = options.fit.harmonic_orders;
   int best_variant = 0;
-  const int variants = internal::StartVariants(effects);
+  const int variants = internal::StartVariants(effects, context);
   if (variants > 1) {
     double best = kInf;
     for (int v = 0; v < variants; ++v) {

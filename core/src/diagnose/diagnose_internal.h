@@ -44,6 +44,9 @@ struct EffectContext {
   // reaches the Nyquist frequency fs / 2 of the records sampled slowest, k_s = m_p (pi fs)^2. A stiffer
   // stop rings between samples; the records cannot tell it from a rigid one.
   double max_contact_stiffness_n_per_m = std::numeric_limits<double>::infinity();
+  // Where the records hit a stop on the positive side that the base model lacks (NaN: none seen): a
+  // second stop's start (BuildProblem). The broadband diagnosis's only (UpperImpactOnset).
+  double upper_impact_onset_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The refinement problem of the base parameters (from `start`) extended by `effects`. Effect
@@ -52,7 +55,7 @@ struct EffectContext {
 // response is flat at some starts (a stop or a clipping level out of reach).
 ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std::span<const Effect> effects,
                              const EffectContext& context, int variant);
-int StartVariants(std::span<const Effect> effects);
+int StartVariants(std::span<const Effect> effects, const EffectContext& context);
 
 // Whether the effect can show in this campaign at all (contact effects need contacts and a stop).
 bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context);

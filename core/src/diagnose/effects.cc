@@ -102,10 +102,11 @@ bool Has(std::span<const Effect> effects, Effect e) { return std::find(effects.b
 
 }  // namespace
 
-int StartVariants(std::span<const Effect> effects) {
+int StartVariants(std::span<const Effect> effects, const EffectContext& context) {
   int variants = 1;
   for (Effect e : effects) {
-    if (e == Effect::kSecondStop) variants = std::max<int>(variants, std::size(kStopStarts));
+    if (e == Effect::kSecondStop && !std::isfinite(context.upper_impact_onset_m))
+      variants = std::max<int>(variants, std::size(kStopStarts));
     if (e == Effect::kAmplifierSaturation) variants = std::max<int>(variants, std::size(kClipStarts));
   }
   return variants;
@@ -218,8 +219,10 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         break;
       }
       case Effect::kSecondStop: {
-        const double u0 = start.HasUpperStop() ? start.upper_stop_m
-                                               : kStopStarts[variant % std::size(kStopStarts)] * context.max_displacement_m;
+        // Where the records show impacts on that side, else each start of kStopStarts within the motion.
+        const double u0 = start.HasUpperStop()                         ? start.upper_stop_m
+                          : std::isfinite(context.upper_impact_onset_m) ? context.upper_impact_onset_m
+                              : kStopStarts[variant % std::size(kStopStarts)] * context.max_displacement_m;
         p.push_back(LogParameter("d_upper", "m", &ActuatorModel::upper_stop_m, u0, kBaseRange));
         break;
       }

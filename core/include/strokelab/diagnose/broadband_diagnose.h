@@ -2,10 +2,14 @@
 // stepped-sine diagnosis's choice among the same effects (diagnose.h steps 4-6) on fits by the records'
 // time series (identify/broadband_fit.h) instead of their harmonics.
 //
-//   1. Split: the last 1 / heldout_every of every record is held out of all fits (the first, where the
-//      record's impacts all fall in its last part). A multisine's period is its record, so its held-out
-//      part carries the same lines at fresh noise; a noise record's held-out part is fresh drive as well.
-//   2. Base fit (identify/broadband_campaign.h) on the records' first parts; then the base model
+//   1. Split: the first or the last 1 / heldout_every of every record is held out of all fits: the end
+//      that holds some of the record's impacts but not all (of two such, the one whose share of them is
+//      nearer its share of the samples), else the last (the first where the last holds all of them). A
+//      multisine's period is its record, so its held-out part carries the same lines at fresh noise; a
+//      noise record's held-out part is fresh drive as well. A multisine's impacts gather at its
+//      envelope's peaks, which the last part alone can miss: a contact effect would then not be seen
+//      where it is judged.
+//   2. Base fit (identify/broadband_campaign.h) on the records' fit parts; then the base model
 //      evaluated on every part, with only each part's segment starts, offset and hum fitted
 //      (FitBroadband with no free parameter; held-out parts as in step 4): the residuals the signatures
 //      read, and the base's figures. From here on every fit and evaluation weights a part by its
@@ -16,8 +20,10 @@
 //      the rest of the record; the residual's coherence with the drive; its spectrum's excess over the
 //      noise floor.
 //   4. Candidates: the base model extended by each effect (as diagnose.h), every parameter free, fitted
-//      by the time series of the first parts from the base fit's segment starts, offsets and hum (a
-//      warm start: broadband_fit.h). A candidate's held-out chi-square is its evaluation on the held-out
+//      by the time series of the fit parts from the base fit's segment starts, offsets and hum (a
+//      warm start: broadband_fit.h), in up to 4 times options.fit.max_iterations. A second stop starts
+//      at the median of the base model's displacement at the onsets of the records' impacts where it is
+//      positive (up to an impact the model follows the records, so it stands at the stop there). A candidate's held-out chi-square is its evaluation on the held-out
 //      parts (their starts, offsets and hum fitted, the model held), from the motion continued from the
 //      fit parts: the state the model reaches at the end of each record's fit part.
 //   5. Choice: as diagnose.h step 5, the same rules and numbers (diagnose/selection.h).
@@ -93,9 +99,8 @@ struct BroadbandDiagnosis {
 };
 
 // Step 1's parts: each broadband record's first part (fit) and its last 1 / heldout_every (held out), as
-// records of their own ("NAME (fit part)", "NAME (held-out part)"), in the campaign's order; where all of
-// a record's impacts (RecordImpacts) fall in its last part, its first 1 / heldout_every is held out
-// instead, so that the fit parts show the stop. Stepped-sine records are left out (a warning each, when
+// records of their own ("NAME (fit part)", "NAME (held-out part)"), in the campaign's order; which end is
+// held out as step 1 says, by the record's impacts (RecordImpacts). Stepped-sine records are left out (a warning each, when
 // `warnings` is given). Throws InputError naming a record too short to hold out 256 samples, or
 // "records" when none is broadband.
 struct BroadbandParts {
