@@ -48,10 +48,6 @@ std::string ContentTypeOf(const std::string& name) {
   return "text/plain; charset=utf-8";
 }
 
-}  // namespace
-
-namespace {
-
 // A report's files (`write` into a scratch directory, then `files` read back) as result rows. They are
 // UTF-8 text (an HTML page, CSV tables, the model file), stored as JSON strings.
 std::vector<ResultRow> ReportRows(const std::function<void(const fs::path&)>& write, const std::vector<std::string>& files) {

@@ -33,19 +33,6 @@ std::vector<BroadbandRecordMatch> BroadbandMatchesIn(const json& object, const c
   });
 }
 
-json BroadbandUnexplainedOut(const std::optional<BroadbandUnexplained>& u) {
-  if (!u) return nullptr;
-  json places = json::array();
-  for (const BroadbandUnexplained::Place& p : u->places)
-    places.push_back({{"record", p.record}, {"chi2_per_sample", JsonNumber(p.chi2_per_sample)},
-                      {"peak_frequency_hz", JsonNumber(p.peak_frequency_hz)},
-                      {"near_contact_share", JsonNumber(p.near_contact_share)},
-                      {"contact_time_share", JsonNumber(p.contact_time_share)}});
-  return {{"parts", u->parts}, {"chi2", JsonNumber(u->chi2)}, {"dof", JsonNumber(u->dof)},
-          {"threshold_chi2", JsonNumber(u->threshold_chi2)}, {"misfit_to_noise", JsonNumber(u->misfit_to_noise)},
-          {"places", places}, {"description", u->description}};
-}
-
 std::optional<BroadbandUnexplained> BroadbandUnexplainedIn(const json& object, const char* key, const std::string& at) {
   const json& v = Member(object, key, at);
   if (v.is_null()) return std::nullopt;
@@ -102,7 +89,7 @@ json BroadbandDiagnosisDataToJson(const BroadbandDiagnosis& d, const DiagnosisMa
                     {"chosen", d.chosen},
                     {"model", ModelToJson(d.model)},
                     {"model_note", d.model_note},
-                    {"unexplained", BroadbandUnexplainedOut(d.unexplained)},
+                    {"unexplained", BroadbandUnexplainedToJson(d.unexplained)},
                     {"curves", CurvesToJson(d.curves)},
                     {"conclusion", d.conclusion},
                     {"warnings", d.warnings},

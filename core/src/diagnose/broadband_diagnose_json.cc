@@ -1,4 +1,4 @@
-// BroadbandDiagnosisToJson (diagnose/broadband_diagnose.h).
+// BroadbandDiagnosisToJson and BroadbandUnexplainedToJson (diagnose/broadband_diagnose.h).
 #include <utility>
 
 #include <nlohmann/json.hpp>
@@ -9,9 +9,8 @@
 #include "strokelab/model/model_json.h"
 
 namespace strokelab {
-namespace {
 
-nlohmann::json UnexplainedJson(const std::optional<BroadbandUnexplained>& u) {
+nlohmann::json BroadbandUnexplainedToJson(const std::optional<BroadbandUnexplained>& u) {
   if (!u) return nullptr;
   nlohmann::json places = nlohmann::json::array();
   for (const BroadbandUnexplained::Place& p : u->places)
@@ -29,8 +28,6 @@ nlohmann::json UnexplainedJson(const std::optional<BroadbandUnexplained>& u) {
           {"description", u->description}};
 }
 
-}  // namespace
-
 nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& d) {
   return BroadbandDiagnosisToJson(d, BroadbandCampaignFitToJson(d.base));
 }
@@ -40,7 +37,7 @@ nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& d, nlohmann::j
   out["kind"] = "broadband";
   out["conclusion"] = d.conclusion;
   out["missing_physics"] = internal::MissingPhysicsJson(d.candidates, d.chosen, d.missing_physics, d.evidence);
-  out["unexplained"] = UnexplainedJson(d.unexplained);
+  out["unexplained"] = BroadbandUnexplainedToJson(d.unexplained);
   out["curves"] = CurvesToJson(d.curves);
   out["model"] = ModelToJson(d.model);
   out["model_note"] = d.model_note;

@@ -127,6 +127,8 @@ int BroadbandDiagnosisProgressStages(const DiagnoseOptions& options);
 // base (BroadbandCampaignFitToJson), evidence, candidates, records (before and after), unexplained
 // (null or its figures), curves, conclusion, warnings, seconds.
 nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& diagnosis);
+// Its "unexplained": null, or the figures, the places and the description.
+nlohmann::json BroadbandUnexplainedToJson(const std::optional<BroadbandUnexplained>& unexplained);
 // The same with `base_fit` as its "base": the document of a base fit that came as data
 // (report/diagnosis_data.h), where the diagnosis holds only part of its base fit.
 nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& diagnosis, nlohmann::json base_fit);
