@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "quiet_multisines.h"
 #include "report_test_util.h"
 #include "strokelab/data/synth.h"
 #include "strokelab/model/model_json.h"
@@ -250,15 +251,7 @@ TEST(BroadbandDiagnosisDataTest, TheReportFromDataIsTheReportFromTheDiagnosis) {
 
 // A diagnosis of real records (the paper model's quiet multisines: nothing missing) with its maps.
 TEST(BroadbandDiagnosisDataTest, ADiagnosisOfRecordsComesBackWhole) {
-  SynthOptions o;
-  o.excitation = Excitation::kMultisine;
-  o.levels_v_rms = {0.05, 0.1};
-  o.duration_s = 0.5;
-  o.settle_s = 1.0;
-  o.sample_rate_hz = 4096.0;
-  o.noise_rms_v = 2e-4;
-  o.seed = 13;
-  const Campaign campaign = Synthesize(PaperModel(), o).campaign;
+  const Campaign campaign = ::strokelab::testing::QuietMultisines(13).campaign;
   DiagnoseOptions options;
   options.map_frequency_points = 4;
   options.map_amplitude_points = 3;

@@ -29,6 +29,7 @@
 #include "campaign_upload.h"
 #include "ustar.h"
 #include "zip_writer.h"
+#include "quiet_multisines.h"
 #include "small_campaign.h"
 #include "test_tokens.h"
 
@@ -42,6 +43,7 @@ using nlohmann::json;
 using ::strokelab::testing::kReadToken;
 using ::strokelab::testing::kSubmitToken;
 using ::strokelab::testing::kWorkerToken;
+using ::strokelab::testing::QuietMultisines;
 
 // Parameters of the service's fit and of the direct fit agree to this relative difference: the same
 // files, options and code (dimensionless; the fit runs Ceres on one thread per record set).
@@ -642,19 +644,6 @@ TEST_F(CampaignJobsTest, AFitThatDidNotConvergeSucceedsWithAWarning) {
 // parameters, the fitted model as a download, and no warnings for fits the records accept.
 // The multisines stay clear of the stop (two short quiet records: their fits take seconds under ASan,
 // where records with impacts take minutes); campaign-a's stepped sines reach it.
-// Two short multisines of the paper model that stay clear of the stop (0.05 and 0.1 V rms, 0.5 s at 4096 Hz).
-Synthesis QuietMultisines(uint64_t seed) {
-  SynthOptions o;
-  o.excitation = Excitation::kMultisine;
-  o.levels_v_rms = {0.05, 0.1};
-  o.duration_s = 0.5;
-  o.settle_s = 1.0;
-  o.sample_rate_hz = 4096.0;
-  o.noise_rms_v = 2e-4;
-  o.seed = seed;
-  return Synthesize(PaperModel(), o);
-}
-
 TEST_F(CampaignJobsTest, BroadbandAndMixedCampaignsAreFitted) {
   Synthesis broadband = QuietMultisines(13);
   for (Recording& r : broadband.campaign.records) r.name = "bb_" + r.name;
