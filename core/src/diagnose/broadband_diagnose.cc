@@ -28,7 +28,6 @@ using internal::BroadbandRecordFit;
 using internal::EffectContext;
 using internal::ExtendedProblem;
 using internal::FormatFigure;
-constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr size_t kMinHeldOutSamples = 256;  // a held-out part long enough for its start, offset and hum
 constexpr int kCandidateIterationsPerFitIteration = 4;  // a candidate's iterations per options.fit.max_iterations
 constexpr double kBeyondNoiseP = 1e-3;      // the open-world test's level (as FitBroadband's rejection)

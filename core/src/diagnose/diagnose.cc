@@ -24,7 +24,6 @@ using internal::EffectContext;
 using internal::ExtendedFitOptions;
 using internal::ExtendedFitResult;
 using internal::ExtendedProblem;
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // Grid points per axis of the report's maps: a smooth model's sweep costs ~0.1 s per point today.
 constexpr int kMaxMapPoints = 400;
 

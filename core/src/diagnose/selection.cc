@@ -7,11 +7,11 @@
 #include <sstream>
 
 #include "diagnose_internal.h"
+#include "strokelab/base/nan.h"
 
 namespace strokelab::internal {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kAkaikePerParameter = 2.0;  // AIC: 2 per parameter on the fit records
 
 std::string Format(double value, int digits = 4) {

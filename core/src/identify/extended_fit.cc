@@ -16,6 +16,7 @@
 #include "step_callback.h"
 #include "strokelab/base/chi_square.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/nan.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/steady/steady_state.h"
 
@@ -23,7 +24,6 @@ namespace strokelab::internal {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // A fit's chi-square beyond this upper-tail probability of chi-square(M - P): the records reject the
 // model (its residuals are not noise), so its passes may stop once they stop converging.
 constexpr double kBeyondNoiseP = 1e-3;

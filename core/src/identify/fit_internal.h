@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "strokelab/base/nan.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/model/model.h"
 
@@ -25,7 +26,6 @@ namespace strokelab::fit_internal {
 using Complex = std::complex<double>;
 inline constexpr double kTwoPi = 2.0 * std::numbers::pi;
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // A number in a message, as operator<< writes it (6 significant digits).
 inline std::string Format(double value) {
