@@ -5,7 +5,6 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
-#include <Eigen/SparseQR>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,6 +21,7 @@
 #include "strokelab/engines/variational_flow.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/identify/fit_orbit.h"
+#include "strokelab/identify/sparse_covariance.h"
 
 namespace strokelab::internal {
 namespace {
@@ -346,40 +346,12 @@ void SegmentSeries(const ActuatorModel& model, ResponseKind kind, const RecordDa
   }
 }
 
-// (J^T J)^-1 restricted to the first p columns, from the whole sparse Jacobian (the segments' states
-// and the nuisance parameters eliminated), by a sparse QR of J: J P = Q R, (J^T J)^-1 = P R^-1 R^-T P^T,
-// applied to the p unit vectors. Not the normal equations: the continuity rows weigh 1e6 times the
-// samples', and the normal equations would square J's condition number. Empty when J is rank deficient.
+// (J^T J)^-1 of the model's parameters, the first p unknowns (LeadingCovariance).
 std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int p) {
-  Eigen::SparseMatrix<double> j(crs.num_rows, crs.num_cols);
-  std::vector<Eigen::Triplet<double>> entries;
-  for (int r = 0; r < crs.num_rows; ++r)
-    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) entries.emplace_back(r, crs.cols[k], crs.values[k]);
-  j.setFromTriplets(entries.begin(), entries.end());
-  // Columns scaled to unit norm (J D): the rank decision then does not depend on each unknown's units.
-  Eigen::VectorXd column_scale(crs.num_cols);
-  for (int c = 0; c < crs.num_cols; ++c) {
-    const double norm = j.col(c).norm();
-    column_scale(c) = norm > 0 ? 1.0 / norm : 1.0;
-  }
-  j = j * column_scale.asDiagonal();
-  j.makeCompressed();
-  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr;
-  qr.compute(j);
-  if (qr.info() != Eigen::Success || qr.rank() < crs.num_cols) return std::nullopt;
-  const Eigen::SparseMatrix<double> r = qr.matrixR().topLeftCorner(crs.num_cols, crs.num_cols);
-  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(crs.num_cols, p);
-  for (int i = 0; i < p; ++i) unit(i, i) = 1.0;
-  const Eigen::MatrixXd permuted = qr.colsPermutation().transpose() * unit;
-  const Eigen::MatrixXd z = r.transpose().triangularView<Eigen::Lower>().solve(permuted);
-  const Eigen::MatrixXd w = r.triangularView<Eigen::Upper>().solve(z);
-  const Eigen::MatrixXd x = qr.colsPermutation() * w;
-  const Eigen::MatrixXd block =
-      column_scale.head(p).asDiagonal() * x.topRows(p) * column_scale.head(p).asDiagonal();  // D (.) D
-  if (!block.allFinite()) return std::nullopt;
-  for (int i = 0; i < p; ++i)
-    if (!(block(i, i) > 0.0)) return std::nullopt;
-  return block;
+  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>> j(
+      crs.num_rows, crs.num_cols, static_cast<Eigen::Index>(crs.values.size()), crs.rows.data(), crs.cols.data(),
+      crs.values.data());
+  return LeadingCovariance(j, p);
 }
 
 }  // namespace
