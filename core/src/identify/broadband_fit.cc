@@ -34,6 +34,11 @@ constexpr double kContinuityGaps[] = {1e-2, 1e-4, 1e-6};
 constexpr double kMainsHz[] = {50.0, 60.0};
 // Per record: the response's offset, then sin and cos of each mains order.
 constexpr int kNuisance = 1 + 2 * 2 * kHumOrders;
+// ImpactOnsetsM: an impact counts when at least kOnsetQuietS without one precede it (enough samples
+// to fit the two start components to, about a tenth of the natural period), and the start is fitted
+// to at most kOnsetWindowS before it (about one natural period of the paper's actuator, 9.5 Hz).
+constexpr double kOnsetQuietS = 0.01;
+constexpr double kOnsetWindowS = 0.1;
 // A joint fit with stepped-sine records: at most this many solves at the final continuity weight, each
 // with the sampling corrections refreshed (extended_fit.h's passes).
 constexpr int kJointPasses = 8;
@@ -93,6 +98,36 @@ double ResponseSlope(const FlowResult& flow, ResponseKind kind, const ActuatorMo
     case ResponseKind::kDisplacement: return s[0];
   }
   return kNaN;
+}
+
+// Each record's drive, noise level and impacts, and its segments appended to *segments. Throws
+// InputError naming a record that is not broadband, too short or not finite.
+std::vector<RecordData> RecordsData(std::span<const Recording* const> records, const BroadbandFitOptions& options,
+                                    std::vector<Segment>* segments) {
+  std::vector<RecordData> data(records.size());
+  for (size_t r = 0; r < records.size(); ++r) {
+    const Recording& rec = *records[r];
+    if (!rec.broadband) throw InputError(rec.name, "is a stepped-sine record: fit it with the stepped-sine fit");
+    if (rec.size() < 16 || rec.response.size() != rec.size())
+      throw InputError(rec.name, "needs at least 16 samples in both channels");
+    for (size_t n = 0; n < rec.size(); ++n)
+      if (!std::isfinite(rec.voltage_v[n]) || !std::isfinite(rec.response[n]))
+        throw InputError(rec.name, "sample " + std::to_string(n) + " is not finite");
+    data[r].record = &rec;
+    data[r].drive = SampledDrive{rec.sample_rate_hz, rec.voltage_v};
+    data[r].sigma = options.noise.empty() ? ResponseNoiseRms(rec.response) : options.noise[r].rms;
+    data[r].impact = ImpactSamples(rec.response, data[r].sigma);
+    const std::vector<size_t> firsts = SegmentFirsts(rec.size(), rec.sample_rate_hz, options.segment_s);
+    for (size_t k = 0; k < firsts.size(); ++k) {
+      Segment s;
+      s.record = r;
+      s.first = firsts[k];
+      s.last = k + 1 == firsts.size();
+      s.end = s.last ? rec.size() : firsts[k + 1];
+      segments->push_back(s);
+    }
+  }
+  return data;
 }
 
 // One segment's residuals: its samples, then (unless last) the continuity gap to the next segment's
@@ -235,43 +270,58 @@ void FitStartOver(const ExtendedProblem& problem, ResponseKind kind, const Recor
   ceres::Solve(options, &local, &summary);
 }
 
-// Each segment's start state at the start model, segment after segment from the previous segment's
-// end (rest for the first). Over a record's impacts the misfit is no bowl around the recorded state: a
-// start whose motion grazes the stop where the record does not (or misses an impact it shows) sits in
-// a valley of its own, since an impact's residuals do not change with the start until the motion
-// reaches the stop. So the start is first fitted to the samples before the segment's first impact with
-// the stops taken away (the motion is then smooth in the start, and for a model that is linear
-// without its stops, linear in it: one Gauss-Newton step), over windows that double from 16 samples;
-// then to the whole segment with the full model.
-void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const RecordData& data,
-                      const std::vector<Segment>& segments, size_t record, const StateScale& scale, int d,
-                      std::vector<double>& theta, std::vector<double>& nuisance,
-                      std::vector<std::vector<double>>* starts) {
-  const ActuatorModel model = problem.Decode(theta.data());
+// `model` without its stops, all its parameters held (theta = {1}).
+ExtendedProblem StopFree(const ActuatorModel& model) {
   ExtendedProblem stop_free;
   stop_free.base = model;
   stop_free.base.lower_stop_m = ActuatorModel::kNoLowerStop;
   stop_free.base.upper_stop_m = ActuatorModel::kNoUpperStop;
   stop_free.parameters = {HeldStiffness(model)};
+  return stop_free;
+}
+
+// The start state (scaled, from *start) of `stop_free` (StopFree) that fits samples [part.first,
+// part.end), over windows that double from 16 samples: the motion is smooth in the start, and for a
+// model that is linear without its stops, linear in it (one Gauss-Newton step per window). Fewer than
+// 16 samples leave *start as it is.
+void FitStopFreeStart(const ExtendedProblem& stop_free, ResponseKind kind, const RecordData& data, const Segment& part,
+                      const StateScale& scale, int d, std::vector<double>& nuisance, std::vector<double>* start) {
   std::vector<double> held_theta = {1.0};
+  const size_t length = part.end - part.first;
+  for (size_t window = 16; window <= length; window = window == length ? length + 1 : std::min(2 * window, length)) {
+    Segment prefix = part;
+    prefix.end = prefix.first + window;
+    FitStartOver(stop_free, kind, data, prefix, scale, d, held_theta, nuisance, start);
+  }
+}
+
+// Each segment's start state at the start model, segment after segment from the previous segment's
+// end (rest for the first). Over a record's impacts the misfit is no bowl around the recorded state: a
+// start whose motion grazes the stop where the record does not (or misses an impact it shows) sits in
+// a valley of its own, since an impact's residuals do not change with the start until the motion
+// reaches the stop. So the start is first fitted to the samples before the segment's first impact with
+// the stops taken away (FitStopFreeStart), then to the whole segment with the full model.
+void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const RecordData& data,
+                      const std::vector<Segment>& segments, size_t record, const StateScale& scale, int d,
+                      std::vector<double>& theta, std::vector<double>& nuisance,
+                      std::vector<std::vector<double>>* starts) {
+  const ActuatorModel model = problem.Decode(theta.data());
+  const ExtendedProblem stop_free = StopFree(model);
   const double fs = data.record->sample_rate_hz;
   std::vector<double> guess(d, 0.0);
   for (size_t s = 0; s < segments.size(); ++s) {
     if (segments[s].record != record) continue;
     std::vector<double>& start = (*starts)[s];
     start = guess;
-    const size_t length = segments[s].end - segments[s].first;
-    size_t smooth = length;  // samples before the first impact
+    size_t smooth = segments[s].end - segments[s].first;  // samples before the first impact
     for (size_t n = segments[s].first; n < segments[s].end; ++n)
       if (data.impact[n]) {
         smooth = n - segments[s].first;
         break;
       }
-    for (size_t window = 16; window <= smooth; window = window == smooth ? smooth + 1 : std::min(2 * window, smooth)) {
-      Segment part = segments[s];
-      part.end = part.first + window;
-      FitStartOver(stop_free, kind, data, part, scale, d, held_theta, nuisance, &start);
-    }
+    Segment part = segments[s];
+    part.end = part.first + smooth;
+    FitStopFreeStart(stop_free, kind, data, part, scale, d, nuisance, &start);
     FitStartOver(problem, kind, data, segments[s], scale, d, theta, nuisance, &start);
     // The next guess: this segment's end from its fitted start.
     try {
@@ -398,6 +448,50 @@ std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
   return impact;
 }
 
+std::vector<double> ImpactOnsetsM(std::span<const Recording* const> records, ResponseKind kind,
+                                  const ActuatorModel& model, const BroadbandFitOptions& options) {
+  Validate(model);
+  std::vector<Segment> segments;
+  const std::vector<RecordData> data = RecordsData(records, options, &segments);
+  const ExtendedProblem stop_free = StopFree(model);
+  const StateScale scale(model);
+  const int d = model.StateSize();
+  std::vector<std::vector<double>> onsets(records.size());
+  ParallelFor(records.size(), [&](size_t r) {
+    const Recording& rec = *records[r];
+    const double fs = rec.sample_rate_hz;
+    const size_t longest = static_cast<size_t>(std::llround(kOnsetWindowS * fs));
+    const size_t shortest = static_cast<size_t>(std::llround(kOnsetQuietS * fs));
+    std::vector<double> nuisance(kNuisance, 0.0);
+    for (double v : rec.response) nuisance[0] += v;
+    nuisance[0] /= static_cast<double>(rec.size());
+    size_t quiet_from = 0;  // the first sample after the last impact
+    for (size_t n = 0; n < rec.size(); ++n) {
+      if (!data[r].impact[n]) continue;
+      const size_t quiet = n - quiet_from;
+      quiet_from = n + 1;
+      if (quiet < shortest) continue;
+      Segment window;
+      window.record = r;
+      window.first = n - std::min(quiet, longest);
+      window.end = n;
+      std::vector<double> start(d, 0.0);
+      FitStopFreeStart(stop_free, kind, data[r], window, scale, d, nuisance, &start);
+      // ImpactSamples marks 2 samples either side of each fourth difference that stands out: the first
+      // one's centre is 2 on.
+      const double onset_s = static_cast<double>(std::min(n + 2, rec.size() - 1)) / fs;
+      try {
+        onsets[r].push_back(
+            Flow(stop_free.base, data[r].drive, scale.Unscaled(start.data(), d), window.T0(fs), onset_s, {}).end.x_m);
+      } catch (const std::exception&) {  // a flow that fails: no onset from this window
+      }
+    }
+  });
+  std::vector<double> out;
+  for (const std::vector<double>& o : onsets) out.insert(out.end(), o.begin(), o.end());
+  return out;
+}
+
 BroadbandFitResult FitBroadband(std::span<const Recording* const> records, ResponseKind kind,
                                 const ExtendedProblem& requested, const BroadbandFitOptions& options) {
   const auto clock_start = std::chrono::steady_clock::now();
@@ -427,30 +521,8 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   const StateScale scale(start_model);
 
   // Records, their drives, noise levels and segments.
-  std::vector<RecordData> data(records.size());
   std::vector<Segment> segments;
-  for (size_t r = 0; r < records.size(); ++r) {
-    const Recording& rec = *records[r];
-    if (!rec.broadband) throw InputError(rec.name, "is a stepped-sine record: fit it with the stepped-sine fit");
-    if (rec.size() < 16 || rec.response.size() != rec.size())
-      throw InputError(rec.name, "needs at least 16 samples in both channels");
-    for (size_t n = 0; n < rec.size(); ++n)
-      if (!std::isfinite(rec.voltage_v[n]) || !std::isfinite(rec.response[n]))
-        throw InputError(rec.name, "sample " + std::to_string(n) + " is not finite");
-    data[r].record = &rec;
-    data[r].drive = SampledDrive{rec.sample_rate_hz, rec.voltage_v};
-    data[r].sigma = options.noise.empty() ? ResponseNoiseRms(rec.response) : options.noise[r].rms;
-    data[r].impact = ImpactSamples(rec.response, data[r].sigma);
-    const std::vector<size_t> firsts = SegmentFirsts(rec.size(), rec.sample_rate_hz, options.segment_s);
-    for (size_t k = 0; k < firsts.size(); ++k) {
-      Segment s;
-      s.record = r;
-      s.first = firsts[k];
-      s.last = k + 1 == firsts.size();
-      s.end = s.last ? rec.size() : firsts[k + 1];
-      segments.push_back(s);
-    }
-  }
+  const std::vector<RecordData> data = RecordsData(records, options, &segments);
 
   // Unknowns: theta, each segment's scaled start state, each record's nuisance.
   std::vector<std::vector<double>> starts(segments.size(), std::vector<double>(d, 0.0));

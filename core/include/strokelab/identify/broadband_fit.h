@@ -125,6 +125,16 @@ double ResponseNoiseRms(std::span<const double> response);
 // for white noise of rms sigma) by more than 8 standard deviations, and the two samples either side.
 std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
 
+// Where the records' impacts set in, as `model` without its stops sees them: for each impact after at
+// least 10 ms without one, the displacement [m] of the stop-free model at the centre of the first
+// fourth difference that stands out (ImpactSamples), its start state fitted to the samples before the
+// impact (up to 0.1 s of them; the offset at the record's mean, no hum). Up to an impact the model
+// follows the record, so at its onset it stands at the stop: negative values tell the lower stop's
+// position, positive ones an upper stop's. Records in order, each's impacts in time. Throws InputError
+// as FitBroadband on a bad record, or on a bad model.
+std::vector<double> ImpactOnsetsM(std::span<const Recording* const> records, ResponseKind kind,
+                                  const ActuatorModel& model, const BroadbandFitOptions& options = {});
+
 // The first sample of each shooting segment of a record of `samples` (segments of segment_s; the last
 // ends at the record's end and takes a tail shorter than half a segment).
 std::vector<size_t> SegmentFirsts(size_t samples, double sample_rate_hz, double segment_s);
