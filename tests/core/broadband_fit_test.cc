@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -231,18 +232,21 @@ TEST(BroadbandFit, AFitThatMissesHardImpactsSaysSo) {
   }
 }
 
-// Where the impacts set in (ImpactOnsetsM), from the paper's model itself: the stop-free motion at each
-// onset stands at the stop, -d, within the sampling (at 8,192 Hz an impact at 0.1 m/s moves 12 um, 1.2 %
-// of d, per sample); a record that never reaches the stop has no onset.
+// Where the impacts set in (ImpactOnsetsM), from the paper's model itself: their median, where the
+// campaign fit starts d, within 0.5 % of the stop (hard impacts leave a valley in d about 1 % wide), and
+// each within 2 % (the stop-free start is fitted to at most 0.1 s of force samples, in which a start 10 um
+// off in x changes the force by a fifth of the noise); a record that never reaches the stop has none.
 TEST(BroadbandFit, ImpactOnsetsAreWhereTheStopIs) {
   const ActuatorModel truth = PaperModel();
   const Synthesis synthesis = MultisineCampaign(truth, {0.05, 0.6, 1.0}, 45);
   const std::vector<const Recording*> records = Pointers(synthesis.campaign);
   const std::vector<const Recording*> quiet = {records[0]};
   EXPECT_TRUE(internal::ImpactOnsetsM(quiet, ResponseKind::kForce, truth).empty());
-  const std::vector<double> onsets = internal::ImpactOnsetsM(records, ResponseKind::kForce, truth);
-  EXPECT_GE(onsets.size(), 3u);
-  for (double x : onsets) EXPECT_NEAR(x, truth.lower_stop_m, 0.012 * std::abs(truth.lower_stop_m));
+  std::vector<double> onsets = internal::ImpactOnsetsM(records, ResponseKind::kForce, truth);
+  ASSERT_GE(onsets.size(), 3u);
+  for (double x : onsets) EXPECT_NEAR(x, truth.lower_stop_m, 0.02 * std::abs(truth.lower_stop_m));
+  std::nth_element(onsets.begin(), onsets.begin() + static_cast<long>(onsets.size() / 2), onsets.end());
+  EXPECT_NEAR(onsets[onsets.size() / 2], truth.lower_stop_m, 0.005 * std::abs(truth.lower_stop_m));
 }
 
 // At 0.05 V rms the mass never reaches the stop: k_s has no effect on these records, and the fit says

@@ -39,6 +39,13 @@ constexpr int kNuisance = 1 + 2 * 2 * kHumOrders;
 // to at most kOnsetWindowS before it (about one natural period of the paper's actuator, 9.5 Hz).
 constexpr double kOnsetQuietS = 0.01;
 constexpr double kOnsetWindowS = 0.1;
+// An onset's stop is matched to the samples from kOnsetBefore before the impact's first mark to
+// kOnsetAfter after it (the first mark is up to 4 samples before the contact; a linear contact at the
+// data sheet's k_s lasts 0.5 ms, 4 samples at 8,192 Hz), over a grid of kOnsetGrid steps, then
+// kOnsetSections golden sections (0.618^30 = 5e-7 of a step).
+constexpr size_t kOnsetBefore = 4, kOnsetAfter = 12;
+constexpr int kOnsetGrid = 32;
+constexpr int kOnsetSections = 30;
 // A joint fit with stepped-sine records: at most this many solves at the final continuity weight, each
 // with the sampling corrections refreshed (extended_fit.h's passes).
 constexpr int kJointPasses = 8;
@@ -448,6 +455,100 @@ std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
   return impact;
 }
 
+namespace {
+
+// The response's misfit over samples [first, end) of `model` flowed from `at`, the state at sample
+// first (offset only).
+double SampleMisfit(const ActuatorModel& model, ResponseKind kind, const RecordData& data, double offset, size_t first,
+                    size_t end, const State& at) {
+  const double fs = data.record->sample_rate_hz;
+  FlowRequest request;
+  request.sample_count = static_cast<int>(end - first);
+  request.sample_start_s = static_cast<double>(first) / fs;
+  request.sample_interval_s = 1.0 / fs;
+  const FlowResult flow = Flow(model, data.drive, at, static_cast<double>(first) / fs, static_cast<double>(end - 1) / fs, request);
+  double sum = 0.0;
+  for (size_t i = 0; i < end - first; ++i) {
+    const double e = data.record->response[first + i] - offset - ResponseOf(kind, model.mass_kg, flow.samples[i], flow.sample_force_n[i]);
+    sum += e * e;
+  }
+  return sum;
+}
+
+// The stop position the impact at sample n (ImpactSamples' first mark) tells, as ImpactOnsetsM says:
+// `start` is the stop-free start state fitted over `window` (ending at n).
+double OnsetOf(const ActuatorModel& model, ResponseKind kind, const RecordData& data, double offset,
+               const Segment& window, size_t n, const State& start) {
+  const double fs = data.record->sample_rate_hz;
+  ActuatorModel stop_free = model;
+  stop_free.lower_stop_m = ActuatorModel::kNoLowerStop;
+  stop_free.upper_stop_m = ActuatorModel::kNoUpperStop;
+  const size_t first = n - kOnsetBefore, end = n + kOnsetAfter;
+  FlowRequest request;
+  request.sample_count = static_cast<int>(end - first);
+  request.sample_start_s = static_cast<double>(first) / fs;
+  request.sample_interval_s = 1.0 / fs;
+  const FlowResult flow = Flow(stop_free, data.drive, start, window.T0(fs), static_cast<double>(end - 1) / fs, request);
+  // ImpactSamples marks 2 samples either side of each fourth difference that stands out: the first
+  // one's centre is 2 on.
+  const double centre = flow.samples[kOnsetBefore + 2].x_m;
+  const bool lower = centre < 0;
+  double low = flow.samples[0].x_m, high = low;
+  for (const State& y : flow.samples) {
+    low = std::min(low, y.x_m);
+    high = std::max(high, y.x_m);
+  }
+  if (lower) high = flow.samples[0].x_m;
+  else low = flow.samples[0].x_m;
+  auto misfit = [&](double stop_m) {
+    ActuatorModel m = stop_free;
+    (lower ? m.lower_stop_m : m.upper_stop_m) = stop_m;
+    try {
+      return SampleMisfit(m, kind, data, offset, first, end, flow.samples[0]);
+    } catch (const std::exception&) {
+      return kInf;
+    }
+  };
+  // The best of a grid over the bracket (the misfit need not have one minimum there: a bounce, or a
+  // contact lined up with a later spike), then golden-section search between the grid point's neighbours
+  // (Kiefer 1953; Press et al., "Numerical Recipes", 3rd ed., Sec. 10.2).
+  const double step = (high - low) / kOnsetGrid;
+  int best_point = 0;
+  double best_misfit = kInf;
+  for (int i = 0; i <= kOnsetGrid; ++i) {
+    const double f = misfit(low + i * step);
+    if (f < best_misfit) {
+      best_misfit = f;
+      best_point = i;
+    }
+  }
+  const double ratio = (std::sqrt(5.0) - 1.0) / 2.0;
+  double a = low + std::max(best_point - 1, 0) * step, b = low + std::min(best_point + 1, kOnsetGrid) * step;
+  double c = b - ratio * (b - a), e = a + ratio * (b - a);
+  double fc = misfit(c), fe = misfit(e);
+  for (int i = 0; i < kOnsetSections; ++i) {
+    if (fc < fe) {  // the minimum lies in [a, e]
+      b = e;
+      e = c;
+      fe = fc;
+      c = b - ratio * (b - a);
+      fc = misfit(c);
+    } else {  // in [c, b]
+      a = c;
+      c = e;
+      fc = fe;
+      e = a + ratio * (b - a);
+      fe = misfit(e);
+    }
+  }
+  const double best = 0.5 * (a + b);
+  // At the bracket's end the contact set in outside it: the centre stands.
+  if (std::abs(best - low) < 1e-3 * (high - low) || std::abs(best - high) < 1e-3 * (high - low)) return centre;
+  return best;
+}
+
+}  // namespace
+
 std::vector<double> ImpactOnsetsM(std::span<const Recording* const> records, ResponseKind kind,
                                   const ActuatorModel& model, const BroadbandFitOptions& options) {
   Validate(model);
@@ -470,19 +571,16 @@ std::vector<double> ImpactOnsetsM(std::span<const Recording* const> records, Res
       if (!data[r].impact[n]) continue;
       const size_t quiet = n - quiet_from;
       quiet_from = n + 1;
-      if (quiet < shortest) continue;
+      if (quiet < std::max(shortest, kOnsetBefore + 16)) continue;
       Segment window;
       window.record = r;
       window.first = n - std::min(quiet, longest);
       window.end = n;
+      if (n + kOnsetAfter >= rec.size()) break;
       std::vector<double> start(d, 0.0);
       FitStopFreeStart(stop_free, kind, data[r], window, scale, d, nuisance, &start);
-      // ImpactSamples marks 2 samples either side of each fourth difference that stands out: the first
-      // one's centre is 2 on.
-      const double onset_s = static_cast<double>(std::min(n + 2, rec.size() - 1)) / fs;
       try {
-        onsets[r].push_back(
-            Flow(stop_free.base, data[r].drive, scale.Unscaled(start.data(), d), window.T0(fs), onset_s, {}).end.x_m);
+        onsets[r].push_back(OnsetOf(model, kind, data[r], nuisance[0], window, n, scale.Unscaled(start.data(), d)));
       } catch (const std::exception&) {  // a flow that fails: no onset from this window
       }
     }

@@ -126,12 +126,15 @@ double ResponseNoiseRms(std::span<const double> response);
 std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
 
 // Where the records' impacts set in, as `model` without its stops sees them: for each impact after at
-// least 10 ms without one, the displacement [m] of the stop-free model at the centre of the first
-// fourth difference that stands out (ImpactSamples), its start state fitted to the samples before the
-// impact (up to 0.1 s of them; the offset at the record's mean, no hum). Up to an impact the model
-// follows the record, so at its onset it stands at the stop: negative values tell the lower stop's
-// position, positive ones an upper stop's. Records in order, each's impacts in time. Throws InputError
-// as FitBroadband on a bad record, or on a bad model.
+// least 10 ms without one, a stop position [m]. The stop-free model's start is fitted to the samples
+// before the impact (up to 0.1 s of them; the offset at the record's mean, no hum): up to an impact the
+// model follows the record. Then the position where a stop (on the side the motion is, with `model`'s
+// contact law and stiffness) makes the model's flow from that start best match the 16 samples from 4
+// before the impact's first mark (ImpactSamples): the best of a grid over where the stop-free motion
+// passes in those samples, refined by golden-section search; where that lands on the grid's end, the
+// stop-free displacement at the first fourth difference that stands out. Negative values tell the lower
+// stop's position, positive ones an upper stop's. Records in order, each's impacts in time. Throws
+// InputError as FitBroadband on a bad record, or on a bad model.
 std::vector<double> ImpactOnsetsM(std::span<const Recording* const> records, ResponseKind kind,
                                   const ActuatorModel& model, const BroadbandFitOptions& options = {});
 
