@@ -31,9 +31,10 @@ errors. With a nominal sensitivity only ratios are reported.
 
 A campaign of broadband records (noise, multisine, sweep) is fitted by its time series instead: the
 model driven by the measured voltage, in segments whose start states are unknowns (multiple shooting),
-from paper Eq. 3 fitted to the quietest record's FRF; the stop's d and k_s are fitted where a record
-shows impacts. Records with hard impacts can end away from the optimum: the report then says the
-records reject the fit. A campaign of both kinds is fitted jointly: its stepped sines alone first, then
+from paper Eq. 3 fitted to the quietest record's FRF, then to the time series of the records without
+impacts; the stop's d and k_s are fitted where a record shows impacts, d from where the impacts set in.
+A fit that still ends away from the optimum (records with hard impacts) is reported as rejected by the
+records. A campaign of both kinds is fitted jointly: its stepped sines alone first, then
 every parameter refined on all records at once (the stepped records' harmonics and the broadband
 records' time series in one least-squares problem).
 
@@ -154,7 +155,15 @@ void PrintBroadbandReport(const BroadbandCampaignFit& fit, std::ostream& out) {
   const FrfFitSummary& l = fit.linear_start;
   out << "\nstart: paper Eq. 3 on " << fit.start_record << "'s FRF: k_p " << General(l.stiffness_n_per_m, 6)
       << " N/m, c_p " << General(l.damping_n_s_per_m, 6) << " N s/m, g " << General(l.gain_n_per_v, 6) << " N/V"
-      << (l.converged ? "" : " (NOT CONVERGED)") << "\n\n";
+      << (l.converged ? "" : " (NOT CONVERGED)");
+  if (fit.linear_records > 0)
+    out << "; refined on " << fit.linear_records << " record" << (fit.linear_records > 1 ? "s" : "")
+        << " without impacts";
+  if (fit.stop_free)
+    out << "\nstop start: d " << General(fit.stop_start_m, 6) << " m, "
+        << (fit.impact_onsets > 0 ? "the median of " + std::to_string(fit.impact_onsets) + " impact onsets"
+                                  : std::string("the data sheet's"));
+  out << "\n\n";
   PrintBroadbandRecords(fit.result.records, out);
   if (!fit.warnings.empty() || !r.converged || fit.result.rejected) out << "\n" << r.report << "\n";
   for (const std::string& w : fit.warnings) out << "warning: " << w << "\n";

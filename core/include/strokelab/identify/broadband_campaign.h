@@ -5,14 +5,16 @@
 //      the record with the smallest drive (the least touched by the stop), S_yu / S_uu over one Hann
 //      window of the whole record, at the frequencies where the drive's power is within 20 dB of its
 //      largest; a kinematic response's FRF is first turned into the blocked force's
-//      (EquivalentForceFrf). Where that record shows no impact, k_p, c_p, g are then fitted to its time
-//      series with the stop taken away (a linear model: one valley).
+//      (EquivalentForceFrf). k_p, c_p, g are then fitted to time series with the stop taken away (a
+//      linear model: one valley): of every record that shows no impact where another record shows
+//      impacts, else (or where the records reject that fit) of the quietest record if it shows none.
 //   2. The stop (paper model): free only when a record shows impacts (fourth differences of the response,
 //      or of its differences for velocity and displacement, far out of their noise; broadband_fit.h);
-//      it starts at the data sheet's d and k_s (paper Table 2).
+//      d starts at the median of the linear model's displacement where the impacts set in below rest
+//      (ImpactOnsetsM; the data sheet's where none does), k_s at the data sheet's (paper Table 2).
 //   3. k_p, c_p, g, d (and k_s) fitted to every record's time series, m_p held at options.mass_kg. A fit
 //      the records reject (chi-square beyond its 1e-3 tail) is tried again from d 3 % and 6 % either
-//      side of the data sheet's; the first accepted, or the least chi-square, is the result.
+//      side of its start; the first accepted, or the least chi-square, is the result.
 #pragma once
 
 #include <nlohmann/json_fwd.hpp>
@@ -29,7 +31,10 @@ struct BroadbandCampaignFit {
   bool absolute_scale = true;
   FrfFitSummary linear_start;  // step 1
   std::string start_record;    // the record it came from
+  size_t linear_records = 0;   // step 1: records the linear part was refined on (0: not refined)
   bool stop_free = false;      // step 2: a record shows impacts
+  double stop_start_m = 0.0;   // step 2: d's start (lower_stop_m, below rest: negative) [m]
+  size_t impact_onsets = 0;    // step 2: the impact onsets it is the median of (0: the data sheet's)
   int starts_tried = 0;        // step 3: stop positions tried (more than one where the records reject a fit)
   internal::BroadbandFitResult result;
   std::vector<std::string> warnings;
@@ -64,7 +69,8 @@ std::vector<FitParameter> ReportedBroadbandParameters(const internal::ExtendedFi
 nlohmann::json BroadbandFitJson(const internal::BroadbandFitResult& fit, bool absolute_scale);
 
 // kind "broadband", model, response, absolute_scale, parameters (by name, FitParameterJson), converged,
-// rejected, report, chi2, residual_variance, residuals, iterations, linear_start, records, warnings, seconds.
+// rejected, report, chi2, residual_variance, residuals, iterations, linear_start, linear_records,
+// stop_fitted, stop_start_m, impact_onsets, starts_tried, records, warnings, seconds.
 nlohmann::json BroadbandCampaignFitToJson(const BroadbandCampaignFit& fit);
 
 }  // namespace strokelab
