@@ -238,9 +238,10 @@ TEST(BroadbandFit, AFitThatMissesHardImpactsSaysSo) {
 }
 
 // Where the impacts set in (ImpactOnsetsM), from the paper's model itself: their median, where the
-// campaign fit starts d, within 0.5 % of the stop (hard impacts leave a valley in d about 1 % wide), and
-// each within 2 % (the stop-free start is fitted to at most 0.1 s of force samples, in which a start 10 um
-// off in x changes the force by a fifth of the noise); a record that never reaches the stop has none.
+// campaign fit starts d, within 0.1 % of the stop (hard impacts leave a valley in d about 1 % wide), and
+// each within 2 % (after a short quiet gap the stop-free start is fitted to few samples, over which a
+// start 10 um off in x changes the force by a fifth of the noise); a record that never reaches the stop
+// has none.
 TEST(BroadbandFit, ImpactOnsetsAreWhereTheStopIs) {
   const ActuatorModel truth = PaperModel();
   const Synthesis synthesis = MultisineCampaign(truth, {0.05, 0.6, 1.0}, 45);
@@ -251,7 +252,7 @@ TEST(BroadbandFit, ImpactOnsetsAreWhereTheStopIs) {
   ASSERT_GE(onsets.size(), 3u);
   for (double x : onsets) EXPECT_NEAR(x, truth.lower_stop_m, 0.02 * std::abs(truth.lower_stop_m));
   std::nth_element(onsets.begin(), onsets.begin() + static_cast<long>(onsets.size() / 2), onsets.end());
-  EXPECT_NEAR(onsets[onsets.size() / 2], truth.lower_stop_m, 0.005 * std::abs(truth.lower_stop_m));
+  EXPECT_NEAR(onsets[onsets.size() / 2], truth.lower_stop_m, 0.001 * std::abs(truth.lower_stop_m));
 }
 
 // At 0.05 V rms the mass never reaches the stop: k_s has no effect on these records, and the fit says
@@ -290,9 +291,10 @@ TEST(BroadbandCampaignFit, AQuietCampaignIsFittedFromItsOwnStart) {
 }
 
 // Hard impacts (1.0 V rms, beside three records that show none; the paper's model perturbed, d by up to
-// 5 %): the misfit's valley in d is narrower than the data sheet's distance from the truth (3.4 % here,
+// 5 %): the misfit's valley in d is narrower than the data sheet's distance from the truth (3.5 % here,
 // from which the fit before needed three stop positions). The linear part refined on the three
-// impact-free records and the impacts' onsets put d's start within 1 % of the truth, and the first
+// impact-free records and the impacts' onsets put d's start at most half as far from the truth as the
+// data sheet's (0.9 % here: the onsets are matched with the data sheet's k_s, 4 % off), and the first
 // start's fit is accepted with every estimate within 4 standard errors.
 TEST(BroadbandCampaignFit, TheStopStartsWhereTheImpactsSetIn) {
   const Synthesis synthesis = MultisineCampaign(PaperModel(), {0.05, 0.1, 0.2, 1.0}, 9203,
@@ -302,7 +304,7 @@ TEST(BroadbandCampaignFit, TheStopStartsWhereTheImpactsSetIn) {
   EXPECT_TRUE(fit.stop_free);
   EXPECT_EQ(fit.linear_records, 3u);
   EXPECT_GE(fit.impact_onsets, 3u);
-  EXPECT_NEAR(fit.stop_start_m, truth.lower_stop_m, 0.01 * std::abs(truth.lower_stop_m));
+  EXPECT_LT(std::abs(fit.stop_start_m - truth.lower_stop_m), 0.5 * std::abs(PaperModel().lower_stop_m - truth.lower_stop_m));
   EXPECT_EQ(fit.starts_tried, 1);
   ASSERT_TRUE(fit.result.fit.converged && !fit.result.rejected) << fit.result.fit.report;
   const double truths[] = {truth.stiffness_n_per_m, truth.damping_n_s_per_m, truth.gain_n_per_v, truth.lower_stop_m,

@@ -94,13 +94,6 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
     out.warnings.push_back("the linear start (paper Eq. 3 on " + quiet->name + "'s FRF) did not converge: " +
                            out.linear_start.report);
 
-  // The linear part refined by the time series of records that show no impact, with the stop taken
-  // away (a linear model's fit has one valley): of every such record where some other record shows
-  // impacts, since the stop's start is then read off the linear model (step 2) and a few per cent in
-  // k_p put it outside the narrow valley hard impacts leave in d (on 11 records, 1.6 % off in k_p from
-  // the quietest alone, 0.01 % from the nine without impacts); else of the quietest alone, whose
-  // start the full fit then refines anyway. A joint refinement the records reject (an impact too
-  // soft to see, say) falls back to the quietest alone.
   const FrfFitSummary& l = out.linear_start;
   const bool linear_ok = l.converged && l.stiffness_n_per_m > 0 && l.damping_n_s_per_m > 0 && l.gain_n_per_v != 0;
   if (!linear_ok) out.warnings.push_back("the linear part starts at the data sheet's values (paper Table 2)");
@@ -122,6 +115,13 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
         LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, m.damping_n_s_per_m, 3.0),
         LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, m.gain_n_per_v, 3.0)};
   };
+  // The linear part refined by the time series of records that show no impact, with the stop taken
+  // away (a linear model's fit has one valley): of every such record where some other record shows
+  // impacts, since the stop's start is then read off the linear model (step 2) and a few per cent in
+  // k_p put it outside the narrow valley hard impacts leave in d (on 11 records, 1.6 % off in k_p from
+  // the quietest alone, 0.01 % from the nine without impacts); else of the quietest alone, whose
+  // start the full fit then refines anyway. A joint refinement the records reject (an impact too
+  // soft to see, say) falls back to the quietest alone.
   auto shows_impacts = [&](const Recording& r) {
     const std::vector<bool> impact = RecordImpacts(r, campaign.response);
     return std::find(impact.begin(), impact.end(), true) != impact.end();

@@ -127,7 +127,7 @@ std::vector<bool> ImpactSamples(std::span<const double> y, double sigma);
 
 // Where the records' impacts set in, as `model` without its stops sees them: for each impact after at
 // least 10 ms without one, a stop position [m]. The stop-free model's start is fitted to the samples
-// before the impact (up to 0.1 s of them; the offset at the record's mean, no hum): up to an impact the
+// before the impact (up to 0.5 s of them; the offset at the record's mean, no hum): up to an impact the
 // model follows the record. Then the position where a stop (on the side the motion is, with `model`'s
 // contact law and stiffness) makes the model's flow from that start best match the 16 samples from 4
 // before the impact's first mark (ImpactSamples): the best of a grid over where the stop-free motion
