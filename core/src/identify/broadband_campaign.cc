@@ -116,12 +116,12 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
         LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, m.gain_n_per_v, 3.0)};
   };
   // The linear part refined by the time series of records that show no impact, with the stop taken
-  // away (a linear model's fit has one valley): of every such record where some other record shows
-  // impacts, since the stop's start is then read off the linear model (step 2) and a few per cent in
-  // k_p put it outside the narrow valley hard impacts leave in d (on 11 records, 1.6 % off in k_p from
-  // the quietest alone, 0.01 % from the nine without impacts); else of the quietest alone, whose
-  // start the full fit then refines anyway. A joint refinement the records reject (an impact too
-  // soft to see, say) falls back to the quietest alone.
+  // away (a linear model's fit has one valley): of every such record where the model has a stop and
+  // some other record shows impacts, since the stop's start is then read off the linear model (step 2)
+  // and a few per cent in k_p put it outside the narrow valley hard impacts leave in d (on 11 records,
+  // 1.6 % off in k_p from the quietest alone, 0.01 % from the nine without impacts); else of the
+  // quietest alone, whose start the full fit then refines anyway. A joint refinement the records reject
+  // (an impact too soft to see, say) falls back to the quietest alone.
   auto shows_impacts = [&](const Recording& r) {
     const std::vector<bool> impact = RecordImpacts(r, campaign.response);
     return std::find(impact.begin(), impact.end(), true) != impact.end();
@@ -131,7 +131,8 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
     if (!shows_impacts(*r)) impact_free.push_back(r);
   const bool quiet_is_free = std::find(impact_free.begin(), impact_free.end(), quiet) != impact_free.end();
   std::vector<std::vector<const Recording*>> refinements;
-  if (impact_free.size() > 1 && impact_free.size() < records.size()) refinements.push_back(impact_free);
+  if (options.model == FitModelKind::kPaper && impact_free.size() > 1 && impact_free.size() < records.size())
+    refinements.push_back(impact_free);
   if (quiet_is_free) refinements.push_back({quiet});
   for (const std::vector<const Recording*>& refined_on : refinements) {
     internal::ExtendedProblem linear_problem;
