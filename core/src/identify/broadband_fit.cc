@@ -414,65 +414,15 @@ std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int 
   return LeadingCovariance(j, p);
 }
 
-}  // namespace
-
-std::vector<size_t> SegmentFirsts(size_t samples, double sample_rate_hz, double segment_s) {
-  const size_t length = std::max<size_t>(8, static_cast<size_t>(std::llround(segment_s * sample_rate_hz)));
-  std::vector<size_t> firsts;
-  for (size_t first = 0; first < samples; first += length) {
-    firsts.push_back(first);
-    if (samples - std::min(samples, first + length) < length / 2) break;  // no short tail segment
-  }
-  return firsts;
-}
-
-double FourthDifferenceNoiseRms(std::span<const double> y) {
-  // Fourth differences (1, -4, 6, -4, 1; noise variance 70 sigma^2): a signal at w is scaled by
-  // (2 sin(w / 2fs))^4, 2.5e-4 at a band edge of fs / 50 (second differences keep 1.6e-2 there).
-  if (y.size() < 16) return kNaN;
-  std::vector<double> d;
-  d.reserve(y.size() - 4);
-  for (size_t n = 2; n + 2 < y.size(); ++n) d.push_back(y[n - 2] - 4 * y[n - 1] + 6 * y[n] - 4 * y[n + 1] + y[n + 2]);
-  auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
-  const double center = median(d);
-  for (double& v : d) v = std::abs(v - center);
-  return 1.4826 * median(d) / std::sqrt(70.0);
-}
-
-double ResponseNoiseRms(std::span<const double> response) {
-  double power = 0.0;
-  for (double v : response) power += v * v;
-  const double rms = std::sqrt(power / static_cast<double>(std::max<size_t>(response.size(), 1)));
-  return std::max(FourthDifferenceNoiseRms(response), 1e-9 * rms);
-}
-
-std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
-  std::vector<bool> impact(y.size(), false);
-  const double limit = 8.0 * std::sqrt(70.0) * sigma;
-  for (size_t n = 2; n + 2 < y.size(); ++n)
-    if (std::abs(y[n - 2] - 4 * y[n - 1] + 6 * y[n] - 4 * y[n + 1] + y[n + 2]) > limit)
-      for (size_t k = n - 2; k <= n + 2; ++k) impact[k] = true;
-  return impact;
-}
-
-namespace {
-
-// The response's misfit over samples [first, end) of `model` flowed from `at`, the state at sample
-// first (offset only).
-double SampleMisfit(const ActuatorModel& model, ResponseKind kind, const RecordData& data, double offset, size_t first,
-                    size_t end, const State& at) {
-  const double fs = data.record->sample_rate_hz;
-  FlowRequest request;
-  request.sample_count = static_cast<int>(end - first);
-  request.sample_start_s = static_cast<double>(first) / fs;
-  request.sample_interval_s = 1.0 / fs;
-  const FlowResult flow = Flow(model, data.drive, at, static_cast<double>(first) / fs, static_cast<double>(end - 1) / fs, request);
+// The response's misfit over `part`'s samples of `model` flowed from `at`, the state at its first
+// sample (offset only).
+double SampleMisfit(const ActuatorModel& model, ResponseKind kind, const RecordData& data, double offset,
+                    const Segment& part, const State& at) {
+  const FlowResult flow = SegmentMotion(model, data, part, at);
   double sum = 0.0;
-  for (size_t i = 0; i < end - first; ++i) {
-    const double e = data.record->response[first + i] - offset - ResponseOf(kind, model.mass_kg, flow.samples[i], flow.sample_force_n[i]);
+  for (size_t i = 0; i < part.end - part.first; ++i) {
+    const double e = data.record->response[part.first + i] - offset -
+                     ResponseOf(kind, model.mass_kg, flow.samples[i], flow.sample_force_n[i]);
     sum += e * e;
   }
   return sum;
@@ -486,12 +436,15 @@ double OnsetOf(const ActuatorModel& model, ResponseKind kind, const RecordData& 
   ActuatorModel stop_free = model;
   stop_free.lower_stop_m = ActuatorModel::kNoLowerStop;
   stop_free.upper_stop_m = ActuatorModel::kNoUpperStop;
-  const size_t first = n - kOnsetBefore, end = n + kOnsetAfter;
+  Segment around = window;  // the samples the stop is matched to
+  around.first = n - kOnsetBefore;
+  around.end = n + kOnsetAfter;
   FlowRequest request;
-  request.sample_count = static_cast<int>(end - first);
-  request.sample_start_s = static_cast<double>(first) / fs;
+  request.sample_count = static_cast<int>(around.end - around.first);
+  request.sample_start_s = around.T0(fs);
   request.sample_interval_s = 1.0 / fs;
-  const FlowResult flow = Flow(stop_free, data.drive, start, window.T0(fs), static_cast<double>(end - 1) / fs, request);
+  const FlowResult flow =
+      Flow(stop_free, data.drive, start, window.T0(fs), static_cast<double>(around.end - 1) / fs, request);
   // ImpactSamples marks 2 samples either side of each fourth difference that stands out: the first
   // one's centre is 2 on.
   const double centre = flow.samples[kOnsetBefore + 2].x_m;
@@ -507,7 +460,7 @@ double OnsetOf(const ActuatorModel& model, ResponseKind kind, const RecordData& 
     ActuatorModel m = stop_free;
     (lower ? m.lower_stop_m : m.upper_stop_m) = stop_m;
     try {
-      return SampleMisfit(m, kind, data, offset, first, end, flow.samples[0]);
+      return SampleMisfit(m, kind, data, offset, around, flow.samples[0]);
     } catch (const std::exception&) {
       return kInf;
     }
@@ -551,6 +504,48 @@ double OnsetOf(const ActuatorModel& model, ResponseKind kind, const RecordData& 
 }
 
 }  // namespace
+
+std::vector<size_t> SegmentFirsts(size_t samples, double sample_rate_hz, double segment_s) {
+  const size_t length = std::max<size_t>(8, static_cast<size_t>(std::llround(segment_s * sample_rate_hz)));
+  std::vector<size_t> firsts;
+  for (size_t first = 0; first < samples; first += length) {
+    firsts.push_back(first);
+    if (samples - std::min(samples, first + length) < length / 2) break;  // no short tail segment
+  }
+  return firsts;
+}
+
+double FourthDifferenceNoiseRms(std::span<const double> y) {
+  // Fourth differences (1, -4, 6, -4, 1; noise variance 70 sigma^2): a signal at w is scaled by
+  // (2 sin(w / 2fs))^4, 2.5e-4 at a band edge of fs / 50 (second differences keep 1.6e-2 there).
+  if (y.size() < 16) return kNaN;
+  std::vector<double> d;
+  d.reserve(y.size() - 4);
+  for (size_t n = 2; n + 2 < y.size(); ++n) d.push_back(y[n - 2] - 4 * y[n - 1] + 6 * y[n] - 4 * y[n + 1] + y[n + 2]);
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const double center = median(d);
+  for (double& v : d) v = std::abs(v - center);
+  return 1.4826 * median(d) / std::sqrt(70.0);
+}
+
+double ResponseNoiseRms(std::span<const double> response) {
+  double power = 0.0;
+  for (double v : response) power += v * v;
+  const double rms = std::sqrt(power / static_cast<double>(std::max<size_t>(response.size(), 1)));
+  return std::max(FourthDifferenceNoiseRms(response), 1e-9 * rms);
+}
+
+std::vector<bool> ImpactSamples(std::span<const double> y, double sigma) {
+  std::vector<bool> impact(y.size(), false);
+  const double limit = 8.0 * std::sqrt(70.0) * sigma;
+  for (size_t n = 2; n + 2 < y.size(); ++n)
+    if (std::abs(y[n - 2] - 4 * y[n - 1] + 6 * y[n] - 4 * y[n + 1] + y[n + 2]) > limit)
+      for (size_t k = n - 2; k <= n + 2; ++k) impact[k] = true;
+  return impact;
+}
 
 std::vector<double> ImpactOnsetsM(std::span<const Recording* const> records, ResponseKind kind,
                                   const ActuatorModel& model, const BroadbandFitOptions& options) {
