@@ -650,7 +650,16 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   double t = t0;
   double h = options_.initial_step_s > 0 ? options_.initial_step_s : 0.25 * max_step_s_;
   bool rejected_last = false;
+  // The shortest step t resolves: a step below it means the solution is not finite or not resolvable.
+  auto resolution = [&] { return 1e-14 * std::max(std::abs(t), max_step_s_); };
   while (t < t1) {
+    // A switch on a boundary (a stop met at a sample instant of a sampled drive) leaves t on it up to
+    // rounding: the boundary is reached, and a step to it would be one t cannot resolve.
+    while (std::abs(boundaries[next_boundary] - t) <= resolution()) {
+      t = boundaries[next_boundary];
+      if (++next_boundary == boundaries.size()) break;
+    }
+    if (t >= t1) break;
     const double boundary = boundaries[next_boundary];
     double h_try = std::min(h, max_step_s_);
     const bool to_boundary = t + h_try >= boundary;
@@ -660,7 +669,7 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
                            " steps at t = " + std::to_string(t) + " s of " + std::to_string(t1) + " s (drive " +
                            drive_.Describe() + "; from x = " + std::to_string(start.x_m) + " m, v = " + std::to_string(start.v_m_per_s) +
                            " m/s)");
-    if (!(h_try > 1e-14 * std::max(std::abs(t), max_step_s_)))
+    if (!(h_try > resolution()))
       throw NumericalError("the variational flow's step fell below the resolution of t at t = " + std::to_string(t) +
                            " s (the solution is not finite or not resolvable)");
     const double error = Step(t, h_try);
