@@ -149,6 +149,48 @@ TEST(BroadbandFit, WithNothingFreeItEvaluatesTheModel) {
   EXPECT_GT(wrong.fit.chi2, truth.fit.chi2);
 }
 
+// A record that begins 2.5 ms before a hard impact (2 V rms at 51.2 kHz: contacts of 25 samples and
+// several newtons; an entry's kink, by where it falls between samples, can also stay below
+// ImpactSamples' threshold while the release's stands out). So few samples before the impact pin the
+// first segment's start down poorly (its x shows only as k_p x beside m_p x''), and a start whose motion
+// falls short of the stop cannot find the impact by a local fit: its residuals do not change with the
+// start until the motion reaches the stop. Each of four such records, evaluated at the truth, must leave
+// only the noise (the code before left 1e4 times its variance in three of them).
+TEST(BroadbandFit, ARecordThatBeginsJustBeforeAnImpactIsMatched) {
+  SynthOptions options;
+  options.excitation = Excitation::kMultisine;
+  options.levels_v_rms = {2.0};
+  options.duration_s = 1.0;
+  options.settle_s = 2.0;
+  options.sample_rate_hz = 51200.0;
+  options.noise_rms_v = 2e-4;
+  options.offset_v = 3e-3;
+  options.hum_v = 5e-4;
+  options.seed = 46;
+  const Synthesis synthesis = Synthesize(PaperModel(), options);
+  const Recording& whole = synthesis.campaign.records[0];
+  const std::vector<bool> impact = internal::ImpactSamples(whole.response, internal::ResponseNoiseRms(whole.response));
+  constexpr size_t kBefore = 128, kLength = 12800;  // 2.5 ms before the first mark; one segment
+  std::vector<Recording> cut;
+  for (size_t n = kBefore + 1; n + kLength < whole.size() && cut.size() < 4; ++n) {
+    if (!impact[n] || impact[n - 1]) continue;
+    Recording r = whole;
+    r.name = "cut at " + std::to_string(n - kBefore);
+    const auto first = static_cast<long>(n - kBefore), end = first + static_cast<long>(kLength);
+    r.voltage_v.assign(whole.voltage_v.begin() + first, whole.voltage_v.begin() + end);
+    r.response.assign(whole.response.begin() + first, whole.response.begin() + end);
+    cut.push_back(std::move(r));
+    n += 2 * kLength / 5;  // the next one from elsewhere in the drive
+  }
+  ASSERT_EQ(cut.size(), 4u);
+  ExtendedProblem held;
+  held.base = synthesis.model;
+  std::vector<const Recording*> records;
+  for (const Recording& r : cut) records.push_back(&r);
+  const BroadbandFitResult result = internal::FitBroadband(records, ResponseKind::kForce, held);
+  for (const internal::BroadbandRecordFit& r : result.records) EXPECT_NEAR(r.chi2_per_sample, 1.0, 0.08) << r.name;
+}
+
 // Noise levels given (BroadbandFitOptions::noise, as the diagnosis gives its parts the whole record's)
 // weight the residuals instead of each record's own estimate: twice the level, a quarter of the
 // chi-square; more samples behind an estimate, a tighter rejection limit. A list that does not match

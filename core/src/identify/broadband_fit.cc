@@ -49,6 +49,9 @@ constexpr double kOnsetWindowS = 0.5;
 constexpr size_t kOnsetBefore = 4, kOnsetAfter = 12;
 constexpr int kOnsetGrid = 32;
 constexpr int kOnsetSections = 30;
+// A segment's start is matched to its first impact (MatchFirstImpact) at the best of this many instants
+// of entry.
+constexpr size_t kEntryCandidates = 5;
 // A joint fit with stepped-sine records: at most this many solves at the final continuity weight, each
 // with the sampling corrections refreshed (extended_fit.h's passes).
 constexpr int kJointPasses = 8;
@@ -305,12 +308,130 @@ void FitStopFreeStart(const ExtendedProblem& stop_free, ResponseKind kind, const
   }
 }
 
+// How long a contact of `model`'s stop lasts at an impact speed of speed_m_per_s: a linear contact's
+// half period pi sqrt(m_p / k_s) (paper Eq. 4), a Hertzian one's 2.94 p_max / v, with p_max = (5 m_p v^2 /
+// (4 k_s))^(2/5) its deepest penetration (K. L. Johnson, "Contact Mechanics", 1985, Sec. 11.4).
+double ContactDurationS(const ActuatorModel& model, double speed_m_per_s) {
+  if (model.contact_law == ContactLaw::kLinear) return std::numbers::pi * std::sqrt(model.mass_kg / model.contact_stiffness);
+  const double deepest_m = std::pow(1.25 * model.mass_kg * speed_m_per_s * speed_m_per_s / model.contact_stiffness, 0.4);
+  return 2.94 * deepest_m / speed_m_per_s;
+}
+
+// The sum of squared residuals of `cost` (a segment's, no continuity row) at the start `start`.
+double StartMisfit(const SegmentCost& cost, std::vector<double>& theta, const std::vector<double>& start,
+                   std::vector<double>& nuisance) {
+  std::vector<double> residuals(cost.num_residuals());
+  const double* blocks[] = {theta.data(), start.data(), nuisance.data()};
+  if (!cost.Evaluate(blocks, residuals.data(), nullptr)) return kInf;
+  double sum = 0.0;
+  for (double r : residuals) sum += r * r;
+  return sum;
+}
+
+// Moves *start (scaled), fitted with the stops taken away to the samples of `stretch` (stretch.last
+// set) that end before a segment's first impact, to where the full model's motion matches the samples
+// up to `matched_end`, the impact's included. The stretch can pin the start down poorly (a few
+// milliseconds; in a force record x shows only as k_p x beside m_p x'', and unfitted hum biases it), and
+// no local fit finds the impact from a motion that falls short of the stop: its residuals do not change
+// with the start until the motion reaches the stop. So the start is moved along the line that changes x
+// at the stretch's end, x(n), at least cost to the stretch's fit, delta = C g / (g^T C g), with C =
+// (J^T J)^-1 of the stretch's residuals (noise units) and g = d x(n) / d start (the step of least norm
+// in C^-1 under that one constraint), to where the stop-free motion reaches the stop at the impact's
+// entry: at the first mark's centre, or up to one contact duration before it (the mark can be the
+// release; kEntryCandidates instants). The fitted start and the one of those whose motion matches the
+// samples best as it is each start a local fit of the full model to the matched samples; the better
+// fit wins.
+void MatchFirstImpact(const ExtendedProblem& problem, const ExtendedProblem& stop_free, ResponseKind kind,
+                      const RecordData& data, const Segment& stretch, size_t first_mark, size_t contact_samples,
+                      size_t matched_end, const StateScale& scale, int d, std::vector<double>& theta,
+                      std::vector<double>& nuisance, std::vector<double>* start) {
+  const double fs = data.record->sample_rate_hz;
+  const size_t rows = stretch.end - stretch.first;
+  std::vector<double> held_theta = {1.0}, residuals(rows);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jacobian(rows, d);
+  const double* blocks[] = {held_theta.data(), start->data(), nuisance.data()};
+  double* jacobians[] = {nullptr, jacobian.data(), nullptr};
+  if (!SegmentCost(stop_free, kind, data, stretch, scale, d, nullptr).Evaluate(blocks, residuals.data(), jacobians))
+    return;
+  // The stop-free motion and its slopes per start component at the samples from n on.
+  Segment after = stretch;
+  after.first = stretch.end;
+  after.end = matched_end;
+  FlowRequest request;
+  request.monodromy = true;
+  request.sample_count = static_cast<int>(after.end - after.first);
+  request.sample_start_s = after.T0(fs);
+  request.sample_interval_s = 1.0 / fs;
+  request.sample_sensitivities = true;
+  FlowResult motion;
+  try {
+    motion = Flow(stop_free.base, data.drive, scale.Unscaled(start->data(), d), stretch.T0(fs),
+                  static_cast<double>(after.end - 1) / fs, request);
+  } catch (const std::exception&) {
+    return;
+  }
+  auto slope_x = [&](size_t i, int c) { return motion.sample_slopes[(i * d + c) * 3] * scale.unit[c]; };
+  Eigen::VectorXd g(d);
+  for (int c = 0; c < d; ++c) g[c] = slope_x(0, c);
+  const Eigen::LDLT<Eigen::MatrixXd> normal((jacobian.transpose() * jacobian).eval());
+  if (normal.info() != Eigen::Success || !normal.isPositive()) return;
+  const Eigen::VectorXd c_g = normal.solve(g);
+  const double variance = g.dot(c_g);
+  if (!(variance > 0) || !std::isfinite(variance)) return;
+  const Eigen::VectorXd delta = c_g / variance;  // scaled start per metre of x(n)
+
+  const ActuatorModel model = problem.Decode(theta.data());
+  const size_t centre = first_mark + 2;  // ImpactSamples marks 2 samples either side
+  const double stop_m = motion.samples[std::min(centre, after.end - 1) - after.first].x_m < 0 ? model.lower_stop_m
+                                                                                               : model.upper_stop_m;
+  Segment matched = stretch;
+  matched.end = matched_end;
+  const SegmentCost matched_cost(problem, kind, data, matched, scale, d, nullptr);
+  // The instant of entry whose start matches best as it is, then the fitted start.
+  std::vector<double> entered;
+  double entered_misfit = kInf;
+  if (std::isfinite(stop_m))
+    for (size_t k = 0; k < kEntryCandidates; ++k) {
+      const size_t back = contact_samples * k / (kEntryCandidates - 1);
+      const size_t entry = centre - std::min(back, centre - after.first);
+      if (entry >= after.end) continue;
+      const size_t i = entry - after.first;
+      double h = 0.0;  // d x(entry) / d(shift of x(n))
+      for (int c = 0; c < d; ++c) h += slope_x(i, c) * delta[c];
+      const double shift_m = (stop_m - motion.samples[i].x_m) / h;
+      if (!std::isfinite(shift_m)) continue;
+      std::vector<double> moved = *start;
+      for (int c = 0; c < d; ++c) moved[c] += shift_m * delta[c];
+      const double misfit = StartMisfit(matched_cost, theta, moved, nuisance);
+      if (misfit < entered_misfit) {
+        entered_misfit = misfit;
+        entered = moved;
+      }
+    }
+  std::vector<std::vector<double>> trials = {*start};
+  if (!entered.empty()) trials.push_back(entered);
+  double best_misfit = kInf;
+  for (std::vector<double>& trial : trials) {
+    FitStartOver(problem, kind, data, matched, scale, d, theta, nuisance, &trial);
+    const double misfit = StartMisfit(matched_cost, theta, trial, nuisance);
+    if (misfit < best_misfit) {
+      best_misfit = misfit;
+      *start = trial;
+    }
+  }
+}
+
 // Each segment's start state at the start model, segment after segment from the previous segment's
 // end (rest for the first). Over a record's impacts the misfit is no bowl around the recorded state: a
 // start whose motion grazes the stop where the record does not (or misses an impact it shows) sits in
 // a valley of its own, since an impact's residuals do not change with the start until the motion
 // reaches the stop. So the start is first fitted to the samples before the segment's first impact with
-// the stops taken away (FitStopFreeStart), then to the whole segment with the full model.
+// the stops taken away (FitStopFreeStart), matched to that impact (MatchFirstImpact), then fitted to
+// the whole segment with the full model. The stretch before the impact ends one contact duration
+// before its first mark: a contact that sets in between two samples can leave its entry's kink below
+// ImpactSamples' threshold, so that the first mark is its release (at 51.2 kHz a linear contact at the
+// data sheet's k_s lasts 25 samples). The match takes the samples up to kOnsetAfter past one contact
+// duration after the first mark: the whole contact, and the motion it leaves.
 void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const RecordData& data,
                       const std::vector<Segment>& segments, size_t record, const StateScale& scale, int d,
                       std::vector<double>& theta, std::vector<double>& nuisance,
@@ -318,20 +439,29 @@ void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const R
   const ActuatorModel model = problem.Decode(theta.data());
   const ExtendedProblem stop_free = StopFree(model);
   const double fs = data.record->sample_rate_hz;
+  const double contact_s = ContactDurationS(model, scale.unit[1]);
+  const size_t contact_samples =
+      static_cast<size_t>(std::ceil(std::min(contact_s * fs, static_cast<double>(data.record->size()))));
   std::vector<double> guess(d, 0.0);
   for (size_t s = 0; s < segments.size(); ++s) {
     if (segments[s].record != record) continue;
     std::vector<double>& start = (*starts)[s];
     start = guess;
-    size_t smooth = segments[s].end - segments[s].first;  // samples before the first impact
+    size_t first_mark = segments[s].end;
     for (size_t n = segments[s].first; n < segments[s].end; ++n)
       if (data.impact[n]) {
-        smooth = n - segments[s].first;
+        first_mark = n;
         break;
       }
-    Segment part = segments[s];
-    part.end = part.first + smooth;
-    FitStopFreeStart(stop_free, kind, data, part, scale, d, nuisance, &start);
+    Segment stretch = segments[s];
+    stretch.last = true;
+    stretch.end = first_mark;
+    if (first_mark < segments[s].end) stretch.end = first_mark - std::min(first_mark - stretch.first, contact_samples);
+    FitStopFreeStart(stop_free, kind, data, stretch, scale, d, nuisance, &start);
+    if (first_mark < segments[s].end && stretch.end - stretch.first >= 16)
+      MatchFirstImpact(problem, stop_free, kind, data, stretch, first_mark, contact_samples,
+                       std::min(segments[s].end, first_mark + contact_samples + kOnsetAfter), scale, d, theta,
+                       nuisance, &start);
     FitStartOver(problem, kind, data, segments[s], scale, d, theta, nuisance, &start);
     // The next guess: this segment's end from its fitted start.
     try {
