@@ -146,6 +146,7 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
     break;
   }
 
+  out.linear_model = linear;
   // 2. The stop, where a record shows impacts, from where the impacts set in as the linear model sees
   // them (ImpactOnsetsM; the median of those below the rest position), else the data sheet's.
   out.stop_free = options.model == FitModelKind::kPaper && impact_free.size() < records.size();

@@ -32,6 +32,7 @@ struct BroadbandCampaignFit {
   FrfFitSummary linear_start;  // step 1
   std::string start_record;    // the record it came from
   size_t linear_records = 0;   // step 1: records the linear part was refined on (0: not refined)
+  ActuatorModel linear_model;  // step 1: the linear part the fit starts from (k_p, c_p, g; no stop)
   bool stop_free = false;      // step 2: a record shows impacts
   double stop_start_m = 0.0;   // step 2: d's start (lower_stop_m, below rest: negative) [m]
   size_t impact_onsets = 0;    // step 2: the impact onsets it is the median of (0: the data sheet's)
