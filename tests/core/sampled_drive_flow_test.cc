@@ -222,10 +222,11 @@ TEST(SampledDriveFlowTest, SensitivitiesAreTheFlowsFiniteDifferences) {
 }
 
 // A stop met at a sample instant of the drive, where every step ends: the switch lands on the step's
-// end up to rounding, and the step left to it is shorter than t resolves. With the stop a few 1e-15
-// of its distance inside the motion's position at that instant, the flow must go on as it does with
-// the stop 1e-9 further (the motion depends continuously on d): the end state the same to 1e-6 of the
-// largest |x| and |v|. (The code before threw "the step fell below the resolution of t" here.)
+// end up to rounding, and the step left to it is shorter than t resolves. With the stop 1e-15..1e-13 of
+// its distance inside the motion's position at that instant, the flow must go on as it does with the
+// stop 1e-9 inside, met clearly before the instant (the motion depends continuously on d): the end
+// state the same to 1e-6 of the largest |x| and of |v|. (The code before threw "the step fell below the
+// resolution of t" here.)
 TEST(SampledDriveFlowTest, AStopMetAtASampleInstantIsPassed) {
   const double fs = 1000.0, duration_s = 0.1, meet_s = 0.05;
   const SampledDrive drive = Sampled(fs, duration_s, [](double t) { return -20.0 * t; });
@@ -246,7 +247,8 @@ TEST(SampledDriveFlowTest, AStopMetAtASampleInstantIsPassed) {
     m.lower_stop_m = x_meet * (1.0 - inside);
     FlowResult flow;
     ASSERT_NO_THROW(flow = Flow(m, drive, State{}, 0.0, duration_s, {})) << inside;
-    EXPECT_NEAR(flow.end.x_m, beside.end.x_m, 1e-6 * std::max(std::abs(beside.max_displacement_m), std::abs(beside.min_displacement_m))) << inside;
+    const double largest_m = std::max(std::abs(beside.max_displacement_m), std::abs(beside.min_displacement_m));
+    EXPECT_NEAR(flow.end.x_m, beside.end.x_m, 1e-6 * largest_m) << inside;
     EXPECT_NEAR(flow.end.v_m_per_s, beside.end.v_m_per_s, 1e-6 * std::abs(beside.end.v_m_per_s) + 1e-9) << inside;
   }
 }

@@ -439,7 +439,7 @@ void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const R
   const ActuatorModel model = problem.Decode(theta.data());
   const ExtendedProblem stop_free = StopFree(model);
   const double fs = data.record->sample_rate_hz;
-  const double contact_s = ContactDurationS(model, scale.unit[1]);
+  const double contact_s = ContactDurationS(model, scale.unit[1]);  // at the state's speed scale, L w_n
   const size_t contact_samples =
       static_cast<size_t>(std::ceil(std::min(contact_s * fs, static_cast<double>(data.record->size()))));
   std::vector<double> guess(d, 0.0);
