@@ -40,18 +40,29 @@ State RampResponse(const ActuatorModel& m, double slope_v_per_s, double t) {
 }
 
 // A triangle (up at b for t1, then down at b) is exact in the hold when t1 is a sample instant, and
-// the linear oscillator's response is the ramp's, R(t) - 2 R(t - t1) by superposition. End state and
-// every sample to 1e-9 of the largest |x| and |v|: the flow's tolerance 1e-11 after ~10^3 steps.
-TEST(SampledDriveFlowTest, ATriangleDriveIsTheLinearOscillatorsClosedForm) {
-  ActuatorModel linear = PaperModel();
-  linear.lower_stop_m = ActuatorModel::kNoLowerStop;
-  const double slope = 2.0, corner_s = 0.1, fs = 1000.0, duration_s = 0.25;
-  const SampledDrive drive =
-      Sampled(fs, duration_s, [&](double t) { return slope * (t <= corner_s ? t : 2 * corner_s - t); });
-  auto exact = [&](double t) {
+// the linear oscillator's response is the ramp's, R(t) - 2 R(t - t1) by superposition.
+struct Triangle {
+  ActuatorModel linear = StopFree(PaperModel());
+  double slope = 2.0, corner_s = 0.1, fs = 1000.0, duration_s = 0.25;
+  SampledDrive drive = Sampled(fs, duration_s, [this](double t) { return slope * (t <= corner_s ? t : 2 * corner_s - t); });
+  State Exact(double t) const {
     const State up = RampResponse(linear, slope, t), down = RampResponse(linear, slope, t - corner_s);
     return State{up.x_m - 2 * down.x_m, up.v_m_per_s - 2 * down.v_m_per_s};
-  };
+  }
+  static ActuatorModel StopFree(ActuatorModel m) {
+    m.lower_stop_m = ActuatorModel::kNoLowerStop;
+    return m;
+  }
+};
+
+// End state and every sample to 1e-9 of the largest |x| and |v|: the flow's tolerance 1e-11 after ~10^3
+// steps.
+TEST(SampledDriveFlowTest, ATriangleDriveIsTheLinearOscillatorsClosedForm) {
+  const Triangle triangle;
+  const ActuatorModel& linear = triangle.linear;
+  const SampledDrive& drive = triangle.drive;
+  const double duration_s = triangle.duration_s;
+  auto exact = [&](double t) { return triangle.Exact(t); };
   FlowRequest request;
   request.sample_count = 240;
   request.sample_start_s = 0.0;
@@ -70,6 +81,131 @@ TEST(SampledDriveFlowTest, ATriangleDriveIsTheLinearOscillatorsClosedForm) {
     EXPECT_NEAR(flow.samples[n].x_m, exact(n / 960.0).x_m, 1e-9 * peak_x) << n;
     EXPECT_NEAR(flow.samples[n].v_m_per_s, exact(n / 960.0).v_m_per_s, 1e-9 * peak_v) << n;
   }
+}
+
+// The same triangle sampled on the drive's own grid, where the mass is clear of any stop: every step
+// is the exact free-flight map (free_flight_map.h), a matrix exponential instead of a truncated series,
+// so it meets the closed form to 1e-12 of the largest |x| and |v| (rounding over 250 products).
+TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsTheClosedForm) {
+  const Triangle triangle;
+  const double fs = triangle.fs;
+  auto exact = [&](double t) { return triangle.Exact(t); };
+  FlowRequest request;
+  request.sample_count = 251;
+  request.sample_start_s = 0.0;
+  request.sample_interval_s = 1.0 / fs;
+  const FlowResult flow = Flow(triangle.linear, triangle.drive, State{}, 0.0, triangle.duration_s, request);
+  EXPECT_EQ(flow.exact_steps, 250);
+  double peak_x = 0, peak_v = 0;
+  for (int n = 0; n < request.sample_count; ++n) {
+    peak_x = std::max(peak_x, std::abs(exact(n / fs).x_m));
+    peak_v = std::max(peak_v, std::abs(exact(n / fs).v_m_per_s));
+  }
+  ASSERT_EQ(flow.samples.size(), 251u);
+  for (int n = 0; n < request.sample_count; ++n) {
+    EXPECT_NEAR(flow.samples[n].x_m, exact(n / fs).x_m, 1e-12 * peak_x) << n;
+    EXPECT_NEAR(flow.samples[n].v_m_per_s, exact(n / fs).v_m_per_s, 1e-12 * peak_v) << n;
+  }
+}
+
+// The exact free-flight map against DOP853 throughout (FlowOptions::exact_free_flight false), with
+// every sensitivity column, on models that hit their stops under a multisine sampled at 20 kHz: the
+// map takes the intervals clear of the stops, DOP853 the ones near and in contact. End state, columns,
+// and each sample's x, v, force and slopes the same to 1e-8 of their largest sizes (DOP853's 1e-11 per
+// step over 6,000 steps, and the sensitivities' looser 1e-10). A model with a smooth nonlinear term
+// (k3) or a parameter whose column is not affine (k3 at 0) takes no exact step.
+TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
+  using M = ActuatorModel;
+  std::mt19937 random(20261128);
+  std::uniform_real_distribution<double> phase(0.0, 2 * std::numbers::pi);
+  std::vector<double> phases;
+  for (int h = 1; h <= 40; ++h) phases.push_back(phase(random));
+  const double fs = 20000.0, duration_s = 0.3;
+  const SampledDrive drive = Sampled(fs, duration_s, [&](double t) {
+    double u = 0;
+    for (int h = 1; h <= 40; ++h) u += 1.2 / h * std::sin(2 * std::numbers::pi * 5.0 * h * t + phases[h - 1]);
+    return u;
+  });
+  ActuatorModel damped = PaperModel();
+  damped.contact_damping_n_s_per_m = 15.0;
+  damped.upper_stop_m = 1.2e-3;
+  ActuatorModel hertz = PaperModel();
+  hertz.contact_law = ContactLaw::kHertzian;
+  hertz.contact_stiffness = 2.65e8;
+  ActuatorModel coil = PaperModel();  // tau_e = 2 mH / 3 Ohm, with its back-EMF part of c_p
+  coil.coil_time_constant_s = 2e-3 / 3.0;
+  coil.back_emf_damping_n_s_per_m = 0.8;
+  struct Case {
+    std::string name;
+    ActuatorModel model;
+    std::vector<double M::*> parameters;
+  };
+  const std::vector<Case> cases = {
+      {"paper", PaperModel(),
+       {&M::mass_kg, &M::damping_n_s_per_m, &M::stiffness_n_per_m, &M::gain_n_per_v, &M::lower_stop_m,
+        &M::contact_stiffness}},
+      {"damped_two_stops", damped, {&M::stiffness_n_per_m, &M::upper_stop_m, &M::contact_damping_n_s_per_m}},
+      {"hertzian", hertz, {&M::gain_n_per_v, &M::contact_stiffness}},
+      {"coil_pole", coil, {&M::gain_n_per_v, &M::coil_time_constant_s, &M::back_emf_damping_n_s_per_m}},
+  };
+  FlowOptions dop853_only;
+  dop853_only.exact_free_flight = false;
+  for (const Case& c : cases) {
+    FlowRequest request;
+    request.monodromy = true;
+    request.parameters = c.parameters;
+    request.sample_count = static_cast<int>(duration_s * fs) + 1;
+    request.sample_start_s = 0.0;
+    request.sample_interval_s = 1.0 / fs;
+    request.sample_sensitivities = true;
+    const State start{2e-4, -0.01, 0.0};
+    const FlowResult exact = Flow(c.model, drive, start, 0.0, duration_s, request);
+    const FlowResult reference = Flow(c.model, drive, start, 0.0, duration_s, request, dop853_only);
+    ASSERT_GT(reference.contacts, 2) << c.name;
+    EXPECT_EQ(exact.contacts, reference.contacts) << c.name;
+    EXPECT_EQ(reference.exact_steps, 0) << c.name;
+    EXPECT_GT(exact.exact_steps, request.sample_count / 2) << c.name;
+    ASSERT_EQ(exact.samples.size(), reference.samples.size()) << c.name;
+    ASSERT_EQ(exact.sample_slopes.size(), reference.sample_slopes.size()) << c.name;
+    auto largest = [](const std::vector<double>& values, size_t first, size_t stride) {
+      double size = 0;
+      for (size_t i = first; i < values.size(); i += stride) size = std::max(size, std::abs(values[i]));
+      return size;
+    };
+    std::vector<double> x, v, xe, ve;
+    for (size_t n = 0; n < exact.samples.size(); ++n) {
+      x.push_back(reference.samples[n].x_m);
+      v.push_back(reference.samples[n].v_m_per_s);
+    }
+    const double x_size = largest(x, 0, 1), v_size = largest(v, 0, 1),
+                 force_size = largest(reference.sample_force_n, 0, 1);
+    for (size_t n = 0; n < exact.samples.size(); ++n) {
+      EXPECT_NEAR(exact.samples[n].x_m, x[n], 1e-8 * x_size) << c.name << " sample " << n;
+      EXPECT_NEAR(exact.samples[n].v_m_per_s, v[n], 1e-8 * v_size) << c.name << " sample " << n;
+      EXPECT_NEAR(exact.sample_force_n[n], reference.sample_force_n[n], 1e-8 * force_size) << c.name << " sample " << n;
+    }
+    // Each column's x, v and force at every sample, against that column's largest.
+    const size_t columns = exact.columns.size(), per_sample = 3 * columns;
+    for (size_t column = 0; column < columns; ++column)
+      for (int k = 0; k < 3; ++k) {
+        const size_t first = column * 3 + k;
+        const double size = largest(reference.sample_slopes, first, per_sample);
+        double error = 0;
+        for (size_t i = first; i < exact.sample_slopes.size(); i += per_sample)
+          error = std::max(error, std::abs(exact.sample_slopes[i] - reference.sample_slopes[i]));
+        EXPECT_LE(error, 1e-8 * size) << c.name << " column " << column << " component " << k;
+      }
+    EXPECT_NEAR(exact.end.x_m, reference.end.x_m, 1e-8 * x_size) << c.name;
+    EXPECT_NEAR(exact.end.v_m_per_s, reference.end.v_m_per_s, 1e-8 * v_size) << c.name;
+  }
+  ActuatorModel k3 = PaperModel();
+  k3.cubic_stiffness_n_per_m3 = 4e7;
+  FlowRequest plain;
+  EXPECT_EQ(Flow(k3, drive, {}, 0.0, duration_s, plain).exact_steps, 0);
+  FlowRequest k3_column;
+  k3_column.parameters = {&M::cubic_stiffness_n_per_m3};
+  EXPECT_EQ(Flow(PaperModel(), drive, {}, 0.0, duration_s, k3_column).exact_steps, 0);
+  EXPECT_GT(Flow(PaperModel(), drive, {}, 0.0, duration_s, plain).exact_steps, 0);
 }
 
 struct SineCase {

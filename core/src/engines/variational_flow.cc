@@ -19,9 +19,11 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <string>
 
 #include "dop853_tableau.h"
+#include "free_flight_map.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/illinois.h"
 #include "variational_field.h"
@@ -146,6 +148,9 @@ class FlowIntegrator {
     if (model.stiffness_n_per_m > 0)
       shortest_s = std::min(shortest_s, 2.0 * std::numbers::pi * std::sqrt(model.mass_kg / model.stiffness_n_per_m));
     max_step_s_ = kFlowMaxStepFraction * shortest_s;
+    // (The figures' extrema between samples are not sought by the exact map: they keep DOP853.)
+    exact_free_flight_ = drive.sampled && options.exact_free_flight && !request.figures &&
+                         variational::FreeFlightMap::Applies(model, request);
     shortest_period_s_ = shortest_s;
     // A column's absolute tolerances are the state's over the size of its perturbation: the length
     // scale for x0, the length scale times w for v0, |p| for a parameter (1 where p = 0).
@@ -197,8 +202,11 @@ class FlowIntegrator {
   // u, t and h are the independent variable's and the instants are found on time's dense output).
   void Sample(double t, double h, double t_until);
   // Appends the sample at ts from the packed components y (the state, and the columns when the
-  // request asks for their values at the samples).
-  void RecordSample(double ts, const double* y);
+  // request asks for their values at the samples); `dy`, the field there when known.
+  void RecordSample(double ts, const double* y, const double* dy = nullptr);
+  // Steps from the sample instant t to the next one, `boundary`, by the exact free-flight map where
+  // it applies and no stop can be met in between; false (nothing changed) where it does not.
+  bool ExactStep(double t, double boundary);
   double ThetaAt(double t, double h, double time_s);
   // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
   // release.
@@ -239,6 +247,8 @@ class FlowIntegrator {
     double direction = 1.0;  // +1: after entry, u grows from 0; -1: before release, u falls to 0
     double u_start = 0.0;    // [m^0.5]
   } phase_;
+  bool exact_free_flight_ = false;                     // the options allow it and the model has it
+  std::optional<variational::FreeFlightMap> free_map_;  // made at the first exact step
   double step_cos_ = 1.0, step_sin_ = 0.0;  // cos(wt), sin(wt) at the start of the step being taken
   bool dense_ready_ = false;               // PrepareDense ran for the step just taken
   int next_sample_ = 0;
@@ -409,16 +419,20 @@ void FlowIntegrator::Sample(double t, double h, double t_until) {
   }
 }
 
-void FlowIntegrator::RecordSample(double ts, const double* y) {
+void FlowIntegrator::RecordSample(double ts, const double* y, const double* dy) {
   result_.samples.push_back(variational::StateOf(y, d_));
   if (!request_.sample_sensitivities) {
-    result_.sample_force_n.push_back(field_.Force(ts, y, mode_));
+    result_.sample_force_n.push_back(dy ? model().mass_kg * dy[1] : field_.Force(ts, y, mode_));
     return;
   }
   // The field at the sample gives x'' and each column's x'' (variational_field.h): the force m_p x''
   // and its derivatives, d(m_p x'')/d m_p = x'' + m_p dx''/dm_p for the mass.
-  sample_dy_.assign(width_, 0.0);
-  field_.Evaluate(ts, y, sample_dy_.data(), mode_);
+  if (dy) {
+    sample_dy_.assign(dy, dy + n_);
+  } else {
+    sample_dy_.assign(width_, 0.0);
+    field_.Evaluate(ts, y, sample_dy_.data(), mode_);
+  }
   const variational::Layout& l = field_.layout();
   const double mass = model().mass_kg;
   result_.sample_force_n.push_back(mass * sample_dy_[1]);
@@ -430,6 +444,43 @@ void FlowIntegrator::RecordSample(double ts, const double* y) {
     result_.sample_slopes.push_back(y[i + 1]);
     result_.sample_slopes.push_back(mass * sample_dy_[i + 1] + (is_mass ? sample_dy_[1] : 0.0));
   }
+}
+
+bool FlowIntegrator::ExactStep(double t, double boundary) {
+  if (!exact_free_flight_ || mode_.Any()) return false;
+  const double interval = 1.0 / drive_.sampled->sample_rate_hz, rounding = 1e-9 * interval;
+  if (std::abs(boundary - t - interval) > rounding) return false;  // a clipping corner or a partial interval
+  auto next_sample_s = [&] { return request_.sample_start_s + next_sample_ * request_.sample_interval_s; };
+  for (; next_sample_ < request_.sample_count && next_sample_s() <= t + rounding; ++next_sample_)
+    RecordSample(next_sample_s(), y_.data(), K(0));
+  // A sample strictly inside the interval needs the dense output.
+  if (next_sample_ < request_.sample_count && next_sample_s() < boundary - rounding) return false;
+  if (!free_map_) {
+    // Each component's size: its absolute tolerance, in proportion, with x's at the length scale.
+    std::vector<double> size(absolute_tolerance_.begin(), absolute_tolerance_.begin() + n_);
+    const double per_tolerance = LengthScaleM(model()) / absolute_tolerance_[0], peak_v = drive_.PeakV();
+    for (double& s : size) s *= per_tolerance;
+    free_map_.emplace(model(), request_, interval, size, peak_v > 0 ? peak_v : 1.0);
+  }
+  double* dy_end = K(dop853::kStages);
+  free_map_->Advance(y_.data(), drive_.Voltage(t), drive_.Voltage(boundary), y_new_.data());
+  field_.Evaluate(boundary, y_new_.data(), dy_end, mode_);
+  if (!std::isfinite(y_new_[0]) || !std::isfinite(y_new_[1])) return false;  // DOP853 reports it
+  // No stop is met inside the interval: x'' is affine in (x, v, u) there, so it stays within its
+  // ends' values up to the motion's own small change, and x departs from the chord between its ends
+  // by at most max|x''| h^2 / 8. Both ends clear of every stop by 4 times that bound.
+  const double margin = 0.5 * interval * interval * std::max(std::abs(K(0)[1]), std::abs(dy_end[1]));
+  for (const variational::StopSurface& stop : stops_)
+    if (!(stop.Value(model(), y_[0], y_[1]) < -margin && stop.Value(model(), y_new_[0], y_new_[1]) < -margin))
+      return false;
+  if (++result_.steps > options_.max_steps) return false;  // DOP853's step throws on the budget
+  ++result_.exact_steps;
+  y_.swap(y_new_);
+  std::copy_n(dy_end, n_, K(0));
+  Note(boundary, variational::StateOf(y_.data(), d_));
+  for (; next_sample_ < request_.sample_count && next_sample_s() <= boundary + rounding; ++next_sample_)
+    RecordSample(next_sample_s(), y_.data(), K(0));
+  return true;
 }
 
 double FlowIntegrator::ThetaAt(double t, double h, double time_s) {
@@ -661,6 +712,11 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
     }
     if (t >= t1) break;
     const double boundary = boundaries[next_boundary];
+    if (ExactStep(t, boundary)) {
+      t = boundary;
+      ++next_boundary;
+      continue;
+    }
     double h_try = std::min(h, max_step_s_);
     const bool to_boundary = t + h_try >= boundary;
     if (to_boundary) h_try = boundary - t;

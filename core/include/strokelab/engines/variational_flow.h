@@ -58,6 +58,10 @@ struct FlowOptions {
   double absolute_tolerance_n = 1e-14;  // on the coil's force F_e (models with the coil's pole)
   double initial_step_s = 0.0;   // 0: a fraction of the shortest period (drive, suspension)
   long max_steps = 2'000'000;    // work budget per flow: NumericalError when spent
+  // A sampled drive: the intervals where the mass is clear of every stop and the model is linear
+  // there are stepped by their exact map (free_flight_map.h) instead of DOP853; false: DOP853
+  // throughout (the tests' reference for that map).
+  bool exact_free_flight = true;
   std::optional<FieldError> IsValid() const;
 };
 
@@ -79,6 +83,7 @@ struct FlowResult {
   // per unit of column c (the columns' order above).
   std::vector<double> sample_slopes;
   long steps = 0, rejected_steps = 0;
+  long exact_steps = 0;       // of `steps`, those taken by the exact free-flight map
   double last_step_s = 0.0;   // a good initial step for the next flow of the same orbit
 };
 
