@@ -155,7 +155,10 @@ TEST(BroadbandFit, WithNothingFreeItEvaluatesTheModel) {
 // first segment's start down poorly (its x shows only as k_p x beside m_p x''), and a start whose motion
 // falls short of the stop cannot find the impact by a local fit: its residuals do not change with the
 // start until the motion reaches the stop. Each of four such records, evaluated at the truth, must leave
-// only the noise (the code before left 1e4 times its variance in three of them).
+// only the noise (the code before left 1e4 times its variance in three of them). The same for records
+// that begin 0.8 ms and 0.16 ms before the impact (40 and 8 samples: fewer before the contact than a
+// start can be fitted to, and its side of the rest position unknown; the code before left 1e4 to 1e5
+// times the variance in every one).
 TEST(BroadbandFit, ARecordThatBeginsJustBeforeAnImpactIsMatched) {
   SynthOptions options;
   options.excitation = Excitation::kMultisine;
@@ -170,25 +173,27 @@ TEST(BroadbandFit, ARecordThatBeginsJustBeforeAnImpactIsMatched) {
   const Synthesis synthesis = Synthesize(PaperModel(), options);
   const Recording& whole = synthesis.campaign.records[0];
   const std::vector<bool> impact = internal::ImpactSamples(whole.response, internal::ResponseNoiseRms(whole.response));
-  constexpr size_t kBefore = 128, kLength = 12800;  // 2.5 ms before the first mark; one segment
-  std::vector<Recording> cut;
-  for (size_t n = kBefore + 1; n + kLength < whole.size() && cut.size() < 4; ++n) {
-    if (!impact[n] || impact[n - 1]) continue;
-    Recording r = whole;
-    r.name = "cut at " + std::to_string(n - kBefore);
-    const auto first = static_cast<long>(n - kBefore), end = first + static_cast<long>(kLength);
-    r.voltage_v.assign(whole.voltage_v.begin() + first, whole.voltage_v.begin() + end);
-    r.response.assign(whole.response.begin() + first, whole.response.begin() + end);
-    cut.push_back(std::move(r));
-    n += 2 * kLength / 5;  // the next one from elsewhere in the drive
+  constexpr size_t kLength = 12800;  // one segment
+  for (const size_t before : {128, 40, 8}) {  // samples before the first mark
+    std::vector<Recording> cut;
+    for (size_t n = before + 1; n + kLength < whole.size() && cut.size() < 4; ++n) {
+      if (!impact[n] || impact[n - 1]) continue;
+      Recording r = whole;
+      r.name = std::to_string(before) + " before, cut at " + std::to_string(n - before);
+      const auto first = static_cast<long>(n - before), end = first + static_cast<long>(kLength);
+      r.voltage_v.assign(whole.voltage_v.begin() + first, whole.voltage_v.begin() + end);
+      r.response.assign(whole.response.begin() + first, whole.response.begin() + end);
+      cut.push_back(std::move(r));
+      n += 2 * kLength / 5;  // the next one from elsewhere in the drive
+    }
+    ASSERT_EQ(cut.size(), 4u);
+    ExtendedProblem held;
+    held.base = synthesis.model;
+    std::vector<const Recording*> records;
+    for (const Recording& r : cut) records.push_back(&r);
+    const BroadbandFitResult result = internal::FitBroadband(records, ResponseKind::kForce, held);
+    for (const internal::BroadbandRecordFit& r : result.records) EXPECT_NEAR(r.chi2_per_sample, 1.0, 0.08) << r.name;
   }
-  ASSERT_EQ(cut.size(), 4u);
-  ExtendedProblem held;
-  held.base = synthesis.model;
-  std::vector<const Recording*> records;
-  for (const Recording& r : cut) records.push_back(&r);
-  const BroadbandFitResult result = internal::FitBroadband(records, ResponseKind::kForce, held);
-  for (const internal::BroadbandRecordFit& r : result.records) EXPECT_NEAR(r.chi2_per_sample, 1.0, 0.08) << r.name;
 }
 
 // Noise levels given (BroadbandFitOptions::noise, as the diagnosis gives its parts the whole record's)

@@ -52,6 +52,10 @@ constexpr int kOnsetSections = 30;
 // A segment's start is matched to its first impact (MatchFirstImpact) at the best of this many instants
 // of entry.
 constexpr size_t kEntryCandidates = 5;
+// ... and at an entry speed among kEntrySpeeds from kEntrySpeedRange[0] to [1] times the state's speed
+// scale L w_n (the data sheet's impacts: 0.3-1 of it at 0.7 V rms).
+constexpr int kEntrySpeeds = 24;
+constexpr double kEntrySpeedRange[] = {0.05, 5.0};
 // A joint fit with stepped-sine records: at most this many solves at the final continuity weight, each
 // with the sampling corrections refreshed (extended_fit.h's passes).
 constexpr int kJointPasses = 8;
@@ -346,13 +350,6 @@ void MatchFirstImpact(const ExtendedProblem& problem, const ExtendedProblem& sto
                       size_t matched_end, const StateScale& scale, int d, std::vector<double>& theta,
                       std::vector<double>& nuisance, std::vector<double>* start) {
   const double fs = data.record->sample_rate_hz;
-  const size_t rows = stretch.end - stretch.first;
-  std::vector<double> held_theta = {1.0}, residuals(rows);
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jacobian(rows, d);
-  const double* blocks[] = {held_theta.data(), start->data(), nuisance.data()};
-  double* jacobians[] = {nullptr, jacobian.data(), nullptr};
-  if (!SegmentCost(stop_free, kind, data, stretch, scale, d, nullptr).Evaluate(blocks, residuals.data(), jacobians))
-    return;
   // The stop-free motion and its slopes per start component at the samples from n on.
   Segment after = stretch;
   after.first = stretch.end;
@@ -370,16 +367,9 @@ void MatchFirstImpact(const ExtendedProblem& problem, const ExtendedProblem& sto
   } catch (const std::exception&) {
     return;
   }
+  // d (x, v) at sample i of `motion` per scaled start component c.
   auto slope_x = [&](size_t i, int c) { return motion.sample_slopes[(i * d + c) * 3] * scale.unit[c]; };
-  Eigen::VectorXd g(d);
-  for (int c = 0; c < d; ++c) g[c] = slope_x(0, c);
-  const Eigen::LDLT<Eigen::MatrixXd> normal((jacobian.transpose() * jacobian).eval());
-  if (normal.info() != Eigen::Success || !normal.isPositive()) return;
-  const Eigen::VectorXd c_g = normal.solve(g);
-  const double variance = g.dot(c_g);
-  if (!(variance > 0) || !std::isfinite(variance)) return;
-  const Eigen::VectorXd delta = c_g / variance;  // scaled start per metre of x(n)
-
+  auto slope_v = [&](size_t i, int c) { return motion.sample_slopes[(i * d + c) * 3 + 1] * scale.unit[c]; };
   const ActuatorModel model = problem.Decode(theta.data());
   const size_t centre = first_mark + 2;  // ImpactSamples marks 2 samples either side
   const double stop_m = motion.samples[std::min(centre, after.end - 1) - after.first].x_m < 0 ? model.lower_stop_m
@@ -387,29 +377,81 @@ void MatchFirstImpact(const ExtendedProblem& problem, const ExtendedProblem& sto
   Segment matched = stretch;
   matched.end = matched_end;
   const SegmentCost matched_cost(problem, kind, data, matched, scale, d, nullptr);
-  // The instant of entry whose start matches best as it is, then the fitted start.
-  std::vector<double> entered;
-  double entered_misfit = kInf;
-  if (std::isfinite(stop_m))
-    for (size_t k = 0; k < kEntryCandidates; ++k) {
-      const size_t back = contact_samples * k / (kEntryCandidates - 1);
-      const size_t entry = centre - std::min(back, centre - after.first);
-      if (entry >= after.end) continue;
-      const size_t i = entry - after.first;
-      double h = 0.0;  // d x(entry) / d(shift of x(n))
-      for (int c = 0; c < d; ++c) h += slope_x(i, c) * delta[c];
-      const double shift_m = (stop_m - motion.samples[i].x_m) / h;
-      if (!std::isfinite(shift_m)) continue;
-      std::vector<double> moved = *start;
-      for (int c = 0; c < d; ++c) moved[c] += shift_m * delta[c];
-      const double misfit = StartMisfit(matched_cost, theta, moved, nuisance);
-      if (misfit < entered_misfit) {
-        entered_misfit = misfit;
-        entered = moved;
+  // The candidates of each kind: the one whose start matches best as it is.
+  struct Best {
+    std::vector<double> start;
+    double misfit = kInf;
+    void Offer(const std::vector<double>& candidate, double candidate_misfit) {
+      if (!(candidate_misfit < misfit)) return;
+      misfit = candidate_misfit;
+      start = candidate;
+    }
+  } along_line, from_entry;
+  std::vector<size_t> entries;  // kEntryCandidates instants of entry, as indices into `motion`
+  for (size_t k = 0; k < kEntryCandidates; ++k) {
+    const size_t back = contact_samples * k / (kEntryCandidates - 1);
+    const size_t entry = centre - std::min(back, centre - after.first);
+    if (entry < after.end) entries.push_back(entry - after.first);
+  }
+  // Along the stretch's line of least cost (at least 16 samples to fit the start to).
+  const size_t rows = stretch.end - stretch.first;
+  if (rows >= 16 && std::isfinite(stop_m)) {
+    std::vector<double> held_theta = {1.0}, residuals(rows);
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jacobian(rows, d);
+    const double* blocks[] = {held_theta.data(), start->data(), nuisance.data()};
+    double* jacobians[] = {nullptr, jacobian.data(), nullptr};
+    Eigen::VectorXd g(d);
+    for (int c = 0; c < d; ++c) g[c] = slope_x(0, c);
+    const bool evaluated =
+        SegmentCost(stop_free, kind, data, stretch, scale, d, nullptr).Evaluate(blocks, residuals.data(), jacobians);
+    const Eigen::LDLT<Eigen::MatrixXd> normal((jacobian.transpose() * jacobian).eval());
+    const Eigen::VectorXd c_g = normal.solve(g);
+    const double variance = g.dot(c_g);
+    if (evaluated && normal.info() == Eigen::Success && normal.isPositive() && variance > 0 && std::isfinite(variance)) {
+      const Eigen::VectorXd delta = c_g / variance;  // scaled start per metre of x(n)
+      for (size_t i : entries) {
+        double h = 0.0;  // d x(entry) / d(shift of x(n))
+        for (int c = 0; c < d; ++c) h += slope_x(i, c) * delta[c];
+        const double shift_m = (stop_m - motion.samples[i].x_m) / h;
+        if (!std::isfinite(shift_m)) continue;
+        std::vector<double> moved = *start;
+        for (int c = 0; c < d; ++c) moved[c] += shift_m * delta[c];
+        along_line.Offer(moved, StartMisfit(matched_cost, theta, moved, nuisance));
       }
     }
+  }
+  // From the entry itself, for a stretch too short to say much (a record that begins a few samples
+  // before an impact, where even the side its motion is on is unknown): the start whose stop-free
+  // motion is at a stop at the instant of entry with an entry speed from a geometric grid (kEntrySpeeds
+  // over kEntrySpeedRange of the speed scale), solved from the motion's slopes (exact: the stop-free
+  // model is linear in its start). The coil's third state is left out (x and v alone fix an entry).
+  for (const double entered_stop_m : {model.lower_stop_m, model.upper_stop_m}) {
+    if (d != 2 || !std::isfinite(entered_stop_m)) continue;
+    for (size_t i : entries) {
+      Eigen::Matrix2d slopes;
+      for (int c = 0; c < 2; ++c) {
+        slopes(0, c) = slope_x(i, c);
+        slopes(1, c) = slope_v(i, c);
+      }
+      const Eigen::FullPivLU<Eigen::Matrix2d> lu(slopes);
+      if (!lu.isInvertible()) continue;
+      const double inward = entered_stop_m == model.lower_stop_m ? -1.0 : 1.0;  // the entry's sign of v
+      for (int k = 0; k < kEntrySpeeds; ++k) {
+        const double speed = scale.unit[1] * kEntrySpeedRange[0] *
+                             std::pow(kEntrySpeedRange[1] / kEntrySpeedRange[0], k / (kEntrySpeeds - 1.0));
+        const Eigen::Vector2d change(entered_stop_m - motion.samples[i].x_m,
+                                     inward * speed - motion.samples[i].v_m_per_s);
+        const Eigen::Vector2d shift = lu.solve(change);
+        const std::vector<double> moved = {(*start)[0] + shift[0], (*start)[1] + shift[1]};
+        if (std::isfinite(moved[0]) && std::isfinite(moved[1]))
+          from_entry.Offer(moved, StartMisfit(matched_cost, theta, moved, nuisance));
+      }
+    }
+  }
+  // Each kind's best and the stretch's own start each start a local fit; the best fit wins.
   std::vector<std::vector<double>> trials = {*start};
-  if (!entered.empty()) trials.push_back(entered);
+  for (const Best* best : {&along_line, &from_entry})
+    if (!best->start.empty()) trials.push_back(best->start);
   double best_misfit = kInf;
   for (std::vector<double>& trial : trials) {
     FitStartOver(problem, kind, data, matched, scale, d, theta, nuisance, &trial);
@@ -458,7 +500,7 @@ void FitSegmentStarts(const ExtendedProblem& problem, ResponseKind kind, const R
     stretch.end = first_mark;
     if (first_mark < segments[s].end) stretch.end = first_mark - std::min(first_mark - stretch.first, contact_samples);
     FitStopFreeStart(stop_free, kind, data, stretch, scale, d, nuisance, &start);
-    if (first_mark < segments[s].end && stretch.end - stretch.first >= 16)
+    if (first_mark < segments[s].end)
       MatchFirstImpact(problem, stop_free, kind, data, stretch, first_mark, contact_samples,
                        std::min(segments[s].end, first_mark + contact_samples + kOnsetAfter), scale, d, theta,
                        nuisance, &start);
