@@ -205,7 +205,8 @@ class FlowIntegrator {
   // request asks for their values at the samples); `dy`, the field there when known.
   void RecordSample(double ts, const double* y, const double* dy = nullptr);
   // Steps from the sample instant t to the next one, `boundary`, by the exact free-flight map where
-  // it applies and no stop can be met in between; false (nothing changed) where it does not.
+  // it applies and no stop can be met in between; false where it does not (the state unchanged; the
+  // samples at t are recorded either way).
   bool ExactStep(double t, double boundary);
   double ThetaAt(double t, double h, double time_s);
   // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
@@ -473,7 +474,8 @@ bool FlowIntegrator::ExactStep(double t, double boundary) {
   for (const variational::StopSurface& stop : stops_)
     if (!(stop.Value(model(), y_[0], y_[1]) < -margin && stop.Value(model(), y_new_[0], y_new_[1]) < -margin))
       return false;
-  if (++result_.steps > options_.max_steps) return false;  // DOP853's step throws on the budget
+  if (result_.steps >= options_.max_steps) return false;  // DOP853's step throws on the budget
+  ++result_.steps;
   ++result_.exact_steps;
   y_.swap(y_new_);
   std::copy_n(dy_end, n_, K(0));
