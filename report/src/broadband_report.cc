@@ -50,7 +50,8 @@ std::string UnexplainedSection(const BroadbandDiagnosis& d) {
             NumTd(100 * p.near_contact_share, 2) + NumTd(100 * p.contact_time_share, 2) + "</tr>\n";
   }
   return out + Table({"record (" + u.parts + " part)", "chi2 per sample", "residual's spectral peak [Hz]",
-                      "excess within 2 ms of contacts [%]", "time within 2 ms of contacts [%]"},
+                      "excess within 2 ms of contacts (the model's or the record's impacts) [%]",
+                      "time within 2 ms of those [%]"},
                      rows);
 }
 

@@ -175,5 +175,32 @@ TEST(BroadbandDiagnoseTest, HoldsOutTheEndWhoseShareOfTheImpactsIsNearerItsShare
   EXPECT_EQ(parts.heldout[0].response[0], campaign.records[0].response[0]);
 }
 
+// Where an unexplained misfit lives, against contacts: the model's (its displacement past a stop) and
+// the impacts the record shows that the model does not make (a stop it lacks). A part of noise with two
+// impacts (force spikes of 500 noise levels) whose residual is noise but for 40 noise levels at the two
+// impacts; the model's motion stays clear of its stop: all the excess lies within 2 ms (17 samples at
+// 8,192 Hz) of the impacts' marks (ImpactSamples: a spike's fourth differences stand out at 5 samples,
+// each marked with 2 either side), 2 x (9 + 34) of the 2,000 samples. The share is 1 up to the noise's
+// excess elsewhere (sd sqrt(2 x 1914) against 3,200: 0.02; 3 sd allowed). (The code before counted the
+// model's contacts alone: no share at all.)
+TEST(BroadbandDiagnoseTest, AnUnexplainedMisfitAtImpactsTheModelMissesIsPlacedThere) {
+  std::mt19937 random(7);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  Recording part = BroadbandRecord("r.csv", 2000, [](int) { return 0.0; }, [&](int) { return noise(random); });
+  part.sample_rate_hz = 8192.0;
+  internal::BroadbandRecordFit fit;
+  fit.noise_rms = 1.0;
+  for (size_t n = 0; n < part.size(); ++n) fit.residual.push_back(noise(random));
+  for (const size_t impact : {600, 1400}) {
+    part.response[impact] += 500.0;
+    fit.residual[impact] += 40.0;
+  }
+  fit.x_m.assign(part.size(), 0.0);  // the paper model's stop is 1 mm below
+  fit.v_m_per_s.assign(part.size(), 0.0);
+  const auto [near_share, time_share] = internal::NearContactShares(part, ResponseKind::kForce, fit, PaperModel());
+  EXPECT_NEAR(near_share, 1.0, 0.06);
+  EXPECT_DOUBLE_EQ(time_share, 2 * (9 + 34) / 2000.0);
+}
+
 }  // namespace
 }  // namespace strokelab

@@ -224,7 +224,8 @@ EffectContext Context(const ActuatorModel& model, const Split& split, const std:
 // the 1e-3 tail of noise alone, and so is `fit` (on the fit parts; null: not tested); else where the
 // misfit lives, on the held-out parts or, where only those pass, on the fit parts.
 std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const BroadbandFitResult& heldout,
-                                                    const BroadbandFitResult* fit, const ActuatorModel& model) {
+                                                    const BroadbandFitResult* fit, const ActuatorModel& model,
+                                                    ResponseKind kind) {
   const bool on_heldout = heldout.rejected;
   if (!on_heldout && !(fit && fit->rejected)) return std::nullopt;
   const BroadbandFitResult& tested = on_heldout ? heldout : *fit;
@@ -247,7 +248,7 @@ std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const Br
     place.record = split.names[r];
     place.chi2_per_sample = f.chi2_per_sample;
     place.peak_frequency_hz = internal::ResidualPeakFrequencyHz(parts[r], f);
-    std::tie(place.near_contact_share, place.contact_time_share) = internal::NearContactShares(parts[r], f, model);
+    std::tie(place.near_contact_share, place.contact_time_share) = internal::NearContactShares(parts[r], kind, f, model);
     u.places.push_back(place);
   }
   std::sort(u.places.begin(), u.places.end(),
@@ -265,7 +266,7 @@ std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const Br
          << FormatFigure(p.chi2_per_sample) << ", the residual's spectrum peaks at " << FormatFigure(p.peak_frequency_hz)
          << " Hz";
     if (std::isfinite(p.near_contact_share))
-      text << ", " << FormatFigure(100 * p.near_contact_share, 2) << " % of its excess within 2 ms of contacts that take "
+      text << ", " << FormatFigure(100 * p.near_contact_share, 2) << " % of its excess within 2 ms of contacts (the model's or the record's impacts) that take "
            << FormatFigure(100 * p.contact_time_share, 2) << " % of the time";
     text << ")";
   }
@@ -472,7 +473,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     chosen_fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
   }
   d.unexplained = FindUnexplained(split, chosen_heldout, chosen_fit ? &*chosen_fit : nullptr,
-                                  d.chosen >= 0 ? d.candidates[d.chosen].model : base_model);
+                                  d.chosen >= 0 ? d.candidates[d.chosen].model : base_model, kind);
   std::string partial;
   std::vector<Effect> best_partial;
   if (d.chosen >= 0 && d.unexplained) {
@@ -482,7 +483,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       best_partial = d.candidates[d.chosen].effects;
       d.chosen = -1;
       chosen_heldout = base_heldout;
-      d.unexplained = FindUnexplained(split, base_heldout, &base_motion, base_model);
+      d.unexplained = FindUnexplained(split, base_heldout, &base_motion, base_model, kind);
       if (d.unexplained) d.unexplained->description += "; " + partial;
     }
   }

@@ -10,6 +10,7 @@
 
 #include "diagnose_internal.h"
 #include "strokelab/base/nan.h"
+#include "strokelab/identify/broadband_campaign.h"
 
 namespace strokelab::internal {
 namespace {
@@ -235,9 +236,14 @@ double ResidualPeakFrequencyHz(const Recording& part, const BroadbandRecordFit& 
   return peak_hz;
 }
 
-std::pair<double, double> NearContactShares(const Recording& part, const BroadbandRecordFit& fit,
+std::pair<double, double> NearContactShares(const Recording& part, ResponseKind kind, const BroadbandRecordFit& fit,
                                             const ActuatorModel& model) {
-  const std::vector<bool> near = NearContacts(model, fit, part.sample_rate_hz);
+  std::vector<bool> near = NearContacts(model, fit, part.sample_rate_hz);
+  const std::vector<bool> impact = RecordImpacts(part, kind);
+  const size_t reach = static_cast<size_t>(std::ceil(kContactWindowS * part.sample_rate_hz));
+  for (size_t i = 0; i < impact.size() && i < near.size(); ++i)
+    if (impact[i])
+      for (size_t k = i - std::min(i, reach); k < std::min(near.size(), i + reach + 1); ++k) near[k] = true;
   double excess_near = 0, excess = 0;
   size_t n_near = 0, n = 0;
   for (size_t i = 0; i < fit.residual.size(); ++i) {

@@ -74,10 +74,6 @@ std::vector<Evidence> BroadbandSignatures(std::span<const Recording> parts, std:
                                           const ActuatorModel& model);
 // The frequency where a part's residual power stands furthest above its noise level [Hz].
 double ResidualPeakFrequencyHz(const Recording& part, const BroadbandRecordFit& fit);
-// Of a part's residual excess chi-square, the share within 2 ms of the model's contacts, and the share
-// of the samples there (both NaN when the model makes no contact).
-std::pair<double, double> NearContactShares(const Recording& part, const BroadbandRecordFit& fit,
-                                            const ActuatorModel& model);
 
 // The JSON pieces both diagnoses write (diagnose_json.cc): parameters by name, error figures, one
 // evidence, missing_physics (the chosen candidate's effects, each with its parameters and the evidence

@@ -39,6 +39,7 @@
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "strokelab/diagnose/diagnose.h"
@@ -70,8 +71,10 @@ struct BroadbandUnexplained {
     std::string record;
     double chi2_per_sample = 0.0;
     double peak_frequency_hz = 0.0;  // where the residual's spectrum stands furthest above the noise floor
-    double near_contact_share = 0.0; // of the residual's excess chi-square within 2 ms of the model's contacts
-    double contact_time_share = 0.0; // of the samples there (NaN: the model makes no contact)
+    // Of the residual's excess chi-square, the share within 2 ms of a contact: the model's, or an impact
+    // the record shows (where the model misses one, e.g. at a stop it lacks).
+    double near_contact_share = 0.0;
+    double contact_time_share = 0.0; // of the samples there (NaN: no contact, the model's or the record's)
   };
   std::vector<Place> places;
   std::string description;
@@ -113,6 +116,15 @@ struct BroadbandParts {
 };
 BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every,
                                      std::vector<std::string>* warnings = nullptr);
+
+namespace internal {
+// Of a part's residual excess chi-square (`fit` with its series: BroadbandFitOptions::keep_series), the
+// share within 2 ms of a contact, the model's or an impact the part's response of `kind` shows
+// (RecordImpacts: one the model misses is where a stop it lacks lives), and the share of the samples
+// there (both NaN where there is neither): BroadbandUnexplained::Place's figures.
+std::pair<double, double> NearContactShares(const Recording& part, ResponseKind kind, const BroadbandRecordFit& fit,
+                                            const ActuatorModel& model);
+}  // namespace internal
 
 // Throws InputError for bad options, a campaign without broadband records, or records too short to
 // hold a part out (named).
