@@ -53,7 +53,7 @@ constexpr int kOnsetSections = 30;
 // of entry.
 constexpr size_t kEntryCandidates = 5;
 // ... and at an entry speed among kEntrySpeeds from kEntrySpeedRange[0] to [1] times the state's speed
-// scale L w_n (the data sheet's impacts: 0.3-1 of it at 0.7 V rms).
+// scale L w_n (9102's 9 N impact at 0.7 V rms entered at about 0.7 of it).
 constexpr int kEntrySpeeds = 24;
 constexpr double kEntrySpeedRange[] = {0.05, 5.0};
 // A joint fit with stepped-sine records: at most this many solves at the final continuity weight, each
@@ -404,10 +404,13 @@ void MatchFirstImpact(const ExtendedProblem& problem, const ExtendedProblem& sto
     for (int c = 0; c < d; ++c) g[c] = slope_x(0, c);
     const bool evaluated =
         SegmentCost(stop_free, kind, data, stretch, scale, d, nullptr).Evaluate(blocks, residuals.data(), jacobians);
-    const Eigen::LDLT<Eigen::MatrixXd> normal((jacobian.transpose() * jacobian).eval());
-    const Eigen::VectorXd c_g = normal.solve(g);
+    Eigen::VectorXd c_g = Eigen::VectorXd::Zero(d);
+    if (evaluated) {
+      const Eigen::LDLT<Eigen::MatrixXd> normal((jacobian.transpose() * jacobian).eval());
+      if (normal.info() == Eigen::Success && normal.isPositive()) c_g = normal.solve(g);
+    }
     const double variance = g.dot(c_g);
-    if (evaluated && normal.info() == Eigen::Success && normal.isPositive() && variance > 0 && std::isfinite(variance)) {
+    if (variance > 0 && std::isfinite(variance)) {
       const Eigen::VectorXd delta = c_g / variance;  // scaled start per metre of x(n)
       for (size_t i : entries) {
         double h = 0.0;  // d x(entry) / d(shift of x(n))
