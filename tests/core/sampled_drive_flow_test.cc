@@ -44,7 +44,8 @@ State RampResponse(const ActuatorModel& m, double slope_v_per_s, double t) {
 struct Triangle {
   ActuatorModel linear = StopFree(PaperModel());
   double slope = 2.0, corner_s = 0.1, fs = 1000.0, duration_s = 0.25;
-  SampledDrive drive = Sampled(fs, duration_s, [this](double t) { return slope * (t <= corner_s ? t : 2 * corner_s - t); });
+  SampledDrive drive =
+      Sampled(fs, duration_s, [this](double t) { return slope * (t <= corner_s ? t : 2 * corner_s - t); });
   State Exact(double t) const {
     const State up = RampResponse(linear, slope, t), down = RampResponse(linear, slope, t - corner_s);
     return State{up.x_m - 2 * down.x_m, up.v_m_per_s - 2 * down.v_m_per_s};

@@ -258,7 +258,8 @@ std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const Br
     place.record = split.names[r];
     place.chi2_per_sample = f.chi2_per_sample;
     place.peak_frequency_hz = internal::ResidualPeakFrequencyHz(parts[r], f);
-    std::tie(place.near_contact_share, place.contact_time_share) = internal::NearContactShares(parts[r], kind, f, model);
+    std::tie(place.near_contact_share, place.contact_time_share) =
+        internal::NearContactShares(parts[r], kind, f, model);
     u.places.push_back(place);
   }
   std::sort(u.places.begin(), u.places.end(),
@@ -276,7 +277,8 @@ std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const Br
          << FormatFigure(p.chi2_per_sample) << ", the residual's spectrum peaks at " << FormatFigure(p.peak_frequency_hz)
          << " Hz";
     if (std::isfinite(p.near_contact_share))
-      text << ", " << FormatFigure(100 * p.near_contact_share, 2) << " % of its excess within 2 ms of contacts (the model's or the record's impacts) that take "
+      text << ", " << FormatFigure(100 * p.near_contact_share, 2)
+           << " % of its excess within 2 ms of contacts (the model's or the record's impacts) that take "
            << FormatFigure(100 * p.contact_time_share, 2) << " % of the time";
     text << ")";
   }
@@ -372,7 +374,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   d.fit_before = Figures(split, base_motion, base_heldout);
   d.before = Matches(split, base_motion.records, base_heldout);
   d.heldout_dof = base_heldout.dof;
-  const EffectContext context = Context(base_model, split, base_motion.records, kind, d.base.stop_free, d.base.linear_model);
+  const EffectContext context =
+      Context(base_model, split, base_motion.records, kind, d.base.stop_free, d.base.linear_model);
 
   // 3. Signatures.
   progress(3, "signatures of the base model's residuals");
