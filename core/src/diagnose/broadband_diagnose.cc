@@ -167,11 +167,8 @@ double UpperImpactOnset(const Split& split, const std::vector<BroadbandRecordFit
   std::vector<double> onsets;
   for (double x : internal::ImpactOnsetsM(split.fit_pointers, kind, linear))
     if (x > 0) onsets.push_back(x);
-  if (!onsets.empty()) {
-    std::nth_element(onsets.begin(), onsets.begin() + static_cast<long>(onsets.size() / 2), onsets.end());
-    return onsets[onsets.size() / 2];
-  }
-  for (size_t r = 0; r < split.fit.size() && r < motion.size(); ++r) {
+  const bool found = !onsets.empty();
+  for (size_t r = 0; !found && r < split.fit.size() && r < motion.size(); ++r) {
     const std::vector<bool> impact = RecordImpacts(split.fit[r], kind);
     const std::vector<double>& x = motion[r].x_m;
     for (size_t i = 1; i < impact.size() && i < x.size(); ++i)

@@ -25,8 +25,7 @@ bool FreeFlightMap::Applies(const ActuatorModel& model, const FlowRequest& reque
 }
 
 FreeFlightMap::FreeFlightMap(const ActuatorModel& model, const FlowRequest& request, double interval_s,
-                             const std::vector<double>& scale, double voltage_scale_v)
-    : interval_s_(interval_s) {
+                             const std::vector<double>& scale, double voltage_scale_v) {
   // The field driven by u(t) = t over [0, 1] s: at t = 0 it is M Y + c, at t = 1 M Y + N + c.
   const SampledDrive unit_ramp{1.0, {0.0, 1.0}};
   const Field field(model, Drive{SineDrive{}, &unit_ramp}, request);

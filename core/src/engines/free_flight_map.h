@@ -16,9 +16,9 @@
 // E is computed once per flow (Eigen's Pade approximant with scaling and squaring, accurate relative
 // to the norm of A h: A is balanced first, each component in units of its size, else the columns'
 // large entries (d/dm_p's k_p / m_p^2) leave errors of 1e-13 relative in the drive's small input
-// entries, which add up over a record's steps); a step is then one matrix-vector product, where the DOP853 step it
-// replaces evaluates the field 12 times (the interval of a 51.2 kHz record is 1e-3 of the suspension's
-// period, so DOP853 takes one step per sample). M, N and c are read off the field itself (n + 2
+// entries, which add up over a record's steps); a step is then one matrix-vector product, where the
+// DOP853 step it replaces evaluates the field 12 times (the interval of a 51.2 kHz record is 1e-3 of
+// the suspension's period, so DOP853 takes one step per sample). M, N and c are read off the field itself (n + 2
 // evaluations), so the map and the integrator cannot disagree on the equations.
 #pragma once
 
@@ -38,17 +38,15 @@ class FreeFlightMap {
   static bool Applies(const ActuatorModel& model, const FlowRequest& request);
 
   // The map over `interval_s` for `model` and `request`'s columns (Applies must hold). `scale` holds
-  // each component's size (the flow's absolute tolerances), `voltage_scale_v` the drive's.
+  // each component's size (in proportion to the flow's absolute tolerances), `voltage_scale_v` the drive's.
   FreeFlightMap(const ActuatorModel& model, const FlowRequest& request, double interval_s,
                 const std::vector<double>& scale, double voltage_scale_v);
 
-  double interval_s() const { return interval_s_; }
   // y_next = Y(t_k + h) from y = Y(t_k), the drive's u_k and u_k+1 [V]; the first n components.
   void Advance(const double* y, double u_start_v, double u_end_v, double* y_next) const;
 
  private:
   int n_;
-  double interval_s_;
   std::vector<double> transition_;  // E_YY, row-major n x n
   std::vector<double> from_voltage_, from_voltage_change_, constant_;  // E_Yu, E_Ydu, E_Y1 (n each)
 };
