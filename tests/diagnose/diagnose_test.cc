@@ -165,5 +165,75 @@ TEST(DiagnoseOptionsTest, FieldTableNamesEachOptionAsIsValidDoes) {
   ::strokelab::testing::ExpectTableFieldsAreIsValidFields<DiagnoseOptions>(DiagnoseOptionFields());
 }
 
+// Records of a grid of drive amplitudes [V] (outer) and frequencies [Hz] (inner), in that order.
+std::vector<RecordAnalysis> Grid(const std::vector<double>& amplitudes_v, const std::vector<double>& frequencies_hz) {
+  std::vector<RecordAnalysis> records;
+  for (double a : amplitudes_v) {
+    for (double f : frequencies_hz) {
+      RecordAnalysis r;
+      r.nominal_amplitude_v = a;
+      r.nominal_frequency_hz = f;
+      records.push_back(r);
+    }
+  }
+  return records;
+}
+
+// The (amplitude, frequency) pairs of the held-out records.
+std::vector<std::pair<double, double>> HeldOutPairs(const std::vector<RecordAnalysis>& records, int n) {
+  const std::vector<bool> heldout = HeldOutRecords(records, n);
+  std::vector<std::pair<double, double>> pairs;
+  for (size_t i = 0; i < records.size(); ++i) {
+    if (heldout[i]) pairs.emplace_back(records[i].nominal_amplitude_v, records[i].nominal_frequency_hz);
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
+// A campaign listed amplitude by amplitude is split as it always was (every n-th in its order); the same
+// records listed frequency by frequency, or shuffled, are split alike. Held out in campaign order, the
+// frequency-major listing would lose every 0.5 V record, the ones that reach the stop, to the held-out set.
+TEST(HeldOutRecordsTest, TheSplitDoesNotDependOnTheCampaignsOrder) {
+  const std::vector<double> amplitudes_v = {0.1, 0.3, 0.4, 0.5}, frequencies_hz = {5, 6, 7, 8, 9, 11};
+  const std::vector<RecordAnalysis> amplitude_major = Grid(amplitudes_v, frequencies_hz);
+  const std::vector<bool> heldout = HeldOutRecords(amplitude_major, 4);
+  for (size_t i = 0; i < heldout.size(); ++i) EXPECT_EQ(heldout[i], i % 4 == 3) << i;
+  const auto expected = HeldOutPairs(amplitude_major, 4);
+  ASSERT_EQ(expected.size(), 6u);
+  std::vector<RecordAnalysis> frequency_major;
+  for (double f : frequencies_hz) {
+    for (double a : amplitudes_v) frequency_major.push_back(Grid({a}, {f})[0]);
+  }
+  EXPECT_EQ(HeldOutPairs(frequency_major, 4), expected);
+  std::vector<RecordAnalysis> shuffled = amplitude_major;
+  std::reverse(shuffled.begin(), shuffled.end());
+  std::rotate(shuffled.begin(), shuffled.begin() + 7, shuffled.end());
+  EXPECT_EQ(HeldOutPairs(shuffled, 4), expected);
+  for (double a : amplitudes_v) {  // every level keeps records on both sides
+    const auto held = std::count_if(expected.begin(), expected.end(), [&](const auto& p) { return p.first == a; });
+    EXPECT_GE(held, 1) << a;
+    EXPECT_LT(held, 6) << a;
+  }
+}
+
+// Four frequencies per level with n = 4: counted straight on, the same frequency would be held out at
+// every level; the extra count moves it, so each level holds out a different one.
+TEST(HeldOutRecordsTest, ALevelOfAMultipleOfNRecordsMovesTheHeldOutFrequency) {
+  const auto pairs = HeldOutPairs(Grid({0.1, 0.2, 0.3, 0.4}, {6, 7, 8, 9}), 4);
+  const std::vector<std::pair<double, double>> expected = {{0.1, 9}, {0.2, 8}, {0.3, 7}, {0.4, 6}};
+  EXPECT_EQ(pairs, expected);
+  EXPECT_THAT(HeldOutRecords(Grid({0.1, 0.2}, {6, 7, 8, 9}), 0), ::testing::Each(false));
+}
+
+// Measured drive amplitudes scatter around their level: within 1 % they are one level, ordered by
+// frequency, not by the scatter.
+TEST(HeldOutRecordsTest, AmplitudesWithinOnePercentAreOneLevel) {
+  std::vector<RecordAnalysis> records = Grid({0.2}, {6, 7, 8, 9, 11, 13});
+  const std::vector<double> scatter = {1.004, 0.996, 1.002, 0.998, 1.001, 0.999};
+  for (size_t i = 0; i < records.size(); ++i) records[i].nominal_amplitude_v *= scatter[i];
+  const std::vector<bool> heldout = HeldOutRecords(records, 3);
+  EXPECT_THAT(heldout, ::testing::ElementsAre(false, false, true, false, false, true));
+}
+
 }  // namespace
 }  // namespace strokelab

@@ -7,6 +7,7 @@
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <optional>
 #include <sstream>
 
@@ -145,13 +146,12 @@ struct Split {
   std::vector<const RecordAnalysis*> fit_pointers;  // into `fit` (a move of the Split keeps them valid)
 };
 
-// Every n-th record held out, the last of each block of n; n = 0 holds none out.
+// Step 1 (HeldOutRecords).
 Split SplitRecords(std::span<const RecordAnalysis> analyses, int heldout_every) {
   Split split;
-  split.heldout.assign(analyses.size(), false);
+  split.heldout = HeldOutRecords(analyses, heldout_every);
   for (size_t i = 0; i < analyses.size(); ++i) {
-    if (heldout_every > 0 && i % heldout_every == static_cast<size_t>(heldout_every - 1)) {
-      split.heldout[i] = true;
+    if (split.heldout[i]) {
       split.heldout_indices.push_back(i);
     } else {
       split.fit.push_back(analyses[i]);
@@ -264,6 +264,29 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
 }
 
 }  // namespace
+
+std::vector<bool> HeldOutRecords(std::span<const RecordAnalysis> analyses, int heldout_every) {
+  std::vector<bool> heldout(analyses.size(), false);
+  if (heldout_every <= 0) return heldout;
+  auto amplitude = [&](size_t i) { return analyses[i].nominal_amplitude_v; };
+  auto frequency = [&](size_t i) { return analyses[i].nominal_frequency_hz; };
+  std::vector<size_t> order(analyses.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return amplitude(a) < amplitude(b); });
+  const size_t n = static_cast<size_t>(heldout_every);
+  size_t count = 0;
+  for (auto level = order.begin(); level != order.end();) {
+    const double level_amplitude_v = amplitude(*level);
+    const auto end = std::find_if(level, order.end(), [&](size_t i) {
+      return std::abs(amplitude(i) - level_amplitude_v) > 0.01 * std::abs(level_amplitude_v);
+    });
+    std::stable_sort(level, end, [&](size_t a, size_t b) { return frequency(a) < frequency(b); });
+    for (auto i = level; i != end; ++i) heldout[*i] = ++count % n == 0;
+    if ((end - level) % n == 0) ++count;
+    level = end;
+  }
+  return heldout;
+}
 
 std::optional<FieldError> DiagnoseOptions::IsValid() const {
   if (std::optional<FieldError> error = fit.IsValid()) return error;

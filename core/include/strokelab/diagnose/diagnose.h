@@ -1,8 +1,9 @@
 // Diagnosis: where a fitted model and a campaign disagree, which physics the model left out, and how
 // much better the model fits with it added (strokelab diagnose).
 //
-//   1. Split: every `heldout_every`-th stepped-sine record is held out of all fits (campaign order, so
-//      that the held-out set spans the amplitudes and frequencies).
+//   1. Split: every `heldout_every`-th stepped-sine record is held out of all fits, counted by drive
+//      amplitude, then frequency, whatever the campaign's order, so that the held-out set spans the
+//      amplitudes and frequencies (HeldOutRecords).
 //   2. Base fit (fit.h) on the other records; the base model is then evaluated on every record.
 //   3. Signatures of the mismatch (Signatures): per record and harmonic, even and odd harmonics of the
 //      records clear of the stop versus amplitude, the resonance (paper Eq. 3 per amplitude level)
@@ -295,6 +296,15 @@ struct Diagnosis {
   std::string conclusion;                // in words
   double seconds = 0.0;
 };
+
+// Step 1's split: true for the records held out of all fits. The records are counted level by level
+// of drive amplitude (nominal amplitudes within 1 % form a level), each level by frequency, and every
+// n-th count is held out (n = heldout_every; 0 holds none out). Not the campaign's order: a campaign
+// listed frequency by frequency with n amplitudes would then hold out its strongest drive at every
+// frequency, and the fits would never see the records that reach the stop. The count runs on across
+// levels, so the held-out frequencies move from level to level; a level of a multiple of n records
+// counts one more at its end, so that they move there too.
+std::vector<bool> HeldOutRecords(std::span<const RecordAnalysis> analyses, int heldout_every);
 
 // Throws InputError for bad options or campaigns (as FitCampaign).
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
