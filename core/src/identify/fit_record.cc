@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "fit_internal.h"
+#include "strokelab/base/chi_square.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/signal/harmonic_fit.h"
@@ -28,6 +29,21 @@ constexpr double kHumSeparationPerWindow = 0.5;  // hum within half a bin (1/T) 
 constexpr double kLagRoundingSlack = 0.05;         // lags rounded this much worse than the best still count [samples]
 constexpr double kImpactHeightFraction = 0.25;     // smaller spikes in a record are baseline artefacts
 constexpr double kRelativeSeFloor = 1e-12;         // noise at least this fraction of |C_1| (rounding)
+
+// Subharmonic responses (ResponsePeriods): periods of 2 and 3 drive periods are looked for, and one is
+// taken when its subharmonics' chi-square passes its 1e-6 tail under noise alone.
+constexpr int kMaxResponsePeriods = 3;
+constexpr double kSubharmonicFalseAlarm = 1e-6;
+// Subharmonics below this share of the fundamental (per harmonic) are not looked for. Impacts sampled
+// at a rate that is no multiple of the drive's frequency put content between the drive's harmonics (the
+// spike moves on the sample grid from period to period), which no response period removes: measured
+// up to 3.5e-4 of |C_1| per harmonic at 51.2 kHz (fit_test.cc's campaign), 3e-3 (an acceleration channel
+// with contact damping, tools/gen2) and 5.5e-3 at 8192 Hz (foreign_formats_test.cc's). True period-2
+// responses measured 2.3e-2 (a cubic spring at 9 Hz) to 0.49 (alternating impacts on two stops). One of
+// this size leaks some 6 % of it into the drive's neighbouring harmonics over an odd number of periods
+// (the first sidelobe of half a harmonic), 6e-4 of |C_1|: below a rig's noise there at most levels.
+constexpr double kSubharmonicFloor = 1e-2;
+constexpr double kMainsGuardBins = 1.5;  // subharmonics this close to a mains overtone are not counted
 
 double Median(std::vector<double> values) {
   const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
@@ -48,17 +64,30 @@ double RobustSigma(std::span<const double> residual) {
   throw InputError(record + (e.field().empty() ? "" : "." + e.field()), e.bare_message());
 }
 
-// The mains hum frequencies to remove from a response: the candidates (50 and 60 Hz, or the one the
-// options name) that no drive harmonic masks (closer than half a frequency bin 1/T: inseparable).
-// Removing a family that is not there costs 2 kHumOrders of the window's n >> 1 degrees of freedom.
+// The mains frequencies a record's hum may come from: the one the options name, or 50 and 60 Hz.
+std::vector<double> MainsCandidates(const FitOptions& options) {
+  if (options.mains_frequency_hz > 0) return {options.mains_frequency_hz};
+  if (options.mains_frequency_hz == 0) return {50.0, 60.0};
+  return {};
+}
+
+// Whether `frequency_hz` lies within `bins` frequency bins (1 / window_s) of a mains overtone.
+bool NearMains(double frequency_hz, double window_s, double bins, const FitOptions& options) {
+  for (double hum : MainsCandidates(options))
+    for (int k = 1; k <= kHumOrders; ++k)
+      if (std::abs(k * hum - frequency_hz) * window_s < bins) return true;
+  return false;
+}
+
+// The mains hum frequencies to remove from a response: the candidates that no drive harmonic masks
+// (closer than half a frequency bin 1/T: inseparable). Removing a family that is not there costs
+// 2 kHumOrders of the window's n >> 1 degrees of freedom. (A subharmonic response's harmonics between
+// the drive's do not mask it: fitted beside them, the hum takes its share of what they cannot tell
+// apart, and neither leaks into the drive's harmonics.)
 std::vector<double> HumCandidates(double fs, const RecordAnalysis& a, const FitOptions& options) {
-  std::vector<double> candidates, kept;
-  if (options.mains_frequency_hz > 0)
-    candidates = {options.mains_frequency_hz};
-  else if (options.mains_frequency_hz == 0)
-    candidates = {50.0, 60.0};
+  std::vector<double> kept;
   const double window_s = static_cast<double>(a.window.size()) / fs;
-  for (double hum : candidates) {
+  for (double hum : MainsCandidates(options)) {
     if (hum * window_s < 2.0 || hum >= 0.5 * fs) continue;
     bool masked = false;
     for (int k = 1; k <= kHumOrders && !masked; ++k)
@@ -73,21 +102,15 @@ std::vector<double> HumCandidates(double fs, const RecordAnalysis& a, const FitO
 // the drive's response dwarfs the hum there, and without it there is no record.
 std::vector<bool> UsableHarmonics(double fs, const RecordAnalysis& a, const FitOptions& options) {
   std::vector<bool> usable(options.harmonic_orders, true);
-  std::vector<double> mains;
-  if (options.mains_frequency_hz > 0)
-    mains = {options.mains_frequency_hz};
-  else if (options.mains_frequency_hz == 0)
-    mains = {50.0, 60.0};
   const double window_s = static_cast<double>(a.window.size()) / fs;
-  for (double hum : mains)
-    for (int k = 1; k <= kHumOrders; ++k)
-      for (int h = 2; h <= options.harmonic_orders; ++h)
-        if (std::abs(k * hum - h * a.drive.frequency_hz) * window_s < kHumSeparationPerWindow) usable[h - 1] = false;
+  for (int h = 2; h <= options.harmonic_orders; ++h)
+    if (NearMains(h * a.drive.frequency_hz, window_s, kHumSeparationPerWindow, options)) usable[h - 1] = false;
   return usable;
 }
 
 // The white-noise level of a periodic signal with spikes: sigma = 1.4826 MAD(y[n + L] - y[n]) / sqrt(2)
-// for a lag L = k fs / f rounded, k <= P/2 whole periods. The periodic part cancels (to y' times the
+// for a lag L = k fs / f rounded, k <= P/2 whole periods of the signal (f its fundamental, of the
+// response's own period: FitResponse). The periodic part cancels (to y' times the
 // rounding, far below the noise for the smooth part); the impacts spoil only the few samples near
 // them, which the median ignores. The smallest sigma over the lags with the least rounding (within
 // kLagRoundingSlack samples of the best) is taken, so that a period-2 response (cancelled by even k
@@ -120,10 +143,13 @@ double PeriodicNoiseSigma(std::span<const double> signal, double fs, double f, S
 // Gauss-Seidel: the bases are nearly orthogonal over the window, so a few passes suffice): each hum
 // family fitted to the response less the drive harmonics and the other families, the drive harmonics
 // to the response less the hum. Fills harmonics, offset, hum, noise; returns the response with the
-// hum removed (full length; the window's samples changed).
-std::vector<double> FitResponse(const Recording& record, const FitOptions& options, RecordAnalysis* a) {
-  const double fs = record.sample_rate_hz, f = a->drive.frequency_hz;
-  const int orders = options.harmonic_orders;
+// hum removed (full length; the window's samples changed). A response of `response_periods` drive
+// periods is fitted by the harmonics of its own period, so that its subharmonics leak neither into the
+// hum nor into the drive's harmonics, which are every response_periods-th of them.
+std::vector<double> FitResponse(const Recording& record, const FitOptions& options, int response_periods,
+                                RecordAnalysis* a) {
+  const double fs = record.sample_rate_hz, f = a->drive.frequency_hz / response_periods;
+  const int orders = options.harmonic_orders * response_periods;
   const SampleWindow w = a->window;
   std::vector<double> cleaned = record.response;
   std::vector<double> evaluated(w.size()), target(record.response.size(), 0.0);
@@ -169,11 +195,17 @@ std::vector<double> FitResponse(const Recording& record, const FitOptions& optio
     if (hum_amplitudes[j] > a->hum_amplitude) a->hum_amplitude = hum_amplitudes[j], a->hum_frequency_hz = hums[j];
   }
   a->response_offset = fit.offset;
-  a->harmonics.resize(orders);
-  for (int h = 1; h <= orders; ++h)
-    a->harmonics[h - 1] = fit.amplitudes[h - 1] * std::polar(1.0, -h * a->drive.phase_rad);
+  a->harmonics.resize(options.harmonic_orders);
+  for (int h = 1; h <= options.harmonic_orders; ++h)
+    a->harmonics[h - 1] = fit.amplitudes[h * response_periods - 1] * std::polar(1.0, -h * a->drive.phase_rad);
   const double n = static_cast<double>(w.size());
-  a->noise_rms = PeriodicNoiseSigma(cleaned, fs, f, w);
+  // Lags of whole drive periods cancel a response of one, lags of its own period any response (with
+  // the least rounding among fewer lags); neither leaves less than the noise, so the smaller counts.
+  a->noise_rms = PeriodicNoiseSigma(cleaned, fs, a->drive.frequency_hz, w);
+  if (response_periods > 1) {
+    const SampleWindow own{w.begin, w.end, w.periods / response_periods};
+    a->noise_rms = std::min(a->noise_rms, PeriodicNoiseSigma(cleaned, fs, f, own));
+  }
   if (!(a->noise_rms > 0.0)) {
     // Too short for the lag (or noise-free): the robust spread of the harmonic fit's residual.
     std::vector<double> residual(w.size());
@@ -184,6 +216,50 @@ std::vector<double> FitResponse(const Recording& record, const FitOptions& optio
   a->noise_rms = std::max(a->noise_rms, kRelativeSeFloor * std::abs(fit.amplitudes[0]));
   a->harmonic_se = a->noise_rms * std::sqrt(2.0 / n);
   return cleaned;
+}
+
+// The last `periods` whole drive periods of a record of n samples (half a sample of slack).
+SampleWindow LastPeriods(size_t n, double fs, double f, double periods) {
+  const size_t count = std::min(n, static_cast<size_t>(std::llround(periods * fs / f)));
+  return SampleWindow{n - count, n, periods};
+}
+
+// The response's period in drive periods: 1, or P = 2 or 3 where the harmonics of f / P that are no
+// harmonic of f stand out of the noise. They are fitted beside the drive's harmonics over the window's
+// last whole multiple of P periods, where every harmonic of f / P is orthogonal to the others; their
+// chi-square (Re and Im over the standard error sigma sqrt(2 / n), sigma the noise level from lags of
+// whole multiples of P periods, which cancel such a response; at least kSubharmonicFloor |C_1|) must
+// pass its kSubharmonicFalseAlarm tail. Of two such P, the one whose subharmonics carry more of the
+// signal beyond noise: a period-2 response leaks into the thirds too, and a period-3 one into the
+// halves, but less than into their own. Subharmonics within kMainsGuardBins of a mains overtone are left out: hum that
+// was there, or that its removal (FitResponse) put there, is no subharmonic. Over a window that is no
+// whole multiple of P periods, a period-P response's subharmonics leak into the drive's harmonics,
+// which a model's periodic orbit does not have.
+int ResponsePeriods(std::span<const double> cleaned, double fs, double f, SampleWindow w, const FitOptions& options) {
+  const int orders = options.harmonic_orders;
+  int best = 1;
+  double best_excess = 0.0;
+  for (int p = 2; p <= kMaxResponsePeriods; ++p) {
+    const double periods = p * std::floor(w.periods / p);
+    if (periods < 2.0 * p) continue;
+    const SampleWindow wp = LastPeriods(w.end, fs, f, periods);
+    const internal::HarmonicFit fit = internal::FitHarmonics(cleaned, fs, f / p, wp, orders * p);
+    const double noise_rms = PeriodicNoiseSigma(cleaned, fs, f / p, SampleWindow{wp.begin, wp.end, periods / p});
+    const double se = std::max(noise_rms * std::sqrt(2.0 / static_cast<double>(wp.size())),
+                               kSubharmonicFloor * std::abs(fit.amplitudes[p - 1]));
+    if (!(se > 0.0)) continue;
+    double chi2 = 0.0;
+    int dof = 0;
+    const double window_s = static_cast<double>(wp.size()) / fs;
+    for (int k = 1; k <= orders * p; ++k) {
+      if (k % p == 0 || NearMains(k * f / p, window_s, kMainsGuardBins, options)) continue;
+      chi2 += std::norm(fit.amplitudes[k - 1]) / (se * se);
+      dof += 2;
+    }
+    const double excess = chi2 - dof;
+    if (ChiSquareUpperTail(chi2, dof) < kSubharmonicFalseAlarm && excess > best_excess) best = p, best_excess = excess;
+  }
+  return best;
 }
 
 // Where impacts show as spikes: the force or acceleration itself, else its derivatives by central
@@ -215,8 +291,8 @@ std::vector<Spike> ImpactSpikes(std::vector<Spike> spikes) {
 
 RecordAnalysis AnalyseRecord(const Recording& record, ResponseKind kind, const FitOptions& options) {
   using fit_internal::Complex, fit_internal::FitResponse, fit_internal::Format, fit_internal::ImpactSpikes,
-      fit_internal::RequirePositiveFinite, fit_internal::RethrowForRecord, fit_internal::SpikeSignal,
-      fit_internal::UsableHarmonics;
+      fit_internal::LastPeriods, fit_internal::RequirePositiveFinite, fit_internal::ResponsePeriods,
+      fit_internal::RethrowForRecord, fit_internal::SpikeSignal, fit_internal::UsableHarmonics;
   Validate(options);
   const std::string name = record.name.empty() ? "record" : record.name;
   if (record.broadband) throw InputError(name, "is broadband: only stepped-sine records are fitted");
@@ -236,12 +312,18 @@ RecordAnalysis AnalyseRecord(const Recording& record, ResponseKind kind, const F
     // Whole periods of the estimated drive at the record's end (half a sample of slack).
     const double periods = std::floor((static_cast<double>(n) + 0.5) * f / fs);
     if (periods < 2.0) throw InputError("voltage", "holds less than two periods of the drive at " + Format(f) + " Hz");
-    const size_t count = std::min(n, static_cast<size_t>(std::llround(periods * fs / f)));
-    a.window = SampleWindow{n - count, n, periods};
+    a.window = LastPeriods(n, fs, f, periods);
     if (options.harmonic_orders * f >= 0.5 * fs)
       throw InputError("harmonic_orders", "harmonic " + std::to_string(options.harmonic_orders) + " of " + Format(f) +
                                               " Hz is not below the Nyquist frequency " + Format(0.5 * fs) + " Hz");
-    const std::vector<double> cleaned = FitResponse(record, options, &a);
+    std::vector<double> cleaned = FitResponse(record, options, 1, &a);
+    // A subharmonic response is analysed over whole periods of its own (ResponsePeriods).
+    const int response_periods = ResponsePeriods(cleaned, fs, f, a.window, options);
+    if (response_periods > 1) {
+      a.window = LastPeriods(n, fs, f, response_periods * std::floor(periods / response_periods));
+      a.hum_amplitude = a.hum_frequency_hz = 0.0;
+      cleaned = FitResponse(record, options, response_periods, &a);
+    }
     a.usable = UsableHarmonics(fs, a, options);
     a.frf = Complex(0.0, 1.0) * a.harmonics[0] / a.drive.amplitude_v;  // C_1(v) = V e^{j(phi - pi/2)}
     double higher = 0.0;
