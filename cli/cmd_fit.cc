@@ -115,12 +115,14 @@ void PrintReport(const FitResult& r, std::ostream& out) {
     if (x.used_linear) used += "linear ";
     if (x.used_contact) used += "contact-time ";
     if (x.used_refinement) used += "refinement";
-    std::snprintf(line, sizeof line, "%-16s %9s %7s %6s %7zu %8s %10s %10s %8d  %s\n", x.name.c_str(),
+    const std::string period = std::to_string(x.model_period) + "/" + std::to_string(x.response_periods);
+    std::snprintf(line, sizeof line, "%-16s %9s %7s %6s %7zu %8s %10s %10s %8s  %s\n", x.name.c_str(),
                   Fixed(x.frequency_hz, 4).c_str(), Fixed(x.amplitude_v, 4).c_str(), x.clear ? "yes" : "no", x.spikes,
                   Fixed(x.contact_time_s * 1e3, 3).c_str(), General(x.nrmse, 3).c_str(), General(x.chi2, 3).c_str(),
-                  x.model_period, used.c_str());
+                  period.c_str(), used.c_str());
     out << line;
   }
+  out << "(period: of the fitted model's steady state / of the record's response, in drive periods; 0 aperiodic)\n";
   if (!r.warnings.empty()) {
     out << "\nwarnings:\n";
     for (const std::string& w : r.warnings) out << "  " << w << "\n";

@@ -103,6 +103,7 @@ nlohmann::json FitResultToJson(const FitResult& r) {
                        {"noise_rms", JsonNumber(x.noise_rms)},
                        {"hum_frequency_hz", JsonNumber(x.hum_frequency_hz)},
                        {"hum_amplitude", JsonNumber(x.hum_amplitude)},
+                       {"response_periods", x.response_periods},
                        {"frf", ComplexJson(x.frf)},
                        {"used_for", used},
                        {"nrmse_initial", JsonNumber(x.nrmse_initial)},

@@ -319,6 +319,7 @@ RecordAnalysis AnalyseRecord(const Recording& record, ResponseKind kind, const F
     std::vector<double> cleaned = FitResponse(record, options, 1, &a);
     // A subharmonic response is analysed over whole periods of its own (ResponsePeriods).
     const int response_periods = ResponsePeriods(cleaned, fs, f, a.window, options);
+    a.response_periods = response_periods;
     if (response_periods > 1) {
       a.window = LastPeriods(n, fs, f, response_periods * std::floor(periods / response_periods));
       a.hum_amplitude = a.hum_frequency_hz = 0.0;

@@ -320,6 +320,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     f.noise_rms = a.noise_rms;
     f.hum_frequency_hz = a.hum_frequency_hz;
     f.hum_amplitude = a.hum_amplitude;
+    f.response_periods = a.response_periods;
     f.frf = a.frf;
     f.used_refinement = std::find(used.begin(), used.end(), i) != used.end();
     std::optional<ModelOrbit> orbit;

@@ -2,7 +2,8 @@
 //
 //   1. Per record (AnalyseRecord): the true drive from the voltage channel (EstimateDrive: frequency
 //      refined from the nominal one, amplitude, phase), offsets and mains hum removed, the response's
-//      harmonics up to order N by least squares over whole periods, the first-order FRF
+//      harmonics up to order N by least squares over whole periods (of the response's, where it
+//      repeats only every 2 or 3 drive periods: its subharmonics fitted beside), the first-order FRF
 //      C_1(response) / C_1(v_in) (paper section 3), the noise level (from differences of the response
 //      a whole number of periods apart, blind to the impacts), impact spikes (DetectSpikes) and
 //      harmonic distortion.
@@ -141,7 +142,11 @@ struct RecordAnalysis {
   double nominal_frequency_hz = 0.0, nominal_amplitude_v = 0.0;  // manifest [Hz], [V]
   double sample_rate_hz = 0.0;                                   // fs [Hz]
   DriveEstimate drive;
-  SampleWindow window;           // whole periods of the estimated drive, the record's end
+  SampleWindow window;           // whole periods of the estimated drive (and of the response), at the end
+  // Drive periods after which the response repeats: 1, or 2 or 3 where its subharmonics stand out
+  // of the noise (alternating impacts); the window then spans whole periods of the response, whose
+  // harmonics are fitted beside the drive's (fit_record.cc, ResponsePeriods).
+  int response_periods = 1;
   double response_offset = 0.0;  // DC of the response (removed)
   // Mains hum (50 and 60 Hz, kHumOrders orders each, unless a drive harmonic masks them) is fitted and
   // removed; the stronger fundamental found [Hz] and its amplitude [response units] (0: none fitted).
@@ -254,6 +259,7 @@ struct RecordFit {
   double noise_rms = 0.0;         // [response units]
   double hum_frequency_hz = 0.0;  // mains hum removed (0: none) [Hz]
   double hum_amplitude = 0.0;     // [response units]
+  int response_periods = 1;       // RecordAnalysis::response_periods
   std::complex<double> frf;       // measured C_1(response) / C_1(v_in)
   bool used_linear = false;       // step 2
   bool used_contact = false;      // step 3 (spikes gave contact times)
