@@ -310,6 +310,35 @@ TEST_F(ForceCampaign, LinearStepAloneMatchesEq3Truth) {
   }
 }
 
+// Three records at 5 Hz on the paper's linear part (linear amplitudes g V / |k_p - m_p w^2 + j c_p w|:
+// 0.30, 0.59 and 0.89 mm for 0.1, 0.2, 0.3 V): clear; distorted without spikes; with an impact spike.
+// The distorted one bounds neither side of |d|: its impacts may be lost in a displacement channel's
+// noise (it was taken as below the stop, which put |d| above 0.59 mm).
+TEST(EstimateContact, ARecordDistortedWithoutSpikesBoundsNeitherSideOfTheStop) {
+  const ActuatorModel paper = PaperModel();
+  FrfFitSummary linear;
+  linear.stiffness_n_per_m = paper.stiffness_n_per_m;
+  linear.damping_n_s_per_m = paper.damping_n_s_per_m;
+  linear.gain_n_per_v = paper.gain_n_per_v;
+  std::vector<RecordAnalysis> records(3);
+  for (int i = 0; i < 3; ++i) {
+    records[i].drive.frequency_hz = 5.0;
+    records[i].drive.amplitude_v = 0.1 * (i + 1);
+  }
+  records[0].clear = true;
+  records[2].spikes.push_back(Spike{0, 0.01, 5.0, 0.0100, 0.0103});
+  const auto amplitude_m = [&](const RecordAnalysis& a) {
+    const double w = kTwoPi * a.drive.frequency_hz;
+    const std::complex<double> dynamic_stiffness(linear.stiffness_n_per_m - paper.mass_kg * w * w,
+                                                 linear.damping_n_s_per_m * w);
+    return linear.gain_n_per_v * a.drive.amplitude_v / std::abs(dynamic_stiffness);
+  };
+  const ContactEstimate c = EstimateContact(records, ResponseKind::kDisplacement, linear, {});
+  EXPECT_DOUBLE_EQ(c.largest_clear_amplitude_m, amplitude_m(records[0]));
+  EXPECT_DOUBLE_EQ(c.smallest_contacting_amplitude_m, amplitude_m(records[2]));
+  EXPECT_EQ(c.records, (std::vector<size_t>{1, 2}));
+}
+
 TEST_F(ForceCampaign, ContactTimesGiveStopStiffnessWithinItsSpread) {
   const LinearStage stage = FitClearRecords(*analyses_, ResponseKind::kForce, {});
   const ContactEstimate c = EstimateContact(*analyses_, ResponseKind::kForce, stage.summary, {});

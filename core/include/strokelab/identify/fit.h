@@ -204,9 +204,10 @@ struct ContactEstimate {
   double stiffness_spread_n_per_m = 0.0;
   bool lower_stop = true;  // the stop pushes the mass up (x < d): positive force spikes
   // Displacement amplitudes of the linear model (g V / |k_p - m_p w^2 + j c_p w|) [m]: the largest
-  // over the records without impact spikes and the smallest over those with spikes, above the former
-  // (below it a record may sit on the contacting branch of a bistable response, which bounds
-  // nothing); NaN when there are none. With no spike in the campaign: clear against not clear.
+  // over the clear records and the smallest over those with spikes, above the former (below it a
+  // record may sit on the contacting branch of a bistable response, which bounds nothing; a record
+  // distorted without spikes bounds neither: EstimateContact); NaN when there are none. With no spike
+  // in the campaign: clear against not clear.
   double largest_clear_amplitude_m = 0.0;
   double smallest_contacting_amplitude_m = 0.0;
   // |d| to start the refinement from [m] (NaN: no contacting record): the bracket's geometric middle
