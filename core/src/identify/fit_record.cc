@@ -79,11 +79,14 @@ bool NearMains(double frequency_hz, double window_s, double bins, const FitOptio
   return false;
 }
 
-// The mains hum frequencies to remove from a response: the candidates that no drive harmonic masks
-// (closer than half a frequency bin 1/T: inseparable). Removing a family that is not there costs
-// 2 kHumOrders of the window's n >> 1 degrees of freedom. (A subharmonic response's harmonics between
-// the drive's do not mask it: fitted beside them, the hum takes its share of what they cannot tell
-// apart, and neither leaks into the drive's harmonics.)
+// The mains hum frequencies to remove from a response: the candidates that the drive's fundamental
+// does not mask (closer than half a frequency bin 1/T: inseparable). Removing a family that is not
+// there costs 2 kHumOrders of the window's n >> 1 degrees of freedom. A higher drive harmonic does not
+// mask it: that harmonic is left out of every residual (UsableHarmonics), and a hum left in the record
+// leaked into the harmonics beside it (gen2's velocity control 9601: 50 Hz hum of 2.5 times the noise
+// beside harmonic 7 of 7 Hz over 3 periods left its 7 Hz records 8-10 times the noise in harmonic 8,
+// and the control "unexplained"). Nor do a subharmonic response's harmonics: fitted beside them, the
+// hum takes its share of what they cannot tell apart, and neither leaks into the drive's harmonics.
 std::vector<double> HumCandidates(double fs, const RecordAnalysis& a, const FitOptions& options) {
   std::vector<double> kept;
   const double window_s = static_cast<double>(a.window.size()) / fs;
@@ -91,8 +94,7 @@ std::vector<double> HumCandidates(double fs, const RecordAnalysis& a, const FitO
     if (hum * window_s < 2.0 || hum >= 0.5 * fs) continue;
     bool masked = false;
     for (int k = 1; k <= kHumOrders && !masked; ++k)
-      for (int h = 1; h <= options.harmonic_orders && !masked; ++h)
-        masked = std::abs(k * hum - h * a.drive.frequency_hz) * window_s < kHumSeparationPerWindow;
+      masked = std::abs(k * hum - a.drive.frequency_hz) * window_s < kHumSeparationPerWindow;
     if (!masked) kept.push_back(hum);
   }
   return kept;

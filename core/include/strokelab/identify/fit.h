@@ -148,7 +148,7 @@ struct RecordAnalysis {
   // harmonics are fitted beside the drive's (fit_record.cc, ResponsePeriods).
   int response_periods = 1;
   double response_offset = 0.0;  // DC of the response (removed)
-  // Mains hum (50 and 60 Hz, kHumOrders orders each, unless a drive harmonic masks them) is fitted and
+  // Mains hum (50 and 60 Hz, kHumOrders orders each, unless the drive's fundamental masks them) is fitted and
   // removed; the stronger fundamental found [Hz] and its amplitude [response units] (0: none fitted).
   double hum_frequency_hz = 0.0;
   double hum_amplitude = 0.0;
