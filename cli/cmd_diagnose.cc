@@ -33,10 +33,11 @@ constexpr const char* kDiagnoseHelp = R"(usage: strokelab diagnose --data DIR [-
 
 Fits the base model (as strokelab fit) to all but every n-th record (counted by drive amplitude, then
 frequency, whatever the manifest's order), measures where it misses (per record and harmonic, harmonic
-balance below the stop, resonance against amplitude, contact times, the residual around impacts), fits the base model extended by each candidate effect (cubic_stiffness,
-quadratic_stiffness, hertzian_contact, contact_damping, second_stop, dry_friction,
-amplifier_saturation, quadratic_damping, force_factor, and with --coil-inductance coil_inductance)
-and names the ones that improve the held-out records beyond noise, or says "nothing missing".
+balance below the stop, resonance against amplitude, contact times, the residual around impacts),
+fits the base model extended by each candidate effect (cubic_stiffness, quadratic_stiffness,
+hertzian_contact, contact_damping, second_stop, dry_friction, amplifier_saturation,
+quadratic_damping, force_factor, and with --coil-inductance coil_inductance) and names the ones
+that improve the held-out records beyond noise, or says "nothing missing".
 
 A campaign of broadband records only (noise, multisine, sweep) is diagnosed by the records' time
 series instead (as strokelab fit fits them): the first or last 1/N of each record (--heldout-every N),

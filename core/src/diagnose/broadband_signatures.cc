@@ -27,18 +27,23 @@ struct Sample {
   bool near_contact = false;
 };
 
-std::vector<bool> NearContacts(const ActuatorModel& model, const BroadbandRecordFit& fit, double fs) {
-  const size_t n = fit.x_m.size();
-  std::vector<bool> near(n, false);
-  const long reach = static_cast<long>(std::ceil(kContactWindowS * fs));
-  for (size_t i = 0; i < n; ++i) {
+// The samples where the model's motion is inside one of its stops.
+std::vector<bool> ModelContacts(const ActuatorModel& model, const BroadbandRecordFit& fit) {
+  std::vector<bool> contact(fit.x_m.size(), false);
+  for (size_t i = 0; i < contact.size(); ++i) {
     const double x = fit.x_m[i];
-    const bool contact = (model.HasLowerStop() && x < model.lower_stop_m) || (model.HasUpperStop() && x > model.upper_stop_m);
-    if (!contact) continue;
-    const size_t from = static_cast<size_t>(std::max(0L, static_cast<long>(i) - reach));
-    const size_t to = std::min(n, i + static_cast<size_t>(reach) + 1);
-    for (size_t k = from; k < to; ++k) near[k] = true;
+    contact[i] = (model.HasLowerStop() && x < model.lower_stop_m) || (model.HasUpperStop() && x > model.upper_stop_m);
   }
+  return contact;
+}
+
+// The samples within kContactWindowS of a marked one, at the sample rate fs.
+std::vector<bool> WithinContactWindow(const std::vector<bool>& marked, double fs) {
+  const size_t n = marked.size(), reach = static_cast<size_t>(std::ceil(kContactWindowS * fs));
+  std::vector<bool> near(n, false);
+  for (size_t i = 0; i < n; ++i)
+    if (marked[i])
+      for (size_t k = i - std::min(i, reach); k < std::min(n, i + reach + 1); ++k) near[k] = true;
   return near;
 }
 
@@ -47,7 +52,7 @@ std::vector<Sample> SamplesOf(std::span<const Recording> parts, std::span<const 
   std::vector<Sample> out;
   for (size_t r = 0; r < parts.size(); ++r) {
     const BroadbandRecordFit& f = fits[r];
-    const std::vector<bool> near = NearContacts(model, f, parts[r].sample_rate_hz);
+    const std::vector<bool> near = WithinContactWindow(ModelContacts(model, f), parts[r].sample_rate_hz);
     double mean = 0.0;
     size_t finite = 0;
     for (double x : f.x_m)
@@ -238,12 +243,11 @@ double ResidualPeakFrequencyHz(const Recording& part, const BroadbandRecordFit& 
 
 std::pair<double, double> NearContactShares(const Recording& part, ResponseKind kind, const BroadbandRecordFit& fit,
                                             const ActuatorModel& model) {
-  std::vector<bool> near = NearContacts(model, fit, part.sample_rate_hz);
+  std::vector<bool> contact = ModelContacts(model, fit);
   const std::vector<bool> impact = RecordImpacts(part, kind);
-  const size_t reach = static_cast<size_t>(std::ceil(kContactWindowS * part.sample_rate_hz));
-  for (size_t i = 0; i < impact.size() && i < near.size(); ++i)
-    if (impact[i])
-      for (size_t k = i - std::min(i, reach); k < std::min(near.size(), i + reach + 1); ++k) near[k] = true;
+  for (size_t i = 0; i < impact.size() && i < contact.size(); ++i)
+    if (impact[i]) contact[i] = true;
+  const std::vector<bool> near = WithinContactWindow(contact, part.sample_rate_hz);
   double excess_near = 0, excess = 0;
   size_t n_near = 0, n = 0;
   for (size_t i = 0; i < fit.residual.size(); ++i) {

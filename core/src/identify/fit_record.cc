@@ -193,6 +193,7 @@ std::vector<double> FitResponse(const Recording& record, const FitOptions& optio
     fit = internal::FitHarmonics(cleaned, fs, f, w, orders);
     internal::EvaluateHarmonics(fit, fs, f, w, evaluated);
   }
+  a->hum_amplitude = a->hum_frequency_hz = 0.0;
   for (size_t j = 0; j < hums.size(); ++j) {
     if (hum_amplitudes[j] > a->hum_amplitude) a->hum_amplitude = hum_amplitudes[j], a->hum_frequency_hz = hums[j];
   }
@@ -324,7 +325,6 @@ RecordAnalysis AnalyseRecord(const Recording& record, ResponseKind kind, const F
     a.response_periods = response_periods;
     if (response_periods > 1) {
       a.window = LastPeriods(n, fs, f, response_periods * std::floor(periods / response_periods));
-      a.hum_amplitude = a.hum_frequency_hz = 0.0;
       cleaned = FitResponse(record, options, response_periods, &a);
     }
     a.usable = UsableHarmonics(fs, a, options);
