@@ -252,6 +252,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.parameters = r.parameters;
   c.covariance = r.covariance;
   c.effect_parameters = internal::EffectParameters(effects, r.parameters);
+  c.max_drive_v = context.max_amplitude_v;
   if (step) step("every record at the fitted model");
   const std::vector<RecordMatch> matches =
       MatchAll(r.model, analyses, split.heldout, kind, orders);

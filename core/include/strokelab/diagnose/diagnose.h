@@ -183,6 +183,7 @@ struct CandidateFit {
   std::vector<FitParameter> effect_parameters;  // the effect's own
   ActuatorModel model;
   FitFigures figures;
+  double max_drive_v = 0.0;   // the campaign's largest drive amplitude [V]: an amplifier limit above it clips nothing
   double heldout_gain = 0.0;  // (base held-out chi2 - this) / max(1, this residual variance)
   double fit_gain = 0.0;      // the same on the fit records
   int passes = 0;
