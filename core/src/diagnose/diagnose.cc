@@ -59,11 +59,11 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const Re
     const double mismatch = internal::MismatchSquared(a, p->harmonics);
     m.power = internal::PowerOf(a);
     m.nrmse = std::sqrt(mismatch / m.power);
-    m.chi2 = mismatch / (a.harmonic_se * a.harmonic_se);
+    m.chi2 = mismatch / p->variance;
     m.harmonic_chi2.assign(a.harmonics.size(), 0.0);
     for (size_t h = 0; h < a.harmonics.size(); ++h) {
       if (!a.usable.empty() && !a.usable[h]) continue;
-      m.harmonic_chi2[h] = std::norm(a.harmonics[h] - p->harmonics[h]) / (a.harmonic_se * a.harmonic_se);
+      m.harmonic_chi2[h] = std::norm(a.harmonics[h] - p->harmonics[h]) / p->variance;
       m.residuals += 2;
     }
     m.model_period = p->orbit.anchor.period;

@@ -195,9 +195,10 @@ std::optional<Prediction> Predict(const ActuatorModel& model, const RecordAnalys
   if (!orbit) return std::nullopt;
   Prediction p;
   p.orbit = std::move(*orbit);
-  const std::vector<Complex> correction = SamplingCorrection(model, record, p.orbit, kind, orders);
+  const SampledCorrection correction = SamplingCorrection(model, record, p.orbit, kind, orders);
   p.harmonics = p.orbit.harmonics;
-  for (int h = 0; h < orders; ++h) p.harmonics[h] += correction[h];
+  for (int h = 0; h < orders; ++h) p.harmonics[h] += correction.harmonics[h];
+  p.variance = record.harmonic_se * record.harmonic_se + correction.jitter_variance;
   return p;
 }
 
@@ -208,8 +209,7 @@ double Chi2At(std::span<const RecordAnalysis* const> records, ResponseKind kind,
   ParallelFor(records.size(), [&](size_t i) {
     try {
       if (const auto p = Predict(full, *records[i], kind, orders))
-        chi2[i] = MismatchSquared(*records[i], p->harmonics) /
-                  (records[i]->harmonic_se * records[i]->harmonic_se);
+        chi2[i] = MismatchSquared(*records[i], p->harmonics) / p->variance;
     } catch (const std::exception&) {
     }
   });

@@ -66,9 +66,9 @@ class HarmonicCost {
       const std::optional<ModelOrbit> orbit =
           SolveOrbit(model, *target_->record, target_->anchor, kind_, orders_, OrbitSearch::kNearby);
       if (!orbit) return false;
-      const std::vector<Complex> correction = target_->live_correction
-                                                  ? SamplingCorrection(model, *target_->record, *orbit, kind_, orders_)
-                                                  : target_->correction;
+      const std::vector<Complex> correction =
+          target_->live_correction ? SamplingCorrection(model, *target_->record, *orbit, kind_, orders_).harmonics
+                                   : target_->correction;
       for (int h = 0; h < orders_; ++h) {
         const double weight = target_->record->usable[h] ? target_->weight : 0.0;
         const Complex r = weight * (target_->record->harmonics[h] - orbit->harmonics[h] - correction[h]);
@@ -171,15 +171,19 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     double change = 0.0;
     for (RecordTarget& t : targets) {
       std::vector<Complex> correction(orders, 0.0);
+      double jitter_variance = 0.0;
       try {
         if (const std::optional<ModelOrbit> orbit =
                 SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kAttractor)) {
           t.anchor = orbit->anchor;
-          correction = SamplingCorrection(model, *t.record, *orbit, kind, orders);
+          internal::SampledCorrection sampled = SamplingCorrection(model, *t.record, *orbit, kind, orders);
+          correction = std::move(sampled.harmonics);
+          jitter_variance = sampled.jitter_variance;
         }
       } catch (const std::exception&) {
         // keep zero: the evaluation itself will fail and say so
       }
+      t.weight = 1.0 / std::sqrt(t.record->harmonic_se * t.record->harmonic_se + jitter_variance);
       for (int h = 0; h < orders; ++h)
         change = std::max(change,
                           t.weight * std::abs(correction[h] - (t.correction.empty() ? Complex(0.0) : t.correction[h])));
@@ -334,14 +338,16 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       continue;
     }
     std::vector<Complex> model_harmonics = orbit->harmonics;
+    double variance = a.harmonic_se * a.harmonic_se;
     try {
-      const std::vector<Complex> correction = SamplingCorrection(result->model, a, *orbit, kind, orders);
-      for (int h = 0; h < orders; ++h) model_harmonics[h] += correction[h];
+      const internal::SampledCorrection correction = SamplingCorrection(result->model, a, *orbit, kind, orders);
+      for (int h = 0; h < orders; ++h) model_harmonics[h] += correction.harmonics[h];
+      variance += correction.jitter_variance;
     } catch (const std::exception&) {
     }
     const double power_i = PowerOf(a), mismatch_i = MismatchSquared(a, model_harmonics);
     f.nrmse = std::sqrt(mismatch_i / power_i);
-    f.chi2 = mismatch_i / (a.harmonic_se * a.harmonic_se) / (2.0 * orders);
+    f.chi2 = mismatch_i / variance / (2.0 * orders);
     f.model_period = orbit->anchor.period;
     f.model_contacts_per_period = orbit->contacts_per_period;
     f.model_harmonics = std::move(model_harmonics);

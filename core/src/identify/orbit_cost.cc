@@ -81,12 +81,17 @@ bool OrbitCost::Evaluate(double const* const* parameters, double* residuals, dou
 void RefreshCorrections(const ActuatorModel& model, std::span<OrbitTarget> targets, ResponseKind kind, int orders) {
   ParallelFor(targets.size(), [&](size_t i) {
     OrbitTarget& t = targets[i];
+    SampledCorrection sampled;
     try {
-      const std::optional<ModelOrbit> orbit = SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
-      t.correction = orbit ? SamplingCorrection(model, *t.record, *orbit, kind, orders) : std::vector<Complex>(orders, 0.0);
+      if (const std::optional<ModelOrbit> orbit =
+              SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby))
+        sampled = SamplingCorrection(model, *t.record, *orbit, kind, orders);
     } catch (const std::exception&) {
-      t.correction.assign(orders, 0.0);
+      sampled = SampledCorrection{};
     }
+    if (sampled.harmonics.empty()) sampled.harmonics.assign(orders, 0.0);
+    t.correction = std::move(sampled.harmonics);
+    t.weight = 1.0 / std::sqrt(t.record->harmonic_se * t.record->harmonic_se + sampled.jitter_variance);
   });
 }
 

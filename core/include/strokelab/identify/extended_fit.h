@@ -113,6 +113,7 @@ double Chi2At(std::span<const RecordAnalysis* const> records, ResponseKind kind,
 struct Prediction {
   ModelOrbit orbit;
   std::vector<std::complex<double>> harmonics;
+  double variance = 0.0;  // of Re and Im of each harmonic: the record's noise and the sampling's jitter
 };
 std::optional<Prediction> Predict(const ActuatorModel& model, const RecordAnalysis& record, ResponseKind kind,
                                   int orders);

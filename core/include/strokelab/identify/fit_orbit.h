@@ -95,8 +95,13 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
                                       ResponseKind kind);
 
 // What the record's sampling and least-squares fit make of the model's response, less the orbit's
-// continuous-time harmonics (see fit_refine.cc). Zero for orbits of period other than 1.
-std::vector<std::complex<double>> SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a,
-                                                     const ModelOrbit& orbit, ResponseKind kind, int orders);
+// continuous-time harmonics (fit_orbit.cc), and the variance that the sampling adds to the record's
+// harmonics where the response jumps. Zero for orbits of period other than 1.
+struct SampledCorrection {
+  std::vector<std::complex<double>> harmonics;  // added to the orbit's C_h [response units]
+  double jitter_variance = 0.0;                 // per Re and Im of a harmonic [response units^2]
+};
+SampledCorrection SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
+                                     ResponseKind kind, int orders);
 
 }  // namespace strokelab::internal
