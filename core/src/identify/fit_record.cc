@@ -162,7 +162,10 @@ std::vector<char> UnfollowedSamples(std::span<const double> response, SampleWind
   for (size_t i = 0; i < w.size(); ++i) {
     if (!(std::abs(residual[i]) > limit)) continue;
     const size_t last = std::min(w.size() - 1, i + guard);
-    for (size_t k = i > guard ? i - guard : 0; k <= last; ++k) count += !unfollowed[k], unfollowed[k] = 1;
+    for (size_t k = i > guard ? i - guard : 0; k <= last; ++k) {
+      count += unfollowed[k] == 0;
+      unfollowed[k] = 1;
+    }
   }
   if (count == 0 || static_cast<double>(count) > kMaxUnfollowedShare * static_cast<double>(w.size())) return {};
   return unfollowed;
