@@ -34,6 +34,7 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "engine_test_util.h"
@@ -57,6 +58,17 @@ using ::strokelab::testing::kSigmaBound;  // (see above)
 // not stayed at the data sheet; the standard errors are far smaller (k_s 0.15 %, the others 0.002 %).
 constexpr double kTruthRelTol = 0.01;
 constexpr unsigned kSeed = 2;  // the one draw the tests look at (|z| <= 0.87 for all five)
+
+// An empty stepped-sine record: its name, sample rate and the manifest's drive (the caller fills the
+// voltage and response channels).
+Recording EmptyRecord(std::string name, double fs, double f, double amplitude_v) {
+  Recording r;
+  r.name = std::move(name);
+  r.sample_rate_hz = fs;
+  r.nominal_frequency_hz = f;
+  r.nominal_amplitude_v = amplitude_v;
+  return r;
+}
 
 // The truth: paper Table 2 with k_p +8 %, c_p -10 %, g +5 %, k_s -30 %; d as in the paper.
 ActuatorModel Truth() {
@@ -167,11 +179,7 @@ TEST(SamplingCorrection, AJumpBetweenSamplesIsNoiseAndAContinuousForceIsNot) {
     const Record r = MakeExactEngine()->Simulate(model, SineDrive{amplitude_v, f, 0.0}, sim);
     std::mt19937_64 rng(13);
     std::normal_distribution<double> noise(0.0, 1e-3);
-    Recording record;
-    record.name = "damped_stop";
-    record.sample_rate_hz = fs;
-    record.nominal_frequency_hz = f;
-    record.nominal_amplitude_v = amplitude_v;
+    Recording record = EmptyRecord("damped_stop", fs, f, amplitude_v);
     for (size_t n = 0; n < r.size(); ++n) {
       record.voltage_v.push_back(amplitude_v * std::sin(kTwoPi * f * r.TimeS(n)));
       record.response.push_back(r.force_n[n] + noise(rng));
@@ -297,11 +305,7 @@ Recording SubharmonicRecord(int response_periods, std::vector<std::complex<doubl
   const double fs = 8192.0, f = 11.0, amplitude_v = 0.5;
   std::mt19937_64 rng(7);
   std::normal_distribution<double> noise(0.0, 2e-3);
-  Recording r;
-  r.name = "period" + std::to_string(response_periods);
-  r.sample_rate_hz = fs;
-  r.nominal_frequency_hz = f;
-  r.nominal_amplitude_v = amplitude_v;
+  Recording r = EmptyRecord("period" + std::to_string(response_periods), fs, f, amplitude_v);
   drive_harmonics->clear();
   for (int h = 1; h <= 10; ++h) drive_harmonics->push_back(std::polar(0.1 / h, 1.0 * h));
   for (int i = 0; i < static_cast<int>(fs); ++i) {
@@ -342,11 +346,7 @@ TEST(AnalyseRecord, HumBesideAHigherHarmonicIsRemovedAndSparesItsNeighbours) {
   const double fs = 10000.0, f = 7.0, amplitude_v = 0.3;
   std::mt19937_64 rng(11);
   std::normal_distribution<double> noise(0.0, 4e-4);
-  Recording r;
-  r.name = "hum_beside_h7";
-  r.sample_rate_hz = fs;
-  r.nominal_frequency_hz = f;
-  r.nominal_amplitude_v = amplitude_v;
+  Recording r = EmptyRecord("hum_beside_h7", fs, f, amplitude_v);
   std::vector<std::complex<double>> truth;
   for (int h = 1; h <= 10; ++h) truth.push_back(std::polar(0.05 / h, 0.5 * h));
   for (int i = 0; i < static_cast<int>(0.5 * fs); ++i) {
@@ -376,11 +376,7 @@ TEST(AnalyseRecord, ImpactsDoNotLeakIntoTheHumFit) {
   const double pulse = 0.5 * period_s / (2.0 * sigma_s * std::sqrt(kTwoPi));  // |C_h| = 0.5 exp(-(h w sigma)^2 / 2)
   std::mt19937_64 rng(12);
   std::normal_distribution<double> noise(0.0, 4e-4);
-  Recording r;
-  r.name = "impacts_and_hum";
-  r.sample_rate_hz = fs;
-  r.nominal_frequency_hz = f;
-  r.nominal_amplitude_v = amplitude_v;
+  Recording r = EmptyRecord("impacts_and_hum", fs, f, amplitude_v);
   for (int i = 0; i < static_cast<int>(1.5 * fs); ++i) {
     const double t = i / fs, in_period = std::fmod(t, period_s);
     double y = 1e-3 * std::sin(kTwoPi * 60.0 * t + 0.3) + noise(rng);

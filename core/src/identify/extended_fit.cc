@@ -198,7 +198,7 @@ std::optional<Prediction> Predict(const ActuatorModel& model, const RecordAnalys
   const SampledCorrection correction = SamplingCorrection(model, record, p.orbit, kind, orders);
   p.harmonics = p.orbit.harmonics;
   for (int h = 0; h < orders; ++h) p.harmonics[h] += correction.harmonics[h];
-  p.variance = record.harmonic_se * record.harmonic_se + correction.jitter_variance;
+  p.variance = HarmonicVariance(record, correction);
   return p;
 }
 

@@ -170,24 +170,21 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     const ActuatorModel model = layout.Decode(theta.data());
     double change = 0.0;
     for (RecordTarget& t : targets) {
-      std::vector<Complex> correction(orders, 0.0);
-      double jitter_variance = 0.0;
+      internal::SampledCorrection sampled{std::vector<Complex>(orders, 0.0), 0.0};
       try {
         if (const std::optional<ModelOrbit> orbit =
                 SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kAttractor)) {
           t.anchor = orbit->anchor;
-          internal::SampledCorrection sampled = SamplingCorrection(model, *t.record, *orbit, kind, orders);
-          correction = std::move(sampled.harmonics);
-          jitter_variance = sampled.jitter_variance;
+          sampled = SamplingCorrection(model, *t.record, *orbit, kind, orders);
         }
       } catch (const std::exception&) {
         // keep zero: the evaluation itself will fail and say so
       }
-      t.weight = 1.0 / std::sqrt(t.record->harmonic_se * t.record->harmonic_se + jitter_variance);
+      t.weight = 1.0 / std::sqrt(internal::HarmonicVariance(*t.record, sampled));
       for (int h = 0; h < orders; ++h)
-        change = std::max(change,
-                          t.weight * std::abs(correction[h] - (t.correction.empty() ? Complex(0.0) : t.correction[h])));
-      t.correction = std::move(correction);
+        change = std::max(change, t.weight * std::abs(sampled.harmonics[h] -
+                                                      (t.correction.empty() ? Complex(0.0) : t.correction[h])));
+      t.correction = std::move(sampled.harmonics);
     }
     return change;
   };
@@ -342,7 +339,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     try {
       const internal::SampledCorrection correction = SamplingCorrection(result->model, a, *orbit, kind, orders);
       for (int h = 0; h < orders; ++h) model_harmonics[h] += correction.harmonics[h];
-      variance += correction.jitter_variance;
+      variance = internal::HarmonicVariance(a, correction);
     } catch (const std::exception&) {
     }
     const double power_i = PowerOf(a), mismatch_i = MismatchSquared(a, model_harmonics);

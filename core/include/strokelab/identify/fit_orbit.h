@@ -103,5 +103,9 @@ struct SampledCorrection {
 };
 SampledCorrection SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                      ResponseKind kind, int orders);
+// The variance of Re and Im of the record's harmonics about the model's: its noise's and the jitter.
+inline double HarmonicVariance(const RecordAnalysis& a, const SampledCorrection& sampled) {
+  return a.harmonic_se * a.harmonic_se + sampled.jitter_variance;
+}
 
 }  // namespace strokelab::internal
