@@ -25,8 +25,9 @@ constexpr const char* kFitHelp = R"(usage: strokelab fit --data DIR [--model pap
 Fits a model to a stepped-sine campaign (manifest.json + one CSV per record, or mapping.json + UFF 58
 or WAV files; data/README.md): the paper's procedure made robust. Per record the true drive from the
 voltage channel, offsets and mains hum removed, the response's harmonics; paper Eq. 3 on the records
-clear of the stop (m_p held at the data sheet's); k_s from contact times and d from where contact
-begins; then all parameters refined together against every record's harmonics, with standard
+clear of the stop (no impact spike, distortion below --max-distortion; with fewer than 3, the 3 least
+distorted without spikes), m_p held at the data sheet's; k_s from contact times and d from where
+contact begins; then all parameters refined together against every record's harmonics, with standard
 errors. With a nominal sensitivity only ratios are reported.
 
 A campaign of broadband records (noise, multisine, sweep) is fitted by its time series instead: the
@@ -87,7 +88,8 @@ void PrintReport(const FitResult& r, std::ostream& out) {
   char line[256];
 
   const FrfFitSummary& l = r.linear.summary;
-  out << "\nstage 2, paper Eq. 3 on " << r.linear.records.size() << " clear records: k_p "
+  out << "\nstage 2, paper Eq. 3 on " << r.linear.records.size() << " records with distortion up to "
+      << General(100 * r.linear.distortion_limit, 3) << " % and no spike: k_p "
       << General(l.stiffness_n_per_m, 6) << " N/m, c_p " << General(l.damping_n_s_per_m, 6) << " N s/m, g "
       << General(l.gain_n_per_v, 6) << " N/V" << (l.converged ? "" : " (NOT CONVERGED)") << "\n";
   const ContactEstimate& c = r.contact;

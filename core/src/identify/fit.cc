@@ -77,6 +77,12 @@ FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind res
   // Step 2.
   result.linear = FitClearRecords(analyses, response, options);
   const FrfFitSummary& linear = result.linear.summary;
+  if (result.linear.distortion_limit > options.max_clear_distortion)
+    result.warnings.push_back("fewer than 3 records are clear of the stop (no spike, harmonic distortion below " +
+                              Format(100 * options.max_clear_distortion) + " %): paper Eq. 3 on the " +
+                              std::to_string(result.linear.records.size()) +
+                              " spike-free records with distortion up to " +
+                              Format(100 * result.linear.distortion_limit) + " %, a start for the refinement");
   if (!linear.converged) {
     if (!(linear.stiffness_n_per_m > 0) || !(linear.damping_n_s_per_m > 0) || linear.gain_n_per_v == 0)
       throw NumericalError("the linear fit (paper Eq. 3) of the clear records failed: " + linear.report);

@@ -45,6 +45,7 @@ nlohmann::json FitResultToJson(const FitResult& r) {
   for (const FitParameter& p : r.parameters) parameters[p.name] = FitParameterJson(p);
   const FrfFitSummary& l = r.linear.summary;
   json linear = {{"records", r.linear.records.size()},
+                 {"distortion_limit", JsonNumber(r.linear.distortion_limit)},
                  {"natural_frequency_rad_s", JsonNumber(l.natural_frequency_rad_s)},
                  {"natural_frequency_se", JsonNumber(l.natural_frequency_se)},
                  {"damping_ratio", JsonNumber(l.damping_ratio)},

@@ -48,21 +48,27 @@ LinearStage FitClearRecords(std::span<const RecordAnalysis> analyses, ResponseKi
   using fit_internal::Format, fit_internal::kMinClearRecords;
   Validate(options);
   LinearStage stage;
+  // The distortion limit: the options' when enough records are clear, else the least that admits
+  // kMinClearRecords of the spike-free records.
+  std::vector<double> spike_free_distortions;
+  for (const RecordAnalysis& a : analyses)
+    if (a.spikes.empty()) spike_free_distortions.push_back(a.distortion);
+  const size_t spiky = analyses.size() - spike_free_distortions.size();
+  if (spike_free_distortions.size() < kMinClearRecords) {
+    throw InputError("records", std::to_string(spike_free_distortions.size()) + " of " +
+                                    std::to_string(analyses.size()) + " records are free of impact spikes (" +
+                                    std::to_string(spiky) +
+                                    " show them): the linear fit (paper Eq. 3) needs at least 3 records clear of the "
+                                    "stop");
+  }
+  std::sort(spike_free_distortions.begin(), spike_free_distortions.end());
+  stage.distortion_limit = std::max(options.max_clear_distortion, spike_free_distortions[kMinClearRecords - 1]);
   std::vector<FrfSample> samples;
-  size_t spiky = 0;
   for (size_t i = 0; i < analyses.size(); ++i) {
     const RecordAnalysis& a = analyses[i];
-    if (!a.spikes.empty()) ++spiky;
-    if (!a.clear) continue;
+    if (!a.spikes.empty() || a.distortion > stage.distortion_limit) continue;
     stage.records.push_back(i);
     samples.push_back({a.drive.frequency_hz, EquivalentForceFrf(a.frf, kind, a.drive.frequency_hz, options.mass_kg)});
-  }
-  if (stage.records.size() < kMinClearRecords) {
-    throw InputError("records", std::to_string(stage.records.size()) + " of " + std::to_string(analyses.size()) +
-                                    " records stay clear of the stop (" + std::to_string(spiky) +
-                                    " show impact spikes, the others harmonic distortion above " +
-                                    Format(100 * options.max_clear_distortion) +
-                                    " %): the linear fit (paper Eq. 3) needs at least 3 clear records");
   }
   FrfFitOptions frf_options;
   frf_options.mass_kg = options.mass_kg;

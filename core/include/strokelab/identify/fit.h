@@ -185,10 +185,13 @@ std::complex<double> EquivalentForceFrf(std::complex<double> frf, ResponseKind k
 
 struct LinearStage {
   FrfFitSummary summary;        // paper Eq. 3 with m_p = options.mass_kg
-  std::vector<size_t> records;  // indices (into the analyses) of the clear records used
+  std::vector<size_t> records;  // indices (into the analyses) of the records used
+  double distortion_limit = 0;  // the records' distortion limit: FitOptions' unless too few are clear
 };
-// Paper Eq. 3 fitted to the equivalent force FRFs of the clear records. Throws InputError("records")
-// when fewer than 3 records are clear of the stop.
+// Paper Eq. 3 fitted to the equivalent force FRFs of the clear records. With fewer than 3 of them,
+// the spike-free records under the least distortion limit that admits 3 (a suspension nonlinearity
+// can distort every record off the stop): a start that step 4 refines. Throws InputError("records")
+// when fewer than 3 records are free of spikes.
 LinearStage FitClearRecords(std::span<const RecordAnalysis> analyses, ResponseKind kind, const FitOptions& options);
 
 // ---- Step 3: contact ---------------------------------------------------------------------------
