@@ -48,7 +48,7 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const Re
     m.heldout = heldout[i];
     m.clear = a.clear;
     m.measured = a.harmonics;
-    m.nrmse = m.chi2 = kInf;
+    m.nrmse = m.chi2 = m.noise_chi2 = kInf;
     std::optional<internal::Prediction> p;
     try {
       p = internal::Predict(model, a, kind, orders);
@@ -60,6 +60,7 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const Re
     m.power = internal::PowerOf(a);
     m.nrmse = std::sqrt(mismatch / m.power);
     m.chi2 = mismatch / p->variance;
+    m.noise_chi2 = mismatch / (a.harmonic_se * a.harmonic_se);
     m.harmonic_chi2.assign(a.harmonics.size(), 0.0);
     for (size_t h = 0; h < a.harmonics.size(); ++h) {
       if (!a.usable.empty() && !a.usable[h]) continue;
@@ -89,9 +90,9 @@ FitFigures Figures(const std::vector<RecordMatch>& matches, size_t parameters) {
     power += p;
     if (m.heldout) {
       mismatch_ho += mis, power_ho += p;
-      f.heldout_chi2 += m.chi2;
+      f.heldout_chi2 += m.noise_chi2;
     } else {
-      f.chi2 += m.chi2;
+      f.chi2 += m.noise_chi2;
       residuals += m.residuals;
     }
   }

@@ -209,7 +209,7 @@ double Chi2At(std::span<const RecordAnalysis* const> records, ResponseKind kind,
   ParallelFor(records.size(), [&](size_t i) {
     try {
       if (const auto p = Predict(full, *records[i], kind, orders))
-        chi2[i] = MismatchSquared(*records[i], p->harmonics) / p->variance;
+        chi2[i] = MismatchSquared(*records[i], p->harmonics) / (records[i]->harmonic_se * records[i]->harmonic_se);
     } catch (const std::exception&) {
     }
   });

@@ -180,7 +180,6 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       } catch (const std::exception&) {
         // keep zero: the evaluation itself will fail and say so
       }
-      t.weight = 1.0 / std::sqrt(internal::HarmonicVariance(*t.record, sampled));
       for (int h = 0; h < orders; ++h)
         change = std::max(change, t.weight * std::abs(sampled.harmonics[h] -
                                                       (t.correction.empty() ? Complex(0.0) : t.correction[h])));

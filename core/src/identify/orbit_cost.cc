@@ -91,7 +91,6 @@ void RefreshCorrections(const ActuatorModel& model, std::span<OrbitTarget> targe
     }
     if (sampled.harmonics.empty()) sampled.harmonics.assign(orders, 0.0);
     t.correction = std::move(sampled.harmonics);
-    t.weight = 1.0 / std::sqrt(HarmonicVariance(*t.record, sampled));
   });
 }
 

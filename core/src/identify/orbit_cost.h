@@ -22,7 +22,7 @@ inline constexpr double kSolveTolerancePerError = 0.01;
 // sampling correction (frozen during a solve).
 struct OrbitTarget {
   const RecordAnalysis* record = nullptr;
-  double weight = 1.0;  // 1 / harmonic standard error (noise and sampling jitter, frozen with the correction)
+  double weight = 1.0;  // 1 / the record's harmonic standard error (its noise's: fit_orbit.h HarmonicVariance)
   Anchor anchor;        // on the current model's orbit
   std::vector<std::complex<double>> correction;
 };
@@ -47,8 +47,8 @@ class OrbitCost : public ceres::CostFunction {
   mutable State last_start_;
 };
 
-// Each target's sampling correction and weight at `model`, on the model's orbit through the record's
-// anchor (zero correction and the noise's weight where that orbit is not found), side by side.
+// Each target's sampling correction at `model`, on the model's orbit through the record's anchor
+// (zero where that orbit is not found), side by side.
 void RefreshCorrections(const ActuatorModel& model, std::span<OrbitTarget> targets, ResponseKind kind, int orders);
 
 }  // namespace strokelab::internal

@@ -116,8 +116,13 @@ struct RecordMatch {
   bool clear = false;  // clear of the stop (fit.h)
   double power = 0.0;  // sum_h |C_h|^2 over the usable harmonics (RecordAnalysis::usable)
   double nrmse = 0.0;  // sqrt(sum_h |C_h - C_h^model|^2 / power), usable harmonics
-  double chi2 = 0.0;   // sum_h |(C_h - C_h^model) / se|^2 (2N real residuals)
+  // sum_h |C_h - C_h^model|^2 / s^2 (2N real residuals), s^2 the record's noise variance plus the
+  // model's sampling jitter (fit_orbit.h HarmonicVariance): what the open-world test judges.
+  double chi2 = 0.0;
   std::vector<double> harmonic_chi2;  // its terms, h = 1..N (0 for harmonics not usable)
+  // The same over the record's noise variance alone: what candidates are compared on, since a model
+  // could buy a small chi2 with a large jitter of its own.
+  double noise_chi2 = 0.0;
   int residuals = 0;                  // real residuals in chi2: 2 per usable harmonic
   std::vector<std::complex<double>> measured, model;  // C_h, h = 1..N, response units
   int model_period = 1;

@@ -104,6 +104,10 @@ struct SampledCorrection {
 SampledCorrection SamplingCorrection(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                      ResponseKind kind, int orders);
 // The variance of Re and Im of the record's harmonics about the model's: its noise's and the jitter.
+// For judging a model only (per-record and held-out chi-squares): fits weigh, and candidates are
+// compared, by the noise alone. The jitter is the model's own, and a fit that weighed by it bought a
+// small chi-square with a large one (a stop at the resolution's stiffness with c_s = 1200 N s/m, on a
+// campaign with a concealed second stop).
 inline double HarmonicVariance(const RecordAnalysis& a, const SampledCorrection& sampled) {
   return a.harmonic_se * a.harmonic_se + sampled.jitter_variance;
 }
