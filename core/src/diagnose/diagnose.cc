@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <numeric>
 #include <optional>
@@ -99,6 +100,7 @@ FitFigures Figures(const std::vector<RecordMatch>& matches, size_t parameters) {
   f.nrmse = std::sqrt(mismatch / power);
   f.heldout_nrmse = power_ho > 0 ? std::sqrt(mismatch_ho / power_ho) : kNaN;
   f.residual_variance = residuals > parameters ? f.chi2 / static_cast<double>(residuals - parameters) : kNaN;
+  f.dof = residuals > parameters ? residuals - parameters : 0;
   return f;
 }
 
@@ -205,13 +207,22 @@ int PlannedStages(size_t effects, const DiagnoseOptions& options) {
   return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + internal::MapStages(options);
 }
 
-// Fits one candidate: the best start variant (chi-square on the fit records), then the refinement.
-// `step` (may be empty) hears where the fit is: the start values, each solve and Ceres iteration.
-CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorModel& start, const DiagnoseOptions& options,
-                          const EffectContext& context, const Split& split, std::span<const RecordAnalysis> analyses,
+// Where a candidate's fit starts: a model, and the effects' scales from its orbits.
+struct CandidateStart {
+  ActuatorModel model;
+  EffectContext context;
+};
+
+// Fits one candidate from `from`: the best start variant (chi-square on the fit records), then the
+// refinement. `step` (may be empty) hears where the fit is: the start values, each solve and Ceres
+// iteration.
+CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateStart& from,
+                          const DiagnoseOptions& options, const Split& split, std::span<const RecordAnalysis> analyses,
                           ResponseKind kind, const FitFigures& base_figures, double seconds_left,
                           const std::function<void(const std::string&)>& step = {}) {
   const auto clock_start = std::chrono::steady_clock::now();
+  const ActuatorModel& start = from.model;
+  const EffectContext& context = from.context;
   CandidateFit c;
   c.effects = effects;
   c.label = internal::Label(effects);
@@ -264,6 +275,9 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const ActuatorMode
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return c;
 }
+
+// Whether `f`'s fit records reject its model (extended_fit.h BeyondNoise).
+bool BeyondNoise(const FitFigures& f) { return internal::BeyondNoise(f.chi2, f.dof); }
 
 }  // namespace
 
@@ -369,14 +383,47 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // 4. Single effects, then forward selection.
   std::vector<Effect> singles;
   for (const EffectInfo* info : applicable) singles.push_back(info->effect);
-  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& /*from*/,
+  const CandidateStart from_base{d.base.model, context};
+  std::optional<CandidateStart> from_staged;  // the second round's
+  std::map<std::string, CandidateFit> first_round;  // the singles' fits from the base, by label
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
                  int index, const std::string& name) {
     const int stage = 4 + index;
     progress(stage, name);
-    return RunCandidate(effects, start, options, context, split, analyses, kind, d.fit_before, seconds_left(),
-                        [&](const std::string& step) { progress(stage, name, step); });
+    auto fit_from = [&](const CandidateStart& s) {
+      return RunCandidate(effects, s, options, split, analyses, kind, d.fit_before, seconds_left(),
+                          [&](const std::string& step) { progress(stage, name, step); });
+    };
+    if (!from.empty()) return fit_from({start, context});
+    if (!from_staged) return first_round[internal::Label(effects)] = fit_from(from_base);
+    // The second round: the better (chi-square on the fit records) of the single's two fits.
+    const CandidateFit& first = first_round.at(internal::Label(effects));
+    CandidateFit second = fit_from(*from_staged);
+    const double seconds = first.seconds + second.seconds;
+    const bool first_better = first.fitted && (!second.fitted || first.figures.chi2 <= second.figures.chi2);
+    CandidateFit kept = first_better ? first : std::move(second);
+    kept.seconds = seconds;
+    return kept;
   };
-  d.chosen = internal::SelectEffects(singles, d.fit_before, d.base.model, options, seconds_left, fit, &d.candidates);
+  auto select = [&] {
+    d.candidates.clear();
+    return internal::SelectEffects(singles, d.fit_before, d.base.model, options, seconds_left, fit, &d.candidates);
+  };
+  d.chosen = select();
+  // A base fit that ended with a parameter on its bound is a poor start for the effect it lacks: a
+  // concealed second stop drove k_s to a thirtieth of what the contact times say, and the second
+  // stop's fit from there stayed below the stop. Where no candidate then fits the fit records within
+  // noise, the selection runs again with each single also fitted from the staged estimates (with the
+  // scales of their orbits), the better of its two fits counting.
+  const bool any_within_noise = std::any_of(d.candidates.begin(), d.candidates.end(), [](const CandidateFit& c) {
+    return c.fitted && !BeyondNoise(c.figures);
+  });
+  if (d.base.refinement.ended_on_bound && BeyondNoise(d.fit_before) && !any_within_noise) {
+    FitResult staged = d.base;
+    staged.model = d.base.staged;
+    from_staged = CandidateStart{d.base.staged, Context(staged, split.fit)};
+    d.chosen = select();
+  }
 
   // 5. The answer, and what it leaves (the open-world test).
   const ExtendedProblem chosen_problem =
@@ -462,7 +509,7 @@ CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effe
                                       ")");
   const double seconds_left =
       options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
-  return RunCandidate(std::vector<Effect>(effects.begin(), effects.end()), base.fit.model, options, base.context,
+  return RunCandidate(std::vector<Effect>(effects.begin(), effects.end()), {base.fit.model, base.context}, options,
                       split, analyses, campaign.response, base.figures, seconds_left);
 }
 

@@ -21,17 +21,16 @@
 #include "strokelab/steady/steady_state.h"
 
 namespace strokelab::internal {
+
+bool BeyondNoise(double chi2, size_t dof) {
+  // Beyond this upper-tail probability of chi-square(dof) the residuals are not noise.
+  constexpr double kBeyondNoiseP = 1e-3;
+  return chi2 > ChiSquareQuantile(kBeyondNoiseP, static_cast<double>(dof));
+}
+
 namespace {
 
 using Complex = std::complex<double>;
-// A fit's chi-square beyond this upper-tail probability of chi-square(M - P): the records reject the
-// model (its residuals are not noise), so its passes may stop once they stop converging.
-constexpr double kBeyondNoiseP = 1e-3;
-
-// Whether a chi-square of `dof` degrees of freedom is beyond noise: the records reject the model.
-bool BeyondNoise(double chi2, size_t dof) {
-  return chi2 > ChiSquareQuantile(kBeyondNoiseP, static_cast<double>(dof));
-}
 
 // Moves the anchor of each record whose best-matching orbit at `model` (BestMatchingOrbit) matches it
 // better than its anchor's orbit by more than the record's own expected chi-square (its residual

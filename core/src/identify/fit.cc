@@ -132,6 +132,7 @@ FitResult FitAnalysed(std::span<const RecordAnalysis> analyses, ResponseKind res
       start.upper_stop_m = distance;
   }
   // Step 4.
+  result.staged = start;
   RefineParameters(analyses, response, start, used, options, &result);
   for (size_t i : result.linear.records) result.records[i].used_linear = true;
   for (size_t i : contact.records) result.records[i].used_contact = result.records[i].spikes > 0;

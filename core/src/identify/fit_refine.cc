@@ -293,9 +293,11 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   constexpr std::array<const char*, kMaxParameters> kNames = {"k_p", "c_p", "g", "d", "k_s", "c_s"};
   for (int i = 0; i < p; ++i) {
     const double range = std::log(i >= kContactStiffness ? kContactRange : kParameterRange);
-    if (std::abs(theta[i] - 1.0) > 0.999 * range)
+    if (std::abs(theta[i] - 1.0) > 0.999 * range) {
+      summary.ended_on_bound = true;
       result->warnings.push_back(std::string(kNames[i]) + " ended on its bound (a factor " + Format(std::exp(range)) +
                                  " from the staged estimate): the model does not fit these records");
+    }
   }
   result->parameters = ReportParameters(layout, theta, covariance, result->model_kind, kind, result->absolute_scale);
 

@@ -11,7 +11,9 @@
 //      residual in windows around contacts against the rest of the period.
 //   4. Candidates (EffectLibrary): the base model extended by each effect, fitted with every base
 //      parameter free by identify/extended_fit.h (one least-squares problem on the variational flow's
-//      exact Jacobians).
+//      exact Jacobians), from the base fit. Where that ended with a parameter on its bound and no
+//      candidate fits the fit records within noise, steps 4 and 5 run again with each single also
+//      fitted from the staged estimates (the better of its two fits counts).
 //   5. Choice, by forward selection: a single is accepted when it lowers the held-out chi-square
 //      (harmonic residuals over their standard errors, scaled by the candidate's residual variance on
 //      the fit records) by more than `min_heldout_gain`, the fit records' chi-square by more than the
@@ -137,6 +139,7 @@ struct FitFigures {
   double chi2 = 0.0;           // over the fit records
   double heldout_chi2 = 0.0;   // over the held-out records
   double residual_variance = 0.0;  // chi2 / (M - P) on the fit records
+  size_t dof = 0;                  // M - P
 };
 
 // One piece of evidence: a measured figure, what it means, and which effects it points to.
@@ -322,7 +325,7 @@ int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& o
 
 // One candidate of the diagnosis fitted to every record, none held out: the base fit (step 2), then
 // the base model extended by `effects` with every parameter free (step 4, the problem and start
-// DiagnoseCampaign fits for that candidate). For studies of the extended fit's estimates and
+// DiagnoseCampaign's first round fits for that candidate). For studies of the extended fit's estimates and
 // standard errors against a known truth (tests/diagnose/fit_study.cc). The held-out figures are
 // then empty (heldout_chi2 0, heldout_nrmse NaN, heldout_gain 0); heldout_every, min_heldout_gain
 // and pairs play no part. Throws InputError for bad options or campaigns (as DiagnoseCampaign) and,

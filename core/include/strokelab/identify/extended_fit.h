@@ -99,6 +99,11 @@ struct ExtendedFitResult {
 // otherwise why they stop, with the two moves.
 std::string PassesNotContracting(double move, double last_move, int passes_left);
 
+// Whether a fit's chi-square of `dof` = M - P degrees of freedom is beyond noise (upper-tail
+// probability below 1e-3): the records reject the model. Such a fit's passes may stop once they stop
+// converging.
+bool BeyondNoise(double chi2, size_t dof);
+
 // Fits problem.parameters to `records` (their anchors: each record's best-matching orbit at the start).
 ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, ResponseKind kind,
                               const ExtendedProblem& problem, const ExtendedFitOptions& options);

@@ -247,6 +247,7 @@ struct RefinementSummary {
   size_t residuals = 0;            // M real residuals
   size_t parameters = 0;           // P
   double residual_variance = 0.0;  // s^2 = SSR / (M - P): ~1 when model and noise estimate are right
+  bool ended_on_bound = false;     // a parameter ended on its bound: the model does not fit the records
   double seconds = 0.0;
   std::string report;  // Ceres' brief report; why not converged
 };
@@ -289,6 +290,7 @@ struct FitResult {
   // sensitivity (it reproduces the response in the recorded units).
   ActuatorModel model;
   std::string identifiability;  // what could and could not be identified, in words
+  ActuatorModel staged;         // steps 2-3's estimates, where step 4 starts
   LinearStage linear;
   ContactEstimate contact;
   RefinementSummary refinement;
