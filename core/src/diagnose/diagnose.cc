@@ -202,9 +202,15 @@ void RingingOfWorstPlaces(const Campaign& campaign, std::span<const RecordAnalys
   u->description += internal::DescribeRinging(*u, kind, kPlaces);
 }
 
-// The diagnosis's progress stages with `effects` candidate effects (DiagnoseOptions::progress).
-int PlannedStages(size_t effects, const DiagnoseOptions& options) {
-  return 3 + static_cast<int>(effects) + (options.pairs ? 1 : 0) + internal::MapStages(options);
+// The stages of one round of the selection: each single, then the forward selection.
+int SelectionStages(size_t effects, const DiagnoseOptions& options) {
+  return static_cast<int>(effects) + (options.pairs ? 1 : 0);
+}
+
+// The diagnosis's progress stages with `effects` candidate effects and `rounds` rounds of the
+// selection (DiagnoseOptions::progress).
+int PlannedStages(size_t effects, const DiagnoseOptions& options, int rounds = 1) {
+  return 3 + rounds * SelectionStages(effects, options) + internal::MapStages(options);
 }
 
 // Where a candidate's fit starts: a model, and the effects' scales from its orbits.
@@ -386,9 +392,11 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   const CandidateStart from_base{d.base.model, context};
   std::optional<CandidateStart> from_staged;  // the second round's
   std::map<std::string, CandidateFit> first_round;  // the singles' fits from the base, by label
+  int first_stage = 4;  // of the current round
   auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
-                 int index, const std::string& name) {
-    const int stage = 4 + index;
+                 int index, const std::string& label) {
+    const int stage = first_stage + index;
+    const std::string name = from_staged && from.empty() ? label + ", also from the staged estimates" : label;
     progress(stage, name);
     auto fit_from = [&](const CandidateStart& s) {
       return RunCandidate(effects, s, options, split, analyses, kind, d.fit_before, seconds_left(),
@@ -422,6 +430,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     FitResult staged = d.base;
     staged.model = d.base.staged;
     from_staged = CandidateStart{d.base.staged, Context(staged, split.fit)};
+    d.selection_rounds = 2;
+    first_stage += SelectionStages(applicable.size(), options);
+    stages = PlannedStages(applicable.size(), options, d.selection_rounds);
     d.chosen = select();
   }
 
@@ -492,7 +503,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
 int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options) {
   const size_t singles = std::count_if(diagnosis.candidates.begin(), diagnosis.candidates.end(),
                                        [](const CandidateFit& c) { return c.effects.size() == 1; });
-  return PlannedStages(singles, options);
+  return PlannedStages(singles, options, diagnosis.selection_rounds);
 }
 
 CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effects, const DiagnoseOptions& options) {

@@ -292,6 +292,8 @@ struct Diagnosis {
   FitFigures fit_before, fit_after;
   Signatures signatures;
   std::vector<CandidateFit> candidates;  // every candidate tried, best held-out gain first
+  // 2 when the selection ran again with the singles also fitted from the staged estimates (step 4).
+  int selection_rounds = 1;
   std::vector<Effect> missing_physics;   // named effects, best first (empty: nothing missing)
   int chosen = -1;                       // index into candidates (-1: nothing missing)
   // The diagnosed model, ready to sweep or simulate (model_json.h): the base fit's model when nothing
