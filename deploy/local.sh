@@ -113,8 +113,8 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # own code the sanitizers do not see and whose page the server_process and python_client tests
 # already serve; of the seven ForceCampaign tests one runs:
 # each process synthesises and fits the same campaign (~30 s here) before checking another figure.
-# DiagnoseStartsTest.* diagnoses a 44.1 kHz campaign twice started (~12 s in Release), as
-# Library/DiagnoseTest does one campaign per effect. DiagnosedModel*Test.* run a whole diagnosis
+# DiagnoseStartsTest.* diagnoses a 44.1 kHz campaign whose selection runs twice (~12 s in Release),
+# as Library/DiagnoseTest does one campaign per effect. DiagnosedModel*Test.* run a whole diagnosis
 # through the binary (12 and ~20 s in Release); the
 # report and map code they reach runs in DiagnoseReportMapsTest and SweepDiagnosisMapsTest.
 # readme_commands runs the README's commands, a diagnosis among them (~20 s in Release), and
