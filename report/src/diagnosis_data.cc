@@ -178,6 +178,7 @@ json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
                       {"residual_rms_near_contacts", JsonNumber(d.signatures.residual_rms_near_contacts)},
                       {"residual_rms_elsewhere", JsonNumber(d.signatures.residual_rms_elsewhere)}}},
                     {"candidates", CandidatesOut(d.candidates)},
+                    {"selection_rounds", d.selection_rounds},
                     {"missing_physics", EffectsOut(d.missing_physics)},
                     {"chosen", d.chosen},
                     {"model", ModelToJson(d.model)},
@@ -247,6 +248,7 @@ DiagnosisData DiagnosisDataFromJson(const json& in) {
   d.signatures.residual_rms_elsewhere = Number(sj, "residual_rms_elsewhere", sat);
 
   d.candidates = CandidatesIn(dj, "candidates", at);
+  d.selection_rounds = static_cast<int>(Integer(dj, "selection_rounds", at, 1, 2));
   d.missing_physics = EffectsIn(dj, "missing_physics", at);
   d.chosen = ChosenIn(dj, at, d.candidates.size(), !d.missing_physics.empty());
   d.model = ModelIn(dj, "model", at);

@@ -161,6 +161,7 @@ TEST(DiagnoseStartsTest, ASecondStopIsFoundBehindABaseFitOnItsBound) {
   SCOPED_TRACE(d.conclusion);
   EXPECT_TRUE(d.base.refinement.ended_on_bound);  // the case this test is for
   EXPECT_EQ(d.selection_rounds, 2);
+  EXPECT_EQ(DiagnosisToJson(d)["selection_rounds"], 2);
   ASSERT_EQ(d.missing_physics, std::vector<Effect>{Effect::kSecondStop});
   EXPECT_NEAR(d.model.upper_stop_m, truth.upper_stop_m, 0.01 * truth.upper_stop_m);
   EXPECT_FALSE(d.unexplained);

@@ -177,6 +177,7 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
   for (size_t i : d.heldout) out["heldout_records"].push_back(d.before[i].name);
 
   out["candidates"] = internal::CandidatesJson(d.candidates, d.chosen);
+  out["selection_rounds"] = d.selection_rounds;
 
   nlohmann::json signatures;
   signatures["evidence"] = nlohmann::json::array();
