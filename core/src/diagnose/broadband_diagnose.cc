@@ -46,15 +46,15 @@ Recording Part(const Recording& record, size_t first, size_t end, const char* wh
 }
 
 // The parts with the pointers the fits take.
-struct Split : BroadbandParts {
+struct BroadbandSplit : BroadbandParts {
   std::vector<const Recording*> fit_pointers, heldout_pointers;
   std::vector<internal::BroadbandFitOptions::NoiseLevel> noise;  // the records', with their sizes
-  explicit Split(BroadbandParts parts) : BroadbandParts(std::move(parts)) {
+  explicit BroadbandSplit(BroadbandParts parts) : BroadbandParts(std::move(parts)) {
     for (const Recording& r : fit) fit_pointers.push_back(&r);
     for (const Recording& r : heldout) heldout_pointers.push_back(&r);
     for (size_t r = 0; r < names.size(); ++r) noise.push_back({noise_rms[r], fit[r].size() + heldout[r].size()});
   }
-  Split(const Split&) = delete;  // the pointers point into this object
+  BroadbandSplit(const BroadbandSplit&) = delete;  // the pointers point into this object
 };
 
 // Whether an effect of `effects` acts only while the mass is in a stop (or adds one).
@@ -66,7 +66,7 @@ bool TouchesContacts(const std::vector<Effect>& effects) {
 
 // `model` on `parts` (split's fit or held-out parts) with only their segments' starts, offsets and hum
 // fitted, from `warm`'s (a fit of the same parts; may be null).
-BroadbandFitResult Evaluate(const ActuatorModel& model, const Split& split, bool heldout, ResponseKind kind,
+BroadbandFitResult Evaluate(const ActuatorModel& model, const BroadbandSplit& split, bool heldout, ResponseKind kind,
                             bool series, double max_seconds, const BroadbandFitResult* warm) {
   ExtendedProblem held;
   held.base = model;
@@ -84,7 +84,8 @@ BroadbandFitResult Evaluate(const ActuatorModel& model, const Split& split, bool
 // there, flowed by the record's own voltage from the start that `fit` (a fit of the fit parts at `model`)
 // found for the fit part's last segment; the offsets are the fit parts' (the hum, whose phase runs on,
 // starts at zero). Held-out starts fitted afresh could settle, through impacts, in a valley of their own.
-BroadbandFitResult HeldOutWarmStart(const ActuatorModel& model, const Split& split, const BroadbandFitResult& fit) {
+BroadbandFitResult HeldOutWarmStart(const ActuatorModel& model, const BroadbandSplit& split,
+                                    const BroadbandFitResult& fit) {
   const double segment_s = internal::BroadbandFitOptions{}.segment_s;
   BroadbandFitResult warm;
   size_t fit_segments = 0;
@@ -128,7 +129,7 @@ double Nrmse(std::span<const Recording* const> parts, const std::vector<Broadban
   return std::sqrt(misfit / power);
 }
 
-FitFigures Figures(const Split& split, const BroadbandFitResult& fit, const BroadbandFitResult& heldout) {
+FitFigures Figures(const BroadbandSplit& split, const BroadbandFitResult& fit, const BroadbandFitResult& heldout) {
   FitFigures f;
   f.chi2 = fit.fit.chi2;
   f.residual_variance = fit.fit.residual_variance;
@@ -138,7 +139,7 @@ FitFigures Figures(const Split& split, const BroadbandFitResult& fit, const Broa
   return f;
 }
 
-std::vector<BroadbandRecordMatch> Matches(const Split& split, const std::vector<BroadbandRecordFit>& fit,
+std::vector<BroadbandRecordMatch> Matches(const BroadbandSplit& split, const std::vector<BroadbandRecordFit>& fit,
                                           const BroadbandFitResult& heldout) {
   std::vector<BroadbandRecordMatch> out;
   for (size_t r = 0; r < split.fit.size(); ++r) {
@@ -162,7 +163,7 @@ std::vector<BroadbandRecordMatch> Matches(const Split& split, const std::vector<
 // there). Where ImpactOnsetsM finds none: the median of the base model's displacement at the onsets of
 // the impacts seen (RecordImpacts) where it is positive (up to an impact the model follows the records).
 // NaN without such an onset.
-double UpperImpactOnset(const Split& split, const std::vector<BroadbandRecordFit>& motion, ResponseKind kind,
+double UpperImpactOnset(const BroadbandSplit& split, const std::vector<BroadbandRecordFit>& motion, ResponseKind kind,
                         const ActuatorModel& linear) {
   std::vector<double> onsets;
   for (double x : internal::ImpactOnsetsM(split.fit_pointers, kind, linear))
@@ -181,8 +182,9 @@ double UpperImpactOnset(const Split& split, const std::vector<BroadbandRecordFit
 
 // The scales the effects' start values take (effects.cc), from the base model's motion over the fit
 // parts and the records' drives.
-EffectContext Context(const ActuatorModel& model, const Split& split, const std::vector<BroadbandRecordFit>& motion,
-                      ResponseKind kind, bool stop_seen, const ActuatorModel& linear) {
+EffectContext Context(const ActuatorModel& model, const BroadbandSplit& split,
+                      const std::vector<BroadbandRecordFit>& motion, ResponseKind kind, bool stop_seen,
+                      const ActuatorModel& linear) {
   EffectContext c;
   c.stop_distance_m = LengthScaleM(model);
   c.min_amplitude_v = kInf;
@@ -230,7 +232,7 @@ EffectContext Context(const ActuatorModel& model, const Split& split, const std:
 // The open-world test: null when `heldout` (the model's evaluation on the held-out parts) is within
 // the 1e-3 tail of noise alone, and so is `fit` (on the fit parts; null: not tested); else where the
 // misfit lives, on the held-out parts or, where only those pass, on the fit parts.
-std::optional<BroadbandUnexplained> FindUnexplained(const Split& split, const BroadbandFitResult& heldout,
+std::optional<BroadbandUnexplained> FindUnexplained(const BroadbandSplit& split, const BroadbandFitResult& heldout,
                                                     const BroadbandFitResult* fit, const ActuatorModel& model,
                                                     ResponseKind kind) {
   const bool on_heldout = heldout.rejected;
@@ -345,7 +347,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   d.heldout_every = options.heldout_every;
 
   // 1. The split.
-  const Split split(SplitBroadbandRecords(campaign, options.heldout_every, &d.warnings));
+  const BroadbandSplit split(SplitBroadbandRecords(campaign, options.heldout_every, &d.warnings));
   std::vector<const EffectInfo*> library;
   for (const EffectInfo& info : EffectLibrary())
     if (internal::Requested(info, options)) library.push_back(&info);

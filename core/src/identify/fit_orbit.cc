@@ -202,14 +202,19 @@ double OrbitMeanDisplacement(const ActuatorModel& model, const SineDrive& drive,
 // exact engine samples piecewise-linear models; the variational flow's dense output (7th order, the
 // flow's tolerances) samples any other. Empty for orbits of period other than 1 (which of their
 // periods the record starts in is unknown).
-std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
-                                      ResponseKind kind) {
+namespace {
+
+// OrbitOnRecordGrid from sample `first` on (the samples before it are left 0).
+std::vector<double> OrbitOnGridFrom(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
+                                    ResponseKind kind, size_t first) {
   if (orbit.anchor.period != 1) return {};
   const double f = a.drive.frequency_hz, period_s = 1.0 / f;
-  double phase_time_s = a.drive.phase_rad / (fit_internal::kTwoPi * f);  // model time at which the drive phase is phi
-  if (phase_time_s < 0) phase_time_s += period_s;
-  const size_t count = a.window.end;
   const double interval_s = 1.0 / a.sample_rate_hz;
+  // Model time at which the drive phase is the first sample's (the orbit repeats every period).
+  double phase_time_s =
+      std::fmod(a.drive.phase_rad / (fit_internal::kTwoPi * f) + static_cast<double>(first) * interval_s, period_s);
+  if (phase_time_s < 0) phase_time_s += period_s;
+  const size_t count = a.window.end - first;
   std::vector<State> states;
   std::vector<double> force_n;
   if (model.IsPiecewiseLinear()) {
@@ -223,7 +228,8 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
     sim.sample_rate_hz = a.sample_rate_hz;
     sim.initial = y;
     sim.record_velocity = true;
-    const Record r = MakeExactEngine()->Simulate(model, SineDrive{a.drive.amplitude_v, f, a.drive.phase_rad}, sim);
+    const SineDrive drive{a.drive.amplitude_v, f, fit_internal::kTwoPi * f * phase_time_s};
+    const Record r = MakeExactEngine()->Simulate(model, drive, sim);
     for (size_t n = 0; n < r.displacement_m.size(); ++n) states.push_back({r.displacement_m[n], r.velocity_m_per_s[n]});
     force_n = r.force_n;
   } else {
@@ -236,20 +242,28 @@ std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAn
     states = std::move(flow.samples);
     force_n = std::move(flow.sample_force_n);
   }
-  std::vector<double> signal(states.size());
-  for (size_t n = 0; n < states.size(); ++n) signal[n] = ResponseOf(kind, model.mass_kg, states[n], force_n[n]);
+  std::vector<double> signal(first + states.size(), 0.0);
+  for (size_t n = 0; n < states.size(); ++n) signal[first + n] = ResponseOf(kind, model.mass_kg, states[n], force_n[n]);
   return signal;
+}
+
+}  // namespace
+
+std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
+                                      ResponseKind kind) {
+  return OrbitOnGridFrom(model, a, orbit, kind, 0);
 }
 
 namespace {
 
-// The fraction of a sample interval over which the pattern of where the window's drive periods start
-// repeats: S = fs / f samples per period, period k starts at frac(k S) of a sample. q distinct
-// positions spaced evenly (fs / f a whole number over q, and q periods in the window) repeat every 1 / q
-// of a sample; unevenly spaced ones (the pattern longer than the window) only over a whole sample.
-// Positions closer than kSamePosition are one (a drive frequency estimated 1e-8 off a whole fs / f
-// leaves them together).
-double JitterSpan(const RecordAnalysis& a) {
+// Where the window's drive periods start between two samples: S = fs / f samples per period, period k
+// starts at frac(k S) of a sample. Positions closer than kSamePosition are one (a drive frequency
+// estimated 1e-8 off a whole fs / f leaves them together).
+struct StartPositions {
+  size_t distinct = 1;
+  bool even = true;  // evenly spaced over the sample interval
+};
+StartPositions PeriodStartPositions(const RecordAnalysis& a) {
   constexpr double kSamePosition = 1e-3;  // [samples]
   const double samples_per_period = a.sample_rate_hz / a.drive.frequency_hz;
   const auto periods = std::max<long>(1, std::lround(static_cast<double>(a.window.size()) / samples_per_period));
@@ -263,21 +277,38 @@ double JitterSpan(const RecordAnalysis& a) {
   for (const double x : positions)
     if (x - distinct.back() > kSamePosition) distinct.push_back(x);
   if (distinct.size() > 1 && distinct.front() + 1.0 - distinct.back() <= kSamePosition) distinct.pop_back();
+  StartPositions out{distinct.size(), true};
   const double even_gap = 1.0 / static_cast<double>(distinct.size());
   for (size_t k = 0; k < distinct.size(); ++k) {
     const double gap = (k + 1 < distinct.size() ? distinct[k + 1] : distinct.front() + 1.0) - distinct[k];
-    if (std::abs(gap - even_gap) > kSamePosition) return 1.0;
+    if (std::abs(gap - even_gap) > kSamePosition) out.even = false;
   }
-  return even_gap;
+  return out;
 }
 
-// The correction on the record's grid moved later by `shift` sample intervals.
+// The fraction of a sample interval over which the pattern of where the window's drive periods start
+// repeats: q distinct positions spaced evenly (fs / f a whole number over q, and q periods in the
+// window) repeat every 1 / q of a sample; unevenly spaced ones (the pattern longer than the window)
+// only over a whole sample.
+double JitterSpan(const RecordAnalysis& a) {
+  const StartPositions p = PeriodStartPositions(a);
+  return p.even ? 1.0 / static_cast<double>(p.distinct) : 1.0;
+}
+
+// The correction on the record's grid moved later by `shift` sample intervals. Where every period
+// starts at one position between two samples (fs / f a whole number), every period is sampled alike,
+// and the window's last period alone gives the same harmonics at a fraction of the cost (the fits'
+// slopes of the correction evaluate it many times: linearised_correction.h).
 std::vector<Complex> CorrectionOnShiftedGrid(const ActuatorModel& model, const RecordAnalysis& a,
                                              const ModelOrbit& orbit, ResponseKind kind, int orders, double shift) {
   RecordAnalysis shifted = a;
+  if (PeriodStartPositions(a).distinct == 1) {
+    const auto samples = static_cast<size_t>(std::llround(a.sample_rate_hz / a.drive.frequency_hz));
+    if (samples < a.window.size()) shifted.window = SampleWindow{a.window.end - samples, a.window.end, 1.0};
+  }
   shifted.drive.phase_rad += fit_internal::kTwoPi * a.drive.frequency_hz / a.sample_rate_hz * shift;
-  const std::vector<double> signal = OrbitOnRecordGrid(model, shifted, orbit, kind);
-  const HarmonicFit fit = FitHarmonics(signal, a.sample_rate_hz, a.drive.frequency_hz, a.window, orders);
+  const std::vector<double> signal = OrbitOnGridFrom(model, shifted, orbit, kind, shifted.window.begin);
+  const HarmonicFit fit = FitHarmonics(signal, a.sample_rate_hz, a.drive.frequency_hz, shifted.window, orders);
   std::vector<Complex> correction(orders);
   for (int h = 1; h <= orders; ++h)
     correction[h - 1] = fit.amplitudes[h - 1] * std::polar(1.0, -h * shifted.drive.phase_rad) - orbit.harmonics[h - 1];

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "fit_internal.h"
+#include "linearised_correction.h"
 #include "step_callback.h"
 #include "strokelab/base/cancel.h"
 #include "strokelab/base/errors.h"
@@ -30,7 +31,6 @@ namespace {
 using internal::Anchor;
 using internal::ModelOrbit;
 using internal::OrbitSearch;
-using internal::SamplingCorrection;
 using internal::SolveOrbit;
 
 constexpr int kMaxCorrectionPasses = 4;        // refinement passes with refreshed sampling corrections
@@ -50,8 +50,7 @@ struct RecordTarget {
   const RecordAnalysis* record = nullptr;
   double weight = 1.0;  // 1 / harmonic standard error [1 / response units]
   Anchor anchor;
-  std::vector<Complex> correction;  // SamplingCorrection at the last outer pass
-  bool live_correction = false;     // recompute it at every evaluation (for the covariance's Jacobian)
+  internal::LinearisedCorrection correction;  // at the last outer pass, with its slopes in theta
 };
 
 // Residuals (Re, Im) of (C_h - C_h^model) / se, h = 1..N, for Ceres' central differences.
@@ -66,12 +65,10 @@ class HarmonicCost {
       const std::optional<ModelOrbit> orbit =
           SolveOrbit(model, *target_->record, target_->anchor, kind_, orders_, OrbitSearch::kNearby);
       if (!orbit) return false;
-      const std::vector<Complex> correction =
-          target_->live_correction ? SamplingCorrection(model, *target_->record, *orbit, kind_, orders_).harmonics
-                                   : target_->correction;
       for (int h = 0; h < orders_; ++h) {
         const double weight = target_->record->usable[h] ? target_->weight : 0.0;
-        const Complex r = weight * (target_->record->harmonics[h] - orbit->harmonics[h] - correction[h]);
+        const Complex r =
+            weight * (target_->record->harmonics[h] - orbit->harmonics[h] - target_->correction.At(h, theta));
         residual[2 * h] = r.real();
         residual[2 * h + 1] = r.imag();
       }
@@ -165,25 +162,26 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   for (const RecordTarget& t : targets) summary.residuals += internal::FittedResiduals(*t.record, orders);
   if (summary.residuals <= summary.parameters) throw InputError("records", "too few records to fit the parameters");
 
-  // The sampling corrections at the current iterate; returns their largest change in standard errors.
-  auto update_corrections = [&] {
+  // The sampling corrections at the current iterate, with their slopes; returns their largest change
+  // in standard errors.
+  auto update_corrections = [&](bool slopes) {
     const ActuatorModel model = layout.Decode(theta.data());
+    const auto decode = [&](const double* at) { return layout.Decode(at); };
     double change = 0.0;
     for (RecordTarget& t : targets) {
-      internal::SampledCorrection sampled{std::vector<Complex>(orders, 0.0), 0.0};
       try {
         if (const std::optional<ModelOrbit> orbit =
-                SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kAttractor)) {
+                SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kAttractor))
           t.anchor = orbit->anchor;
-          sampled = SamplingCorrection(model, *t.record, *orbit, kind, orders);
-        }
       } catch (const std::exception&) {
-        // keep zero: the evaluation itself will fail and say so
+        // keep the anchor: the evaluation itself will fail and say so
       }
+      internal::LinearisedCorrection next =
+          internal::LineariseCorrection(decode, theta, *t.record, t.anchor, kind, orders, slopes);
       for (int h = 0; h < orders; ++h)
-        change = std::max(change, t.weight * std::abs(sampled.harmonics[h] -
-                                                      (t.correction.empty() ? Complex(0.0) : t.correction[h])));
-      t.correction = std::move(sampled.harmonics);
+        change = std::max(change, t.weight * std::abs(next.at[h] - (t.correction.at.empty() ? Complex(0.0)
+                                                                                            : t.correction.at[h])));
+      t.correction = std::move(next);
     }
     return change;
   };
@@ -213,7 +211,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   };
 
   bool solved = true;
-  update_corrections();
+  update_corrections(false);
   if (options.refine) {
     // After each successful step every record's anchor moves to its orbit at the new iterate.
     AfterSuccessfulStep callback([&] {
@@ -223,23 +221,49 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     ceres::Solver::Options solver = internal::RefinementSolverOptions(options.max_iterations, &callback);
     const auto deadline = clock_start + std::chrono::duration<double>(options.max_refinement_seconds);
     // Outer passes: solve with the corrections frozen, recompute them at the solution, and solve
-    // again while they moved by more than kCorrectionTolerance standard errors.
+    // again while they moved by more than kCorrectionTolerance standard errors; then solves with their
+    // slopes (linearised_correction.h), keeping the end of least chi-square.
     summary.ran = true;
-    for (int pass = 0; pass < kMaxCorrectionPasses; ++pass) {
-      solver.max_solver_time_in_seconds =
-          std::max(1.0, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
-      ceres::Solver::Summary ceres_summary;
-      ceres::Solve(solver, &problem, &ceres_summary);
-      if (pass == 0) summary.initial_cost = ceres_summary.initial_cost;
-      summary.iterations += static_cast<int>(ceres_summary.iterations.size()) - 1;
-      summary.final_cost = ceres_summary.final_cost;
-      summary.report = ceres_summary.BriefReport();
-      solved = ceres_summary.termination_type == ceres::CONVERGENCE;
-      summary.correction_passes = pass + 1;
-      const size_t switched = reselect_branches();
-      summary.branch_switches += switched;
-      const double change = update_corrections();
-      if (!solved || (change < kCorrectionTolerance && switched == 0)) break;
+    auto cost_now = [&] {
+      double cost = 0.0;
+      problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
+      return cost;
+    };
+    auto run_passes = [&](bool slopes) {
+      std::vector<double> best = theta;
+      double best_cost = slopes ? cost_now() : kInf;
+      for (int pass = 0; pass < (slopes ? internal::kSlopeSolves : kMaxCorrectionPasses); ++pass) {
+        solver.max_solver_time_in_seconds =
+            std::max(1.0, std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count());
+        ceres::Solver::Summary ceres_summary;
+        ceres::Solve(solver, &problem, &ceres_summary);
+        if (summary.correction_passes++ == 0) summary.initial_cost = ceres_summary.initial_cost;
+        summary.iterations += static_cast<int>(ceres_summary.iterations.size()) - 1;
+        summary.report = ceres_summary.BriefReport();
+        solved = ceres_summary.termination_type == ceres::CONVERGENCE;
+        const size_t switched = reselect_branches();
+        summary.branch_switches += switched;
+        const double change = update_corrections(slopes);
+        if (slopes) {
+          const double cost = solved ? cost_now() : kInf;
+          solved = true;  // the frozen passes' end is kept where these do no better
+          const bool better = 2.0 * (best_cost - cost) > internal::kSlopeChi2Tolerance;
+          if (cost < best_cost) best_cost = cost, best = theta;
+          if (!better) break;
+        } else if (!solved) {
+          return;
+        }
+        if (change < kCorrectionTolerance && switched == 0) break;
+      }
+      if (slopes && best != theta) {
+        theta = best;
+        update_corrections(true);
+      }
+    };
+    run_passes(false);
+    if (solved) {
+      update_corrections(true);
+      run_passes(true);
     }
     if (!solved) {
       summary.report += "\nNOT CONVERGED: Ceres stopped without convergence";
@@ -257,10 +281,9 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   }
   summary.residual_variance = 2.0 * summary.final_cost / static_cast<double>(summary.residuals - summary.parameters);
 
-  // Covariance of theta: (J^T J)^-1 s^2, J with the corrections' own dependence on theta (it matters
-  // for k_s, which the impacts' high harmonics carry: frozen corrections leave its standard error
-  // about 30 % too small).
-  for (RecordTarget& t : targets) t.live_correction = true;
+  // Covariance of theta: (J^T J)^-1 s^2, J with the corrections' slopes (they matter for k_s, which
+  // the impacts' high harmonics carry: frozen corrections left its standard error about 30 % too small).
+  if (!solved) update_corrections(true);
   // Ceres' own Covariance (DENSE_SVD) does not check that the Jacobian evaluated: a record without a
   // steady state there, or a cancel (cancel.h), left it empty and Eigen's SVD segfaulted. The same
   // computation here, on a Jacobian known to be whole: J = U S V^T, (J^T J)^-1 = V S^-2 V^T, rank
