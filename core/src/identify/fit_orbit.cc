@@ -196,12 +196,6 @@ double OrbitMeanDisplacement(const ActuatorModel& model, const SineDrive& drive,
   return flow.samples.empty() ? 0.0 : sum / static_cast<double>(flow.samples.size());
 }
 
-// What the record's sampling and least-squares fit make of the model's response, less the orbit's
-// continuous-time harmonics (see SamplingCorrection): the orbit sampled on the record's own grid over
-// its analysis window, from the orbit's state at drive phase phi (the record's first sample). The
-// exact engine samples piecewise-linear models; the variational flow's dense output (7th order, the
-// flow's tolerances) samples any other. Empty for orbits of period other than 1 (which of their
-// periods the record starts in is unknown).
 namespace {
 
 // OrbitOnRecordGrid from sample `first` on (the samples before it are left 0).
@@ -249,6 +243,12 @@ std::vector<double> OrbitOnGridFrom(const ActuatorModel& model, const RecordAnal
 
 }  // namespace
 
+// What the record's sampling and least-squares fit make of the model's response, less the orbit's
+// continuous-time harmonics (see SamplingCorrection): the orbit sampled on the record's own grid over
+// its analysis window, from the orbit's state at drive phase phi (the record's first sample). The
+// exact engine samples piecewise-linear models; the variational flow's dense output (7th order, the
+// flow's tolerances) samples any other. Empty for orbits of period other than 1 (which of their
+// periods the record starts in is unknown).
 std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                       ResponseKind kind) {
   return OrbitOnGridFrom(model, a, orbit, kind, 0);

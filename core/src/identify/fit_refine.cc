@@ -261,7 +261,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       }
     };
     run_passes(false);
-    if (solved) {
+    if (solved && options.sampling_slopes) {
       update_corrections(true);
       run_passes(true);
     }
@@ -283,7 +283,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
 
   // Covariance of theta: (J^T J)^-1 s^2, J with the corrections' slopes (they matter for k_s, which
   // the impacts' high harmonics carry: frozen corrections left its standard error about 30 % too small).
-  if (!solved) update_corrections(true);
+  if (!solved || !options.sampling_slopes) update_corrections(true);
   // Ceres' own Covariance (DENSE_SVD) does not check that the Jacobian evaluated: a record without a
   // steady state there, or a cancel (cancel.h), left it empty and Eigen's SVD segfaulted. The same
   // computation here, on a Jacobian known to be whole: J = U S V^T, (J^T J)^-1 = V S^-2 V^T, rank

@@ -45,7 +45,8 @@ LinearisedCorrection LineariseCorrection(const std::function<ActuatorModel(const
   LinearisedCorrection out;
   out.theta0.assign(theta.begin(), theta.end());
   double contacts = 0.0;
-  const std::optional<SampledCorrection> at = CorrectionAt(decode(theta.data()), record, anchor, kind, orders, &contacts);
+  const std::optional<SampledCorrection> at =
+      CorrectionAt(decode(theta.data()), record, anchor, kind, orders, &contacts);
   out.at = at ? at->harmonics : std::vector<Complex>(orders, 0.0);
   if (!with_slopes || !at || !(contacts > 0.0)) return out;
   out.slopes.assign(theta.size(), std::vector<Complex>(orders, 0.0));

@@ -8,8 +8,8 @@
 // orbit's continuous-time harmonics alone were stationary. That is not the optimum: on a gen2 control
 // seen through an accelerometer at 44.1 kHz (9706, every drive frequency a whole number of samples a
 // period) the fit ended with k_s 20 standard errors below the truth and a residual variance of 2.06,
-// against 1.07 at the truth; `diagnose` then flagged the control as unexplained. Solves with the slopes
-// from the frozen solves' end (fit_refine.cc) find the optimum of the model as the grid samples it.
+// against 1.07 at the truth. Solves with the slopes from the frozen solves' end (fit_refine.cc) find
+// the optimum of the model as the grid samples it (there 1.04, k_s 0.35 standard errors off).
 #pragma once
 
 #include <complex>

@@ -80,6 +80,10 @@ struct FitOptions {
   double mains_frequency_hz = 0.0;
   bool fit_contact_damping = false;       // c_s in the refinement (else held at 0, paper Table 2)
   bool refine = true;                     // step 4 (false: stop at the staged estimates of steps 2-3)
+  // Step 4 ends with solves that take the sampling correction's slopes (linearised_correction.h).
+  // The diagnosis turns them off for its base fit, which must be the same estimator as its candidates'
+  // extended fits, and those hold the correction frozen in each solve.
+  bool sampling_slopes = true;
   int max_iterations = 50;                // Ceres iterations of the refinement, >= 1
   double max_refinement_seconds = 120.0;  // wall time of the refinement [s]; then reported as not converged
   // Nothing, or the first wrong field ("harmonic_orders", "spikes.threshold_sigmas", ...) and why.
