@@ -211,6 +211,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   };
 
   bool solved = true;
+  bool slopes_taken = false;  // the corrections' last update took their slopes
   update_corrections(false);
   if (options.refine) {
     // After each successful step every record's anchor moves to its orbit at the new iterate.
@@ -264,6 +265,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     if (solved && options.sampling_slopes) {
       update_corrections(true);
       run_passes(true);
+      slopes_taken = true;
     }
     if (!solved) {
       summary.report += "\nNOT CONVERGED: Ceres stopped without convergence";
@@ -283,7 +285,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
 
   // Covariance of theta: (J^T J)^-1 s^2, J with the corrections' slopes (they matter for k_s, which
   // the impacts' high harmonics carry: frozen corrections left its standard error about 30 % too small).
-  if (!solved || !options.sampling_slopes) update_corrections(true);
+  if (!slopes_taken) update_corrections(true);
   // Ceres' own Covariance (DENSE_SVD) does not check that the Jacobian evaluated: a record without a
   // steady state there, or a cancel (cancel.h), left it empty and Eigen's SVD segfaulted. The same
   // computation here, on a Jacobian known to be whole: J = U S V^T, (J^T J)^-1 = V S^-2 V^T, rank
