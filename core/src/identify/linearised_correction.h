@@ -7,9 +7,10 @@
 // one sample. Held frozen during each solve and refreshed between solves, the fit settled where the
 // orbit's continuous-time harmonics alone were stationary. That is not the optimum: on a gen2 control
 // seen through an accelerometer at 44.1 kHz (9706, every drive frequency a whole number of samples a
-// period) the fit ended with k_s 20 standard errors below the truth and a residual variance of 2.06,
-// against 1.07 at the truth. Solves with the slopes from the frozen solves' end (fit_refine.cc) find
-// the optimum of the model as the grid samples it (there 1.04, k_s 0.35 standard errors off).
+// period) the fit ended with k_s 16 standard errors below the truth and a residual variance of 1.77
+// (2.06 without its hum, against 1.07 at the truth). Solves with the slopes from the frozen solves'
+// end (fit_refine.cc) find the optimum of the model as the grid samples it: there 1.04, with every
+// parameter within 1.1 standard errors of the truth.
 #pragma once
 
 #include <complex>
@@ -25,7 +26,8 @@ namespace strokelab::internal {
 // kSlopeSolves, while the chi-square at the corrections taken at each end falls by more than
 // kSlopeChi2Tolerance (a tenth of a standard error moves it by 0.01); the end of least chi-square is
 // kept. The correction is not smooth where an impact's kink crosses a sample, and such solves can
-// alternate between ends about half a standard error apart.
+// alternate between ends about half a standard error apart (seen in the extended fit, on
+// ExtendedFitTest's k3 campaign, when it took the slopes too).
 inline constexpr int kSlopeSolves = 4;
 inline constexpr double kSlopeChi2Tolerance = 0.01;
 
