@@ -45,6 +45,7 @@
 #include "strokelab/identify/fit_orbit.h"
 #include "strokelab/signal/signal.h"
 #include "strokelab/steady/steady_state.h"
+#include "gen2_grids.h"
 #include "test_util.h"
 
 namespace strokelab {
@@ -254,15 +255,8 @@ TEST(SamplingCorrection, ImpactsOnAWholeNumberGridDoNotBiasTheFit) {
   truth.gain_n_per_v = 0.2960544821068345;
   truth.lower_stop_m = -0.0010455116107510216;
   truth.contact_stiffness = 1356975.314758823;
-  SynthOptions o;
-  o.frequencies_hz = {4.5, 6, 7.5, 9, 10.5, 12};
-  o.amplitudes_v = {0.15, 0.3, 0.45};
-  o.duration_s = 1.5;
-  o.settle_s = 5.0;
-  o.sample_rate_hz = 44100.0;
-  o.response = ResponseKind::kAcceleration;
+  SynthOptions o = testing::Gen2Accelerometer44kHz();
   o.sensitivity = 0.0102;
-  o.noise_rms_v = 0.0005;
   o.seed = 4;
   const FitResult r = FitCampaign(Synthesize(truth, o).campaign);
   ASSERT_TRUE(r.refinement.converged) << r.refinement.report;

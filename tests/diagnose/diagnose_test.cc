@@ -23,6 +23,7 @@
 #include "strokelab/diagnose/diagnose.h"
 #include "strokelab/data/synth.h"
 #include "strokelab/model/model_json.h"
+#include "gen2_grids.h"
 #include "test_util.h"
 
 namespace strokelab {
@@ -139,14 +140,7 @@ INSTANTIATE_TEST_SUITE_P(Library, DiagnoseTest, ::testing::ValuesIn(ConcealedEff
 // the stop: nothing was named and the misfit was "unexplained" at 1.2e3 times the noise. From the
 // staged estimates the second stop is found.
 TEST(DiagnoseStartsTest, ASecondStopIsFoundBehindABaseFitOnItsBound) {
-  SynthOptions o;
-  o.frequencies_hz = {4.5, 6, 7.5, 9, 10.5, 12};
-  o.amplitudes_v = {0.15, 0.3, 0.45};
-  o.duration_s = 1.5;
-  o.settle_s = 5.0;
-  o.sample_rate_hz = 44100.0;
-  o.response = ResponseKind::kAcceleration;
-  o.noise_rms_v = 0.0005;
+  SynthOptions o = testing::Gen2Accelerometer44kHz();
   o.hum_v = 0.001;
   o.hum_hz = 60.0;
   o.seed = 21;
