@@ -2,6 +2,7 @@
 #pragma once
 
 #include "strokelab/data/synth.h"
+#include "strokelab/model/model.h"
 
 namespace strokelab::testing {
 
@@ -17,6 +18,17 @@ inline SynthOptions Gen2Accelerometer44kHz() {
   o.response = ResponseKind::kAcceleration;
   o.noise_rms_v = 0.0005;
   return o;
+}
+
+// The paper model with the parameters gen2 drew for its control 9706 (the accelerometer at 44.1 kHz).
+inline ActuatorModel Gen2Control9706() {
+  ActuatorModel m = PaperModel();
+  m.damping_n_s_per_m = 1.183820154900177;
+  m.stiffness_n_per_m = 124.92920447054878;
+  m.gain_n_per_v = 0.2960544821068345;
+  m.lower_stop_m = -0.0010455116107510216;
+  m.contact_stiffness = 1356975.314758823;
+  return m;
 }
 
 }  // namespace strokelab::testing

@@ -249,12 +249,7 @@ TEST(SamplingCorrection, AModelsOwnJitterDoesNotLowerTheChiSquareCandidatesAreCo
 // as the worst of 0.22.0's) ended with k_s 15 standard errors below the truth (and 4.3, 4.4, 6.0 on
 // seeds 1, 2, 5); the correction's slopes (linearised_correction.h) bring it within 1.6 on all five.
 TEST(SamplingCorrection, ImpactsOnAWholeNumberGridDoNotBiasTheFit) {
-  ActuatorModel truth = PaperModel();
-  truth.damping_n_s_per_m = 1.183820154900177;
-  truth.stiffness_n_per_m = 124.92920447054878;
-  truth.gain_n_per_v = 0.2960544821068345;
-  truth.lower_stop_m = -0.0010455116107510216;
-  truth.contact_stiffness = 1356975.314758823;
+  const ActuatorModel truth = testing::Gen2Control9706();
   SynthOptions o = testing::Gen2Accelerometer44kHz();
   o.sensitivity = 0.0102;
   o.seed = 4;

@@ -288,7 +288,9 @@ struct Diagnosis {
   FitResult base;                   // the base fit on the fit records
   std::vector<size_t> heldout;      // record indices (into `records`)
   std::vector<RecordMatch> before;  // the base model on every record
-  std::vector<RecordMatch> after;   // the chosen model on every record (== before when nothing)
+  // The diagnosed model on every record: the chosen candidate's; with nothing named, the base model's
+  // (== before), or its refit with the sampling correction's slopes where the base left more than noise.
+  std::vector<RecordMatch> after;
   FitFigures fit_before, fit_after;
   Signatures signatures;
   std::vector<CandidateFit> candidates;  // every candidate tried, best held-out gain first
@@ -296,9 +298,9 @@ struct Diagnosis {
   int selection_rounds = 1;
   std::vector<Effect> missing_physics;   // named effects, best first (empty: nothing missing)
   int chosen = -1;                       // index into candidates (-1: nothing missing)
-  // The diagnosed model, ready to sweep or simulate (model_json.h): the base fit's model when nothing
-  // is missing, else the chosen candidate's (the base extended by the named effects, all parameters
-  // as fitted together). `model_note` says which, and whether its fit converged.
+  // The diagnosed model, ready to sweep or simulate (model_json.h): the base fit's model (or its refit,
+  // as `after`) when nothing is missing, else the chosen candidate's (the base extended by the named
+  // effects, all parameters as fitted together). `model_note` says which, and whether its fit converged.
   ActuatorModel model;
   std::string model_note;
   // Empty: what the diagnosed model leaves on the held-out records is noise. Set: it is not, and
