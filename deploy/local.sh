@@ -125,7 +125,7 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
 # runs in MixedFitCli, the broadband campaign fit in BroadbandCampaignFit's other tests.
 # Then each harness's corpus is replayed (ctest) and each harness fuzzed for FUZZ_SECONDS.
 ASAN_DIR=build/asan
-ASAN_EXCLUDE='^(web_page|web_page_diagnosis|web_status_badge|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|DiagnoseStartsTest\..*|Library/BroadbandDiagnoseTest\..*|OpenWorldTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*|MixedCampaign\.FitsJointlyToTheParametersOfEachHalf|BroadbandCampaignFit\.ANominalSensitivityIsReportedAsTheSteppedFitReportsIt)$'
+ASAN_EXCLUDE='^(web_page|web_page_diagnosis|web_status_badge|readme_commands|CeresLogTest\.ADiagnosisPrintsOnlyItsProgress|Library/DiagnoseTest\..*|DiagnoseStartsTest\..*|Library/BroadbandDiagnoseTest\..*|OpenWorldTest\..*|ExtendedFitTest\..*|fit_zscore_study_few|paper_fit_zscore_study_few|ForceCampaign\.[^J].*|DiagnosedModel(Cli|Slow)Test\..*|MixedCampaign\.FitsJointlyToTheParametersOfEachHalf|BroadbandCampaignFit\.ANominalSensitivityIsReportedAsTheSteppedFitReportsIt)$'
 asan_build() {
   configure_clang "$ASAN_DIR" -DSTROKELAB_SANITIZE=address,undefined -DSTROKELAB_FUZZ=ON
   cmake --build "$ASAN_DIR" -j "$(nproc)"

@@ -46,6 +46,8 @@ SKIPPED = [
                                        "test dependency"),
     (r"tests/diagnose/fit_zscore_study\.py", "a ~20-minute study, run by hand (ctest "
                                              "fit_zscore_study_few runs 4 of its campaigns)"),
+    (r"tests/core/paper_fit_zscore_study\.py", "a study of two binaries, run by hand (ctest "
+                                              "paper_fit_zscore_study_few runs 2 of its campaigns)"),
 ]
 # Commands that need something the test environment may lack: (pattern, path that must exist).
 NEEDS = [(r"\.\./shared/data/campaign-a", SOURCE.parent / "shared/data/campaign-a")]

@@ -83,6 +83,7 @@ nlohmann::json FitResultToJson(const FitResult& r) {
                      {"residuals", f.residuals},
                      {"parameters", f.parameters},
                      {"residual_variance", JsonNumber(f.residual_variance)},
+                     {"secant_ratios", f.secant_ratios},
                      {"seconds", JsonNumber(f.seconds)},
                      {"report", f.report}};
   json records = json::array();

@@ -18,8 +18,10 @@
 
 #include "fit_internal.h"
 #include "linearised_correction.h"
+#include "strokelab/identify/secant_covariance.h"
 #include "step_callback.h"
 #include "strokelab/base/cancel.h"
+#include "strokelab/base/parallel_for.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/identify/fit_orbit.h"
@@ -311,6 +313,38 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       solved = false;
       summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (parameters not all identifiable)";
     }
+  }
+  if (covariance.allFinite()) {
+    // The chi-square as the fit defines it at theta', its corrections taken there (secant_covariance.h).
+    const auto decode = [&](const double* at) { return layout.Decode(at); };
+    auto chi2_at = [&](const std::vector<double>& at) -> std::optional<double> {
+      const ActuatorModel model = layout.Decode(at.data());
+      std::vector<double> chi2(targets.size(), kNaN);
+      ParallelFor(targets.size(), [&](size_t i) {
+        const RecordTarget& t = targets[i];
+        try {
+          const std::optional<ModelOrbit> orbit =
+              SolveOrbit(model, *t.record, t.anchor, kind, orders, OrbitSearch::kNearby);
+          if (!orbit) return;
+          const internal::LinearisedCorrection correction =
+              internal::LineariseCorrection(decode, at, *t.record, orbit->anchor, kind, orders, false);
+          double sum = 0.0;
+          for (int h = 0; h < orders; ++h)
+            if (t.record->usable[h])
+              sum += std::norm(t.weight * (t.record->harmonics[h] - orbit->harmonics[h] - correction.at[h]));
+          chi2[i] = sum;
+        } catch (const std::exception&) {
+          // no steady state there: NaN
+        }
+      });
+      double total = 0.0;
+      for (double c : chi2) total += c;
+      return std::isfinite(total) ? std::optional<double>(total) : std::nullopt;
+    };
+    const internal::SecantCovariance checked =
+        internal::CheckCovarianceBySecants(covariance, summary.residual_variance, theta, chi2_at);
+    covariance = checked.covariance;
+    summary.secant_ratios = checked.ratios;
   }
   summary.converged = solved && covariance.allFinite();
 

@@ -251,6 +251,9 @@ struct RefinementSummary {
   size_t residuals = 0;            // M real residuals
   size_t parameters = 0;           // P
   double residual_variance = 0.0;  // s^2 = SSR / (M - P): ~1 when model and noise estimate are right
+  // Per principal direction of the covariance, largest first: the Jacobian's variance over the one
+  // reported, where the chi-square rose more slowly along it than J said (secant_covariance.h); 1: as J.
+  std::vector<double> secant_ratios;
   bool ended_on_bound = false;     // a parameter ended on its bound: the model does not fit the records
   double seconds = 0.0;
   std::string report;  // Ceres' brief report; why not converged
