@@ -1,5 +1,6 @@
 // Step 4 of the fit (fit.h), the joint refinement: Levenberg-Marquardt (Ceres) on every record's
-// harmonics, with sampling corrections, branch switches and the covariance. Ceres stays in this file.
+// harmonics, with sampling corrections, branch switches and the covariance (checked by secants:
+// secant_covariance.h). Ceres stays in this file.
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
@@ -18,13 +19,13 @@
 
 #include "fit_internal.h"
 #include "linearised_correction.h"
-#include "strokelab/identify/secant_covariance.h"
 #include "step_callback.h"
 #include "strokelab/base/cancel.h"
-#include "strokelab/base/parallel_for.h"
 #include "strokelab/base/errors.h"
+#include "strokelab/base/parallel_for.h"
 #include "strokelab/identify/fit.h"
 #include "strokelab/identify/fit_orbit.h"
+#include "strokelab/identify/secant_covariance.h"
 
 namespace strokelab {
 namespace fit_internal {
