@@ -49,6 +49,7 @@ TEST(UnexplainedTest, ChiSquareTailMatchesTheTables) {
   EXPECT_NEAR(ChiSquareQuantile(0.001, 100), 149.449, 0.005 * 149.449);
   EXPECT_NEAR(ChiSquareUpperTail(100, 100), 0.4812, 0.01);  // the median lies just below the mean
   EXPECT_NEAR(ChiSquareUpperTail(ChiSquareQuantile(1e-4, 240), 240), 1e-4, 1e-9);
+  EXPECT_EQ(ChiSquareQuantile(0.001, 0), 0.0);  // chi-square(0) is 0; its bracket once never grew from 0
 }
 
 TEST(UnexplainedTest, ResidualsOfNoiseSizeAreNotFlagged) {

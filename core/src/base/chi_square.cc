@@ -17,6 +17,7 @@ double ChiSquareUpperTail(double x, double k) {
 
 // By bisection: the tail falls monotonically in x.
 double ChiSquareQuantile(double p, double k) {
+  if (!(k > 0)) return 0.0;  // chi-square(0) is 0 (and the bracket below would never grow from 0)
   double lo = 0.0, hi = k;
   while (ChiSquareUpperTail(hi, k) > p) hi *= 2.0;
   for (int i = 0; i < 100; ++i) {
