@@ -47,11 +47,13 @@ TEST(WithoutEffectTest, PutsBackOnlyTheEffectsOwnParameters) {
   EXPECT_EQ(WithoutEffect(with, Effect::kDryFriction, base).friction_force_n, 0.0);
 }
 
-// Scripted candidate fits: chi-square on the fit and held-out records (residual variance 1) by the
-// candidate's label and the label it starts from ("" the base), with a significant parameter.
+// Scripted candidate fits: chi-square on the fit and held-out records (residual variance 1, kDof
+// degrees of freedom) by the candidate's label and the label it starts from ("" the base), with a
+// significant parameter.
 class ScriptedFits {
  public:
-  std::map<std::string, double> chi2;  // "effects<-from" -> chi-square (fit and held-out alike)
+  std::map<std::string, double> chi2;     // "effects<-from" -> chi-square (fit and held-out alike)
+  std::map<std::string, double> heldout;  // "effects<-from" -> held-out chi-square, where it differs
   std::vector<std::pair<std::string, ActuatorModel>> starts;  // every fit's label and start model
 
   internal::CandidateFitter Fitter() {
@@ -65,8 +67,11 @@ class ScriptedFits {
       c.fitted = chi2.count(key) > 0;
       if (!c.fitted) return c;
       c.figures.chi2 = c.figures.heldout_chi2 = chi2.at(key);
+      if (heldout.count(key) > 0) c.figures.heldout_chi2 = heldout.at(key);
       c.figures.residual_variance = 1.0;
-      c.heldout_gain = c.fit_gain = kBase - chi2.at(key);
+      c.figures.dof = kDof;
+      c.fit_gain = kBase - c.figures.chi2;
+      c.heldout_gain = kBase - c.figures.heldout_chi2;
       for (Effect e : effects)
         for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", 1.0, 0.1});
       c.model = start;
@@ -78,13 +83,15 @@ class ScriptedFits {
     };
   }
   static constexpr double kBase = 1000.0;
+  static constexpr size_t kDof = 100;  // chi-square(100)'s 0.999 point is 149
 };
 
-int Select(ScriptedFits& fits, std::vector<CandidateFit>* candidates) {
+int Select(ScriptedFits& fits, std::vector<CandidateFit>* candidates,
+           std::vector<Effect> singles = {Effect::kCubicStiffness, Effect::kDryFriction}) {
   FitFigures base;
   base.chi2 = base.heldout_chi2 = ScriptedFits::kBase;
   base.residual_variance = 1.0;
-  const std::vector<Effect> singles = {Effect::kCubicStiffness, Effect::kDryFriction};
+  base.dof = ScriptedFits::kDof;
   return SelectEffects(singles, base, PaperModel(), DiagnoseOptions{}, [] { return 1e9; }, fits.Fitter(), candidates);
 }
 
@@ -139,6 +146,59 @@ TEST(SelectEffectsTest, ARefitThatEndsWorseLeavesTheFitFromTheBase) {
   ASSERT_GE(chosen, 0);
   EXPECT_EQ(candidates[chosen].label, "cubic_stiffness");
   EXPECT_EQ(candidates[chosen].figures.chi2, 500);
+}
+
+// Two effects present at once, where each one's single fit does worse than the base on the held-out
+// records (it bends the shared parameters towards the other's misfit), and a third effect's single
+// fit gains a little on them: forward selection from that one never fits the pair. The second path,
+// from the single that lowers the fit records' chi-square most, does.
+ScriptedFits TwoEffectsHiddenFromTheFirstPath(double damping_heldout_chi2) {
+  ScriptedFits fits;
+  fits.chi2 = {{"quadratic_damping<-", 800},
+               {"cubic_stiffness<-", 500},  // the largest fit gain
+               {"dry_friction<-", 600},
+               {"quadratic_damping+cubic_stiffness<-quadratic_damping", 790},
+               {"cubic_stiffness+quadratic_damping<-cubic_stiffness", 480},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 110},  // the truth: within noise
+               {"cubic_stiffness<-cubic_stiffness+dry_friction", 500}};
+  fits.heldout = {{"quadratic_damping<-", damping_heldout_chi2},
+                  {"cubic_stiffness<-", 1100},
+                  {"dry_friction<-", 1050},
+                  {"quadratic_damping+cubic_stiffness<-quadratic_damping", damping_heldout_chi2 - 5},
+                  {"cubic_stiffness+quadratic_damping<-cubic_stiffness", 1090},
+                  {"cubic_stiffness+dry_friction<-cubic_stiffness", 100},
+                  {"cubic_stiffness<-cubic_stiffness+dry_friction", 1100}};
+  return fits;
+}
+
+const std::vector<Effect> kThreeSingles = {Effect::kCubicStiffness, Effect::kDryFriction, Effect::kQuadraticDamping};
+
+TEST(SelectEffectsTest, APairWhoseSinglesLoseOnTheHeldOutRecordsIsFoundFromTheLargestFitGain) {
+  ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(950);
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+dry_friction");
+  EXPECT_EQ(candidates[chosen].decision, "");
+}
+
+TEST(SelectEffectsTest, TheSecondPathMustBeatTheFirstBeyondNoise) {
+  ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(105);  // the pair gains only 5 over it
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "quadratic_damping");
+}
+
+TEST(SelectEffectsTest, NoSecondPathWhereTheFirstFitsWithinNoise) {
+  ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(950);
+  fits.chi2["quadratic_damping<-"] = 120;  // within noise, though cubic_stiffness lowers it more
+  fits.chi2["cubic_stiffness<-"] = 100;
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "quadratic_damping");
+  for (const CandidateFit& c : candidates) EXPECT_NE(c.label, "cubic_stiffness+dry_friction");
 }
 
 TEST(PartialExplanationTest, ACandidateThatLeavesMoreThanItRemovesIsNotNamedOnEitherParts) {
