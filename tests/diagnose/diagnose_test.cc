@@ -180,8 +180,8 @@ TEST(DiagnoseStartsTest, ACorrectModelOnAWholeNumberGridIsNotUnexplained) {
 // Hertzian stop and quadratic damping (the actuator gen2 drew for seed 9903, unperturbed here). Their
 // single fits gained 312 and 266 on the fit records and lost 315 and 69 on the held-out ones, so
 // forward selection from the best held-out single (force_factor) never fitted the pair, and 0.24.0
-// named nothing: "unexplained" at 1.49-1.81 times the noise on synth seeds 1-4. The second path, from
-// the single with the largest fit-records gain, names both (selection.h).
+// named nothing: "unexplained" at 1.49-1.81 times the noise on synth seeds 1-4. The selection's
+// look-ahead, from the single with the largest fit-records gain, names both (selection.h).
 TEST(DiagnoseStartsTest, TwoEffectsThatEachLoseAloneAreNamedTogether) {
   SynthOptions o = testing::CampaignOptions(1);
   o.perturb.clear();

@@ -150,8 +150,8 @@ TEST(SelectEffectsTest, ARefitThatEndsWorseLeavesTheFitFromTheBase) {
 
 // Two effects present at once, where each one's single fit does worse than the base on the held-out
 // records (it bends the shared parameters towards the other's misfit), and a third effect's single
-// fit gains a little on them: forward selection from that one never fits the pair. The second path,
-// from the single that lowers the fit records' chi-square most, does.
+// fit gains a little on them: forward selection from that one never fits the pair. The look-ahead
+// from the base, through the single that lowers the fit records' chi-square most, does.
 ScriptedFits TwoEffectsHiddenFromTheFirstPath(double damping_heldout_chi2) {
   ScriptedFits fits;
   fits.chi2 = {{"quadratic_damping<-", 800},
@@ -182,7 +182,7 @@ TEST(SelectEffectsTest, APairWhoseSinglesLoseOnTheHeldOutRecordsIsFoundFromTheLa
   EXPECT_EQ(candidates[chosen].decision, "");
 }
 
-TEST(SelectEffectsTest, TheSecondPathMustBeatTheFirstBeyondNoise) {
+TEST(SelectEffectsTest, TheLookAheadMustBeatTheFirstPathBeyondNoise) {
   ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(105);  // the pair gains only 5 over it
   std::vector<CandidateFit> candidates;
   const int chosen = Select(fits, &candidates, kThreeSingles);
@@ -190,7 +190,7 @@ TEST(SelectEffectsTest, TheSecondPathMustBeatTheFirstBeyondNoise) {
   EXPECT_EQ(candidates[chosen].label, "quadratic_damping");
 }
 
-TEST(SelectEffectsTest, NoSecondPathWhereTheFirstFitsWithinNoise) {
+TEST(SelectEffectsTest, NoLookAheadWhereTheFirstPathFitsWithinNoise) {
   ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(950);
   fits.chi2["quadratic_damping<-"] = 120;  // within noise, though cubic_stiffness lowers it more
   fits.chi2["cubic_stiffness<-"] = 100;
@@ -199,6 +199,28 @@ TEST(SelectEffectsTest, NoSecondPathWhereTheFirstFitsWithinNoise) {
   ASSERT_GE(chosen, 0);
   EXPECT_EQ(candidates[chosen].label, "quadratic_damping");
   for (const CandidateFit& c : candidates) EXPECT_NE(c.label, "cubic_stiffness+dry_friction");
+}
+
+// Three effects present, one large: forward selection takes it, and then neither second effect beats
+// it on the held-out records (the third one missing bends each pair). The look-ahead from the large
+// one's widest pair (the largest fit-records gain) reaches the triple.
+TEST(SelectEffectsTest, TheLookAheadFromTheFirstEffectsWidestPairReachesATriple) {
+  ScriptedFits fits;
+  fits.chi2 = {{"cubic_stiffness<-", 300},  // beyond noise (149)
+               {"quadratic_damping<-", 990},
+               {"dry_friction<-", 995},
+               {"cubic_stiffness+quadratic_damping<-cubic_stiffness", 200},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 290},
+               {"cubic_stiffness+quadratic_damping+dry_friction<-cubic_stiffness+quadratic_damping", 100}};
+  fits.heldout = {{"quadratic_damping<-", 1000},
+                  {"dry_friction<-", 1005},
+                  {"cubic_stiffness+quadratic_damping<-cubic_stiffness", 305},  // loses 5 held out
+                  {"cubic_stiffness+dry_friction<-cubic_stiffness", 310}};
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+quadratic_damping+dry_friction");
+  EXPECT_EQ(candidates[chosen].decision, "");
 }
 
 TEST(PartialExplanationTest, ACandidateThatLeavesMoreThanItRemovesIsNotNamedOnEitherParts) {

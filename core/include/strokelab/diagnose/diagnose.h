@@ -27,11 +27,11 @@
 //      refitted from the larger one's solution with the added effect taken out, and the better of its
 //      two fits counts: a fit from the base can end short of its optimum, and a second effect then
 //      takes up only what that fit left. Where the model so chosen (or the base, when none was)
-//      still fails the fit records' noise test, forward selection runs again from the single that
-//      lowered the fit records' chi-square most, and its model is taken if it beats the base by the
-//      same rules and the first model's held-out chi-square by more than `min_heldout_gain`: with two
-//      effects present, each one's single fit can do worse than the base on the held-out records
-//      (selection.h).
+//      still fails the fit records' noise test, the selection looks ahead: from each model on its
+//      path, forward selection again from that model's extension with the largest fit-records gain,
+//      whose model is taken if it beats the base by the same rules and the model chosen so far by
+//      more than `min_heldout_gain` on the held-out records. With two effects missing, either one's
+//      fit alone can do worse on the held-out records (selection.h).
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
 //      is beyond noise, the report says where; when the chosen effects removed less of the excess than
 //      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).

@@ -33,7 +33,9 @@ using CandidateFitter =
 // spent), sorted by held-out gain, then forward selection with its backward check. The check compares
 // the larger model with the best fit of the model without each effect; the current model is refitted
 // from the larger one's solution for it (WithoutEffect of the added effect), since a fit from the base
-// can end short of its optimum and leave a misfit that a spurious second effect then takes up. Appends
+// can end short of its optimum and leave a misfit that a spurious second effect then takes up. Where
+// the model so chosen still fails the fit records' noise test, it looks ahead from each model on its
+// path through that model's extension with the largest fit-records gain (selection.cc). Appends
 // every candidate to `candidates`, each with its decision (empty: it beats the model it extends beyond
 // noise), and returns the chosen one's index (-1: none beats the base).
 int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
