@@ -181,7 +181,7 @@ class DiagnosisTest(unittest.TestCase):
     error at least halved, nothing else is named; controls get nothing named and no `unexplained`;
     effects in no library (the coil's inductance, damping that grows with x^2) get `unexplained` and no
     library effect named; the coil's inductance is tried on request (--coil-inductance) and then named.
-    Three cases fail today and are marked expected failures with what happens:
+    Two cases fail today and are marked expected failures with what happens:
     an unexpected success is reported, so a fix shows."""
 
     def diagnose(self, seed, effects, options=()):
@@ -238,8 +238,8 @@ class DiagnosisTest(unittest.TestCase):
         self.expect_named(1406, ["--effect", "quadratic_damping=1", "--effect", "cubic_stiffness=1.5e7"],
                           {"quadratic_damping": {"c2": 1.0}, "cubic_stiffness": {"k3": 1.5e7}})
 
-    # Open (issue 13), as of 2026-11-26: nothing named, "unexplained" at 8.05 x noise.
-    @unittest.expectedFailure
+    # Nothing was named at 0.24.0 ("unexplained" at 8.05 x noise); the selection's look-ahead (0.25.0)
+    # names the pair.
     def test_force_factor_and_dry_friction(self):
         self.expect_named(1407, ["--effect", "force_factor=-5e4", "--set", "b1=-10", "--effect", "dry_friction=0.003"],
                           {"force_factor": {"b1": -10.0, "b2": -5e4}, "dry_friction": {"friction_n": 0.003}})
