@@ -258,11 +258,10 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
   // fits the pair (gen2 9903: a Hertzian stop and quadratic damping; alone they lost 315 and 69 on
   // the held-out records and gained 312 and 266 on the fit records; 9925, k3 with those two: k3 +
   // quadratic damping took the fit records' chi-square from k3's 961 to 507, the held-out one from 612
-  // to 624). A model found so
-  // must beat the base as any candidate must, and the model chosen so far by more than noise on the
-  // held-out records. It stops once the chosen model fits the fit records within noise. The broadband
-  // diagnosis's figures carry no degrees of freedom (its own test of the fit records weighs their
-  // noise levels' spread), so it does not look ahead: not tried there.
+  // to 624). A model found so must beat the base as any candidate must, and the model chosen so far
+  // by more than noise on the held-out records. It stops once the chosen model fits the fit records
+  // within noise. The broadband diagnosis's figures carry no degrees of freedom (its own test of the
+  // fit records weighs their noise levels' spread), so it does not look ahead: not tried there.
   auto beyond_noise = [&] {
     const FitFigures& reached = chosen >= 0 ? all[chosen].figures : base_figures;
     return reached.dof > 0 && internal::BeyondNoise(reached.chi2, reached.dof);
