@@ -246,8 +246,8 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
     }
     return current_index;
   };
-  std::vector<int> path = {-1, chosen};  // the first path's models: the base, the best single, ...
-  if (chosen < 0) path.pop_back();
+  std::vector<int> path = {-1};  // the first path's models: the base, the best single, ...
+  if (chosen >= 0) path.push_back(chosen);
   chosen = forward(chosen, &path);
 
   // Look-ahead, where the first path leaves the fit records beyond noise: from each model on that
