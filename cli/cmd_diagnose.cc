@@ -36,8 +36,10 @@ frequency, whatever the manifest's order), measures where it misses (per record 
 balance below the stop, resonance against amplitude, contact times, the residual around impacts),
 fits the base model extended by each candidate effect (cubic_stiffness, quadratic_stiffness,
 hertzian_contact, contact_damping, second_stop, dry_friction, amplifier_saturation,
-quadratic_damping, force_factor, and with --coil-inductance coil_inductance) and names the ones
-that improve the held-out records beyond noise, or says "nothing missing".
+quadratic_damping, force_factor) and names the ones that improve the held-out records beyond
+noise, or says "nothing missing". Where they leave the misfit unexplained, it runs the selection
+again with coil_inductance (the coil's pole: a third state, whose fits are slow), which
+--coil-inductance tries from the start.
 
 A campaign of broadband records only (noise, multisine, sweep) is diagnosed by the records' time
 series instead (as strokelab fit fits them): the first or last 1/N of each record (--heldout-every N),
@@ -59,8 +61,9 @@ threshold_shift.csv, jump_intervals.csv, model.json and diagnosis.json.
   --heldout-every N        every N-th record is held out of the fits                  [4]
   --min-gain G             held-out chi-square drop (residual variances) to name an effect [10]
   --no-pairs               do not try pairs of effects
-  --coil-inductance        also try coil_inductance (the coil's pole, a third state: its
-                           fits take 10-40 times the others' time)
+  --coil-inductance        try coil_inductance from the start (the coil's pole, a third
+                           state: its fits take 10-40 times the others' time)
+  --no-coil-when-unexplained  never try coil_inductance without --coil-inductance
   --max-seconds T          wall-time budget; candidates past it are skipped, and the
                            report's maps are cut off once it is spent                 [600]
   --map-frequency-points N the report's saturation maps: frequencies over the

@@ -179,6 +179,7 @@ json DiagnosisDataToJson(const Diagnosis& d, const DiagnosisMaps& maps) {
                       {"residual_rms_elsewhere", JsonNumber(d.signatures.residual_rms_elsewhere)}}},
                     {"candidates", CandidatesOut(d.candidates)},
                     {"selection_rounds", d.selection_rounds},
+                    {"coil_round", d.coil_round},
                     {"missing_physics", EffectsOut(d.missing_physics)},
                     {"chosen", d.chosen},
                     {"model", ModelToJson(d.model)},
@@ -249,6 +250,7 @@ DiagnosisData DiagnosisDataFromJson(const json& in) {
 
   d.candidates = CandidatesIn(dj, "candidates", at);
   d.selection_rounds = static_cast<int>(Integer(dj, "selection_rounds", at, 1, 2));
+  d.coil_round = dj.contains("coil_round") && Flag(dj, "coil_round", at);  // absent before 0.26.0
   d.missing_physics = EffectsIn(dj, "missing_physics", at);
   d.chosen = ChosenIn(dj, at, d.candidates.size(), !d.missing_physics.empty());
   d.model = ModelIn(dj, "model", at);

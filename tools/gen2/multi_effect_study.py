@@ -7,9 +7,8 @@ after 5 s from rest, 0.5 mV noise, 10 mV offset, 0.5 mV hum, k_p, c_p, g, d and 
 diagnosis tests use. Every --strokelab binary diagnoses every campaign (side by side), and each verdict
 is scored:
 - right: exactly the library effects concealed are named, each parameter within 25 % of the truth,
-  and nothing is left unexplained (for a case with an effect in no default library, the coil's
-  inductance, a stop on a flexure, damping that grows with x^2: the library effects named, or fewer,
-  and "unexplained" set);
+  and nothing is left unexplained (for a case with an effect in no library, a stop on a flexure or
+  damping that grows with x^2: the library effects named, or fewer, and "unexplained" set);
 - honest: not right, but "unexplained" is set and every effect named is one concealed;
 - wrong: an effect named that was not concealed, or a parameter beyond 25 %, or nothing left
   unexplained while an effect concealed is not named.
@@ -42,7 +41,7 @@ SIZES = {"cubic_stiffness": ("cubic_stiffness", "k3", 1.5e7), "quadratic_stiffne
          "second_stop": ("second_stop", "d_upper", 1.45e-3), "dry_friction": ("dry_friction", "friction_n", 0.001),
          "amplifier_saturation": ("amplifier_saturation", "amplifier_limit_v", 0.45),
          "quadratic_damping": ("quadratic_damping", "c2", 0.3), "force_factor": ("force_factor", "b2", -3e4),
-         "coil_inductance": (None, None, 2e-3), "stop_mount": (None, None, 3000.0),
+         "coil_inductance": ("coil_inductance", "tau_e", 2e-3), "stop_mount": (None, None, 3000.0),
          "position_damping": (None, None, 2e5)}
 K3W = {"cubic_stiffness": 5e6, "quadratic_damping": 0.15}  # the weaker pair of case 9929
 # seed -> (effects, response channel or None)
@@ -117,6 +116,8 @@ def truth_of(directory):
         true_value = e["value"]
         if key == "k_s":  # k_s is perturbed too: the truth is the model's
             true_value = truth["model"]["contact_stiffness"]
+        if key == "tau_e":  # gen2 conceals the coil's inductance L; the library fits its pole L / R
+            true_value = truth["model"]["coil_inductance_h"] / truth["model"]["coil_resistance_ohm"]
         library[library_id] = {key: true_value}
     return library, other
 

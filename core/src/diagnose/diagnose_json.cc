@@ -178,6 +178,7 @@ nlohmann::json DiagnosisToJson(const Diagnosis& d) {
 
   out["candidates"] = internal::CandidatesJson(d.candidates, d.chosen);
   out["selection_rounds"] = d.selection_rounds;
+  out["coil_round"] = d.coil_round;
 
   nlohmann::json signatures;
   signatures["evidence"] = nlohmann::json::array();

@@ -35,6 +35,8 @@
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
 //      is beyond noise, the report says where; when the chosen effects removed less of the excess than
 //      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).
+//      Where it is unexplained and coil_inductance was not a candidate, steps 4-6 run again with it
+//      (DiagnoseOptions::coil_when_unexplained; fits done before are not repeated).
 //
 // Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2-6
 // (Eq. 2 in its continuous form, model.h; Eq. 6 with its square root restored, signal.h).
@@ -86,11 +88,14 @@ struct DiagnoseOptions {
   int heldout_every = 4;        // every n-th record is held out (>= 2)
   double min_heldout_gain = 10; // held-out chi-square drop (in residual variances) an effect must beat
   bool pairs = true;            // forward selection beyond one effect (pairs, triples)
-  // Whether coil_inductance is a candidate. Its fits integrate a third, fast state (the coil's pole
-  // tau_e, ~0.1-1 ms) with the explicit variational flow, whose steps then follow tau_e: each orbit
-  // costs 10-40 times a two-state model's, and a campaign's diagnosis several times as long. So it
-  // is tried on request only.
+  // Whether coil_inductance is a candidate from the start. Its fits integrate a third, fast state (the
+  // coil's pole tau_e, ~0.1-1 ms) with the explicit variational flow, whose steps then follow tau_e:
+  // each orbit costs 10-40 times a two-state model's, and a campaign's diagnosis several times as long.
   bool coil_inductance = false;
+  // Where it is not, whether the selection runs again with it when the library without it leaves the
+  // misfit unexplained (the open-world test): a campaign that a cheaper model explains never pays
+  // for the coil's fits.
+  bool coil_when_unexplained = true;
   int max_passes = 8;           // solves of an extended fit (sampling corrections refreshed between)
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped
   // The report's saturation maps of the base and the diagnosed model (report/diagnosis_maps.h) over
@@ -103,8 +108,9 @@ struct DiagnoseOptions {
   // Called at each stage's start and within the candidates' fits (each solve and Ceres iteration),
   // from the calling thread (may be empty). The stages, N of them: the records' analysis, the base
   // fit, the signatures, one fit per candidate effect that applies (all seven planned until the base
-  // fit says which), the pair (when `pairs`; passed over unless two effects beat noise), and the
-  // report's two maps (when both map point counts are not 0; reported by report/diagnosis_maps.h).
+  // fit says which), the pair (when `pairs`; passed over unless two effects beat noise), the same
+  // again with coil_inductance where it runs (coil_when_unexplained), and the report's two maps
+  // (when both map point counts are not 0; reported by report/diagnosis_maps.h).
   ProgressHook progress;
   // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,
   // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds",
@@ -301,6 +307,8 @@ struct Diagnosis {
   std::vector<CandidateFit> candidates;  // every candidate tried, best held-out gain first
   // 2 when the selection ran again with the singles also fitted from the staged estimates (step 4).
   int selection_rounds = 1;
+  // Whether the selection ran once more with coil_inductance (DiagnoseOptions::coil_when_unexplained).
+  bool coil_round = false;
   std::vector<Effect> missing_physics;   // named effects, best first (empty: nothing missing)
   int chosen = -1;                       // index into candidates (-1: nothing missing)
   // The diagnosed model, ready to sweep or simulate (model_json.h): the base fit's model (or its refit,
