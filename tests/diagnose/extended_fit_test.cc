@@ -161,6 +161,18 @@ TEST(ExtendedFitTest, PassesThatDoNotContractStopAndSayWhy) {
   EXPECT_NE(internal::PassesNotContracting(0.05, 0.05, 7), "");  // theta = 1: a constant move never settles
 }
 
+// The move between solves allowed as the sampling corrections' jitter: a parameter that jitters by
+// delta standard errors has sqrt(1 + delta^2) times the error, an excess of 1 / sqrt(2 dof) (the
+// standard error's own relative uncertainty; 0.0378 at dof 350, delta 0.2775). Fewer residuals allow more.
+TEST(ExtendedFitTest, TheJitterAllowedIsWithinTheStandardErrorsOwnUncertainty) {
+  EXPECT_NEAR(internal::JitterAllowance(350), 0.2775, 5e-4);
+  for (const size_t dof : {size_t{10}, size_t{350}, size_t{100000}}) {
+    const double delta = internal::JitterAllowance(dof);
+    EXPECT_NEAR(std::sqrt(1.0 + delta * delta) - 1.0, 1.0 / std::sqrt(2.0 * static_cast<double>(dof)), 1e-12);
+  }
+  EXPECT_GT(internal::JitterAllowance(10), internal::JitterAllowance(350));
+}
+
 TEST(ExtendedFitTest, CutOffBeforeCeresConvergesSaysSo) {
   const CubicCampaign c = MakeCubicCampaign();
   ExtendedFitOptions options;

@@ -286,6 +286,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateSta
   c.converged = r.converged;
   c.passes = r.passes;
   if (!r.converged) c.note = r.report;
+  else if (!r.jitter.empty()) c.note = "converged: " + r.jitter;
   c.model = r.model;
   c.parameters = r.parameters;
   c.covariance = r.covariance;

@@ -10,7 +10,8 @@
 // correction (fit_orbit.h, SamplingCorrection: what a record's sampling makes of the model's response)
 // is frozen during a solve and refreshed between solves, until the parameters stay or, for a model
 // whose chi-square the records reject (beyond chi-square(M - P)'s 1e-3 upper tail), those passes are
-// seen not to converge (PassesNotContracting). A converged fit the records reject may hold a record
+// seen not to converge (PassesNotContracting); a model within noise whose last two solves moved it by
+// no more than the corrections' jitter (JitterAllowance) has converged too. A converged fit the records reject may hold a record
 // on the wrong one of two coexisting orbits (anchors are chosen at the starting model): records whose
 // best-matching orbit of the fitted model matches them better by more than their own residual count
 // in chi-square move there, and the passes go on.
@@ -82,6 +83,8 @@ struct ExtendedFitResult {
   size_t residuals = 0;            // M
   double residual_variance = 0.0;  // chi2 / (M - P)
   std::string report;              // why not converged
+  // Converged with the sampling corrections' jitter (JitterAllowance): the last moves; else empty.
+  std::string jitter;
   double seconds = 0.0;
 };
 
@@ -98,6 +101,14 @@ struct ExtendedFitResult {
 // applied to models beyond noise only. Empty when the passes may go on;
 // otherwise why they stop, with the two moves.
 std::string PassesNotContracting(double move, double last_move, int passes_left);
+
+// The largest move between solves, in standard errors, that is jitter of the sampling corrections
+// rather than a fit still on its way, for a model within noise whose passes all ran: a parameter that
+// jitters by delta standard errors has the error sqrt(1 + delta^2) of one, and delta is allowed while
+// that excess stays below the standard error's own relative uncertainty from `dof` degrees of freedom,
+// 1 / sqrt(2 dof) (the chi-square's: a variance estimate from dof residuals): delta = sqrt((1 +
+// 1 / sqrt(2 dof))^2 - 1), 0.28 at dof 350.
+double JitterAllowance(size_t dof);
 
 // Whether a fit's chi-square of `dof` = M - P degrees of freedom is beyond noise (upper-tail
 // probability below 1e-3): the records reject the model. Such a fit's passes may stop once they stop
