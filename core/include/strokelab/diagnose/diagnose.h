@@ -354,9 +354,10 @@ CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effe
 // missing_physics (effect, parameters, evidence), model (the diagnosed model as ModelToJson writes it:
 // what `strokelab sweep --model`, `simulate --model` and a sweep job's "model" read) and model_note,
 // fit_before, fit_after (nrmse, heldout_nrmse, ...), base_parameters and base_model, candidates,
-// selection_rounds, signatures, records, conclusion, seconds. The fitted parameters appear twice in two shapes: as
-// reported (by name, with standard error and unit: base_parameters, missing_physics[].parameters and
-// .all_parameters) and as the model they make ("model", "base_model": model.h JSON names, no errors).
+// selection_rounds, coil_round, signatures, records, conclusion, seconds. The fitted parameters appear
+// twice in two shapes: as reported (by name, with standard error and unit: base_parameters,
+// missing_physics[].parameters and .all_parameters) and as the model they make ("model", "base_model":
+// model.h JSON names, no errors).
 nlohmann::json DiagnosisToJson(const Diagnosis& diagnosis);
 
 // The open-world test's result as DiagnosisToJson writes it under "unexplained": null, or its figures,

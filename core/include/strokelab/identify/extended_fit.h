@@ -11,10 +11,10 @@
 // is frozen during a solve and refreshed between solves, until the parameters stay or, for a model
 // whose chi-square the records reject (beyond chi-square(M - P)'s 1e-3 upper tail), those passes are
 // seen not to converge (PassesNotContracting); a model within noise whose last two solves moved it by
-// no more than the corrections' jitter (JitterAllowance) has converged too. A converged fit the records reject may hold a record
-// on the wrong one of two coexisting orbits (anchors are chosen at the starting model): records whose
-// best-matching orbit of the fitted model matches them better by more than their own residual count
-// in chi-square move there, and the passes go on.
+// no more than the corrections' jitter (JitterAllowance) has converged too. A converged fit the
+// records reject may hold a record on the wrong one of two coexisting orbits (anchors are chosen at
+// the starting model): records whose best-matching orbit of the fitted model matches them better by
+// more than their own residual count in chi-square move there, and the passes go on.
 #pragma once
 
 #include <complex>
