@@ -173,6 +173,41 @@ TEST(ExtendedFitTest, TheJitterAllowedIsWithinTheStandardErrorsOwnUncertainty) {
   EXPECT_GT(internal::JitterAllowance(10), internal::JitterAllowance(350));
 }
 
+// A floor probe (the coil's tau_e in the diagnosis) looks first at the model with the parameter on its
+// lower bound. Here k3 starts at 3e7 N/m^3 over records of k3 = 1.5e7. With its floor at 2e7, the
+// Gauss-Newton step from the floor lowers it: the fit stops there and says so, where the fit without
+// the probe ends after its iterations (k3 held at that bound). With the floor at 5e6 the step raises
+// it, and the fit goes on as without the probe.
+TEST(ExtendedFitTest, AFloorProbeStopsWhereTheRecordsAskForLessThanTheFloor) {
+  const CubicCampaign c = MakeCubicCampaign();
+  const ResponseKind kind = c.synthesis.campaign.response;
+  ExtendedProblem problem = CubicProblem();
+  const int k3 = static_cast<int>(problem.parameters.size()) - 1;
+  problem.parameters[k3].start = 3e7;
+  problem.parameters[k3].theta_min = 1.0 - 10.0;  // 2e7 N/m^3
+  ExtendedFitOptions probed;
+  probed.floor_probe = k3;
+  const ExtendedFitResult stopped = internal::FitExtended(c.records, kind, problem, probed);
+  const ExtendedFitResult full = internal::FitExtended(c.records, kind, problem, ExtendedFitOptions{});
+  EXPECT_FALSE(stopped.floored.empty());
+  EXPECT_FALSE(stopped.converged);
+  EXPECT_NE(stopped.report.find("NOT FITTED: the records ask for less k3 than its floor (at its floor, 2e+07"),
+            std::string::npos) << stopped.report;
+  EXPECT_EQ(stopped.iterations, 0);
+  EXPECT_NEAR(stopped.model.cubic_stiffness_n_per_m3, 2e7, 1.0);
+  EXPECT_NEAR(full.model.cubic_stiffness_n_per_m3, 2e7, 1.0) << full.report;
+  const size_t held = full.report.find("held at a bound of its range (the records push it beyond): ");
+  ASSERT_NE(held, std::string::npos) << full.report;
+  EXPECT_NE(full.report.find("k3", held), std::string::npos) << full.report;
+
+  problem.parameters[k3].theta_min = 1.0 - 25.0;  // 5e6 N/m^3
+  const ExtendedFitResult fitted = internal::FitExtended(c.records, kind, problem, probed);
+  EXPECT_TRUE(fitted.floored.empty()) << fitted.floored;
+  EXPECT_TRUE(fitted.converged) << fitted.report;
+  const FitParameter& k3_fitted = fitted.parameters[k3];
+  EXPECT_LT(std::abs(k3_fitted.value - 1.5e7), 4.0 * k3_fitted.standard_error) << k3_fitted.value;
+}
+
 TEST(ExtendedFitTest, CutOffBeforeCeresConvergesSaysSo) {
   const CubicCampaign c = MakeCubicCampaign();
   ExtendedFitOptions options;

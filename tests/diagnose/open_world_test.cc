@@ -75,6 +75,17 @@ TEST(OpenWorldTest, AHousingModeThatRingsAfterImpactsIsUnexplainedAndNothingIsNa
   }
   EXPECT_GE(rings, 2);
   EXPECT_THAT(d.conclusion, ::testing::HasSubstr("the residual rings at about"));
+  // The selection ran again with the coil's inductance (diagnose.h), and each fit that added the coil
+  // to a model without one stopped at tau_e's floor: the records ask for less lag (0.26.0's fits ran
+  // tau_e down to that floor, the coil alone in 32 s).
+  EXPECT_TRUE(d.coil_round);
+  int coils = 0;
+  for (const CandidateFit& c : d.candidates)
+    if (c.effects.back() == Effect::kCoilInductance) {
+      ++coils;
+      EXPECT_THAT(c.note, ::testing::HasSubstr("the records ask for less tau_e than its floor")) << c.label;
+    }
+  EXPECT_GE(coils, 1);
 }
 
 // The same campaign without the ring, against the model that made it: no ringing is found.

@@ -270,6 +270,13 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateSta
   fit_options.orders = orders;
   fit_options.max_passes = options.max_passes;
   fit_options.max_seconds = std::max(1.0, seconds_left);
+  // The coil's tau_e has a floor set by the fit's cost (effects.cc): where the coil is the effect
+  // added, one evaluation at the floor finds a coil the records do not show, not iterations at the
+  // floor's short steps. (From a start with a fitted coil the floor is far from the optimum, and a
+  // step from there tells nothing.)
+  for (size_t i = 0; i < problem.parameters.size(); ++i)
+    if (problem.parameters[i].field == &ActuatorModel::coil_time_constant_s && !start.HasCoilPole())
+      fit_options.floor_probe = static_cast<int>(i);
   if (step)
     fit_options.progress = [&](int solve, int iteration) {
       step("solve " + std::to_string(solve) + " (at most " + std::to_string(options.max_passes) + "), iteration " +

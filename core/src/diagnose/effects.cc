@@ -211,7 +211,8 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         // flow's steps follow tau_e and a fit costs ~100 s on 24 records where the others take 1 s (a
         // housing mode's campaign, open_world_test, ran tau_e to the model's bound, 1.7e-5 s, in
         // 104 s; 32 s at this floor, 1.4e-4 s). A coil with a shorter tau_e is not named (gen2 9954,
-        // 1.3e-4 s: "unexplained" at 2.1 times the noise).
+        // 1.3e-4 s: "unexplained" at 2.1 times the noise). A coil added to a model without one is
+        // first looked at on the floor (diagnose.cc, RunCandidate's floor probe).
         const double scale = 0.1 / (2.0 * std::numbers::pi * context.max_frequency_hz);
         const double natural_hz = std::sqrt(k / start.mass_kg) / (2.0 * std::numbers::pi);
         const double floor = std::max(1.01 / (2.0 * std::numbers::pi * ModelBounds::kMaxCoilPoleRatio * natural_hz),

@@ -120,6 +120,25 @@ ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_var
   return out;
 }
 
+// Where a Gauss-Newton step from `theta`, every parameter free, takes parameter i: -J^+ r, the
+// minimum-norm least-squares step of the column-scaled Jacobian (a column of zeros stays zero). NaN
+// where a record does not evaluate.
+double GaussNewtonTarget(ceres::Problem& ceres_problem, const std::vector<double>& theta, int i) {
+  double cost = 0.0;
+  std::vector<double> residuals;
+  ceres::CRSMatrix crs;
+  if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, &residuals, nullptr, &crs)) return kNaN;
+  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, static_cast<Eigen::Index>(theta.size()));
+  for (int r = 0; r < crs.num_rows; ++r)
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+  const Eigen::VectorXd norms = j.colwise().norm();
+  for (Eigen::Index c = 0; c < j.cols(); ++c)
+    if (norms(c) > 0.0) j.col(c) /= norms(c);
+  const Eigen::Map<const Eigen::VectorXd> r(residuals.data(), static_cast<Eigen::Index>(residuals.size()));
+  const Eigen::VectorXd step = j.completeOrthogonalDecomposition().solve(-r);
+  return theta[i] + (norms(i) > 0.0 ? step(i) / norms(i) : 0.0);
+}
+
 }  // namespace
 
 FreeParameter LogParameter(std::string name, std::string unit, double ActuatorModel::*field, double start,
@@ -234,8 +253,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
 
   std::vector<double> theta(p, 1.0);
   std::vector<OrbitTarget> targets(records.size());
-  {
-    // Anchors: the orbit that matches each record best among the starting model's attractors.
+  // Anchors: the orbit that matches each record best among the attractors of the model at theta.
+  auto anchor = [&] {
     const ActuatorModel model = problem.Decode(theta.data());
     ParallelFor(records.size(), [&](size_t i) {
       OrbitTarget& t = targets[i];
@@ -249,7 +268,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
       if (!s) throw NumericalError("no steady state of the starting model at record " + records[i]->name);
       t.anchor = s->anchor;
     });
-  }
+  };
 
   ceres::Problem ceres_problem;
   for (OrbitTarget& t : targets) ceres_problem.AddResidualBlock(new OrbitCost(&problem, &t, kind, orders), nullptr, theta.data());
@@ -257,6 +276,24 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     ceres_problem.SetParameterLowerBound(theta.data(), i, problem.parameters[i].theta_min);
     ceres_problem.SetParameterUpperBound(theta.data(), i, problem.parameters[i].theta_max);
   }
+  if (options.floor_probe >= 0) {
+    const int i = options.floor_probe;
+    const FreeParameter& fp = problem.parameters[i];
+    theta[i] = fp.theta_min;
+    anchor();
+    RefreshCorrections(problem.Decode(theta.data()), targets, kind, orders);
+    const double target = GaussNewtonTarget(ceres_problem, theta, i);
+    if (target < fp.theta_min) {
+      char values[160];
+      std::snprintf(values, sizeof values,
+                    "at its floor, %.3g %s, a Gauss-Newton step (every parameter free) takes it to %.3g %s",
+                    fp.Value(fp.theta_min), fp.unit.c_str(), fp.Value(target), fp.unit.c_str());
+      result.floored = "the records ask for less " + fp.name + " than its floor (" + values + "): not fitted beyond it";
+    } else {
+      theta[i] = 1.0;
+    }
+  }
+  if (result.floored.empty()) anchor();
   // After each successful step the anchors move to the new iterate's orbits (and stay on each
   // record's branch).
   int solve_now = 0, steps_now = 0;  // for options.progress
@@ -339,7 +376,7 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
       last_move = move;
     }
   };
-  run_passes();
+  if (result.floored.empty()) run_passes();
   // A converged fit the records still reject may hold a record on the wrong one of two coexisting
   // orbits (its anchor was chosen at the starting model): records move to a better-matching orbit of
   // the fitted model, and the passes go on from there.
@@ -370,7 +407,8 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
   result.chi2 = evaluates ? 2.0 * cost : kInf;
   result.residual_variance = result.chi2 / static_cast<double>(result.residuals - p);
   result.converged = ceres_converged && !moved && evaluates;
-  if (!ceres_converged) result.report += "\nNOT CONVERGED: Ceres did not meet its convergence test";
+  if (!result.floored.empty()) result.report = "NOT FITTED: " + result.floored;
+  else if (!ceres_converged) result.report += "\nNOT CONVERGED: Ceres did not meet its convergence test";
   else if (moved) result.report += "\nNOT CONVERGED: the sampling corrections still moved the parameters after " +
                                    std::to_string(result.passes) + " solves" +
                                    (not_contracting.empty() ? "" : "; " + not_contracting);

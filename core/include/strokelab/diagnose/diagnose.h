@@ -36,7 +36,9 @@
 //      is beyond noise, the report says where; when the chosen effects removed less of the excess than
 //      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).
 //      Where it is unexplained and coil_inductance was not a candidate, steps 4-6 run again with it
-//      (DiagnoseOptions::coil_when_unexplained; fits done before are not repeated).
+//      (DiagnoseOptions::coil_when_unexplained; fits done before are not repeated). The coil added to a
+//      model without one is first looked at with tau_e on its floor (effects.cc): where a Gauss-Newton
+//      step from there lowers tau_e, its fit stops there and is scored so (extended_fit.h floor_probe).
 //
 // Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2-6
 // (Eq. 2 in its continuous form, model.h; Eq. 6 with its square root restored, signal.h).

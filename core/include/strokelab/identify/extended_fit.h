@@ -68,6 +68,12 @@ struct ExtendedFitOptions {
   // Reporting only: called at the start of each solve (iteration 0) and after each successful Ceres
   // step within it (iteration 1, 2, ...), from the calling thread; may be empty.
   std::function<void(int solve, int iteration)> progress;
+  // A parameter whose lower bound is a floor of the search rather than of the physics (the coil's
+  // tau_e: below it the flow's steps follow tau_e): the fit first looks at the model with it on that
+  // bound, and where a Gauss-Newton step from there (every parameter free) lowers it further, the
+  // records ask for less of it than the floor, and the fit stops there (ExtendedFitResult::floored).
+  // -1: none.
+  int floor_probe = -1;
 };
 
 struct ExtendedFitResult {
@@ -85,6 +91,9 @@ struct ExtendedFitResult {
   std::string report;              // why not converged
   // Converged with the sampling corrections' jitter (JitterAllowance): the last moves; else empty.
   std::string jitter;
+  // Stopped at the floor of options.floor_probe (not converged, that parameter held there): why, with
+  // the Gauss-Newton step's target; else empty.
+  std::string floored;
   double seconds = 0.0;
 };
 
