@@ -121,13 +121,10 @@ ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_var
 }
 
 // Where a Gauss-Newton step from `theta`, every parameter free, takes parameter i: -J^+ r, the
-// minimum-norm least-squares step of the column-scaled Jacobian (a column of zeros stays zero). NaN
-// where a record does not evaluate.
-double GaussNewtonTarget(ceres::Problem& ceres_problem, const std::vector<double>& theta, int i) {
-  double cost = 0.0;
-  std::vector<double> residuals;
-  ceres::CRSMatrix crs;
-  if (!ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, &residuals, nullptr, &crs)) return kNaN;
+// minimum-norm least-squares step of the column-scaled Jacobian (a column of zeros stays zero), from
+// the residuals r and their Jacobian J at theta.
+double GaussNewtonTarget(const std::vector<double>& residuals, const ceres::CRSMatrix& crs,
+                         const std::vector<double>& theta, int i) {
   Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, static_cast<Eigen::Index>(theta.size()));
   for (int r = 0; r < crs.num_rows; ++r)
     for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
@@ -276,13 +273,19 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
     ceres_problem.SetParameterLowerBound(theta.data(), i, problem.parameters[i].theta_min);
     ceres_problem.SetParameterUpperBound(theta.data(), i, problem.parameters[i].theta_max);
   }
+  double probe_cost = 0.0;  // at the probe, which is the end where the fit stops there
+  ceres::CRSMatrix probe_jacobian;
+  bool probe_evaluates = false;
   if (options.floor_probe >= 0) {
     const int i = options.floor_probe;
     const FreeParameter& fp = problem.parameters[i];
     theta[i] = fp.theta_min;
     anchor();
     RefreshCorrections(problem.Decode(theta.data()), targets, kind, orders);
-    const double target = GaussNewtonTarget(ceres_problem, theta, i);
+    std::vector<double> residuals;
+    probe_evaluates = ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &probe_cost, &residuals, nullptr,
+                                             &probe_jacobian);
+    const double target = probe_evaluates ? GaussNewtonTarget(residuals, probe_jacobian, theta, i) : kNaN;
     if (target < fp.theta_min) {
       char values[160];
       std::snprintf(values, sizeof values,
@@ -401,9 +404,11 @@ ExtendedFitResult FitExtended(std::span<const RecordAnalysis* const> records, Re
                     " solves, by no more than their jitter (" + moves + ")";
   }
   // The cost and the Jacobian at the end (a record without a steady state leaves neither).
-  double cost = 0.0;
-  ceres::CRSMatrix jacobian;
-  const bool evaluates = ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, &jacobian);
+  double cost = probe_cost;
+  ceres::CRSMatrix jacobian = probe_jacobian;
+  const bool evaluates = result.floored.empty() ? ceres_problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost,
+                                                                         nullptr, nullptr, &jacobian)
+                                                : probe_evaluates;
   result.chi2 = evaluates ? 2.0 * cost : kInf;
   result.residual_variance = result.chi2 / static_cast<double>(result.residuals - p);
   result.converged = ceres_converged && !moved && evaluates;
