@@ -322,6 +322,60 @@ std::string FitKey(const std::vector<Effect>& effects, const ActuatorModel& star
 // Whether `f`'s fit records reject its model (extended_fit.h BeyondNoise).
 bool BeyondNoise(const FitFigures& f) { return internal::BeyondNoise(f.chi2, f.dof); }
 
+// The diagnosis's end (diagnose.h, step 6 on): the misfit left described from the data, the
+// candidates' decisions labelled, and the answer: the diagnosed model, its effects' curves and the
+// conclusion. `refit` (may be null) is the base refitted with the sampling slopes where the answer
+// stands on it; `partial` says why the best candidate, `best_partial`, was not named (empty: it was
+// not so).
+void Conclude(const Campaign& campaign, std::span<const RecordAnalysis> analyses, const EffectContext& context,
+              const FitResult* refit, size_t chosen_parameters, const std::string& partial,
+              const std::vector<Effect>& best_partial, const DiagnoseOptions& options, Diagnosis* d) {
+  const ResponseKind kind = campaign.response;
+  const int orders = options.fit.harmonic_orders;
+  if (d->unexplained && !partial.empty()) d->unexplained->description += "; " + partial;
+  const ActuatorModel& base_model = refit ? refit->model : d->base.model;
+  if (d->unexplained) {
+    const ActuatorModel& diagnosed = d->chosen >= 0 ? d->candidates[d->chosen].model : base_model;
+    d->unexplained->missing_force = internal::EstimateMissingForce(diagnosed, d->after, kind);
+    RingingOfWorstPlaces(campaign, analyses, diagnosed, kind, orders, &*d->unexplained);
+    d->unexplained->description += internal::DescribeMissingForce(d->unexplained->missing_force);
+  }
+  internal::LabelDecisions(d->chosen, partial, best_partial, &d->candidates);
+
+  if (d->chosen >= 0) {
+    const CandidateFit& c = d->candidates[d->chosen];
+    d->missing_physics = c.effects;
+    d->curves = EffectCurves(c, d->base.model,
+                             {context.min_displacement_m, context.max_displacement_m, context.max_velocity_m_per_s,
+                              context.max_penetration_m, context.max_amplitude_v, context.min_frequency_hz,
+                              context.max_frequency_hz,
+                              "reached by the base model's orbits on the fit records"});
+    d->fit_after = c.figures;
+    d->model = c.model;
+    d->model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +
+                    (c.converged ? "" : " (that fit did NOT converge: the parameters may still be off)");
+    std::ostringstream text;
+    text << "missing physics: " << c.label << (c.converged ? "" : " (its fit did NOT converge)")
+         << " (held-out chi-square down by " << Format(c.heldout_gain)
+         << " residual variances; normalised RMS error " << Format(d->fit_before.nrmse) << " -> "
+         << Format(d->fit_after.nrmse) << ", held out " << Format(d->fit_before.heldout_nrmse) << " -> "
+         << Format(d->fit_after.heldout_nrmse) << ")";
+    if (d->unexplained) text << "; more is missing that no library effect explains: " << d->unexplained->description;
+    d->conclusion = text.str();
+  } else {
+    d->fit_after = refit ? Figures(d->after, chosen_parameters) : d->fit_before;
+    d->model = base_model;
+    d->model_note = std::string("nothing named: the base fit's model (") + ToString(options.fit.model) + ")" +
+                    (refit ? ", refitted with the sampling correction's slopes (as `fit` does)" : "");
+    d->conclusion = d->unexplained
+                        ? "unexplained: the model misses something no library effect explains; " +
+                              d->unexplained->description
+                        : "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
+                              Format(options.min_heldout_gain) +
+                              " residual variances, and what the base model leaves on the held-out records is noise";
+  }
+}
+
 }  // namespace
 
 std::vector<bool> HeldOutRecords(std::span<const RecordAnalysis> analyses, int heldout_every) {
@@ -533,48 +587,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     d.chosen = select();
     answer();
   }
-  if (d.unexplained && !partial.empty()) d.unexplained->description += "; " + partial;
-  const ActuatorModel& base_model = refit ? refit->model : d.base.model;
-  if (d.unexplained) {
-    const ActuatorModel& diagnosed = d.chosen >= 0 ? d.candidates[d.chosen].model : base_model;
-    d.unexplained->missing_force = internal::EstimateMissingForce(diagnosed, d.after, kind);
-    RingingOfWorstPlaces(campaign, analyses, diagnosed, kind, orders, &*d.unexplained);
-    d.unexplained->description += internal::DescribeMissingForce(d.unexplained->missing_force);
-  }
-  internal::LabelDecisions(d.chosen, partial, best_partial, &d.candidates);
-
-  if (d.chosen >= 0) {
-    const CandidateFit& c = d.candidates[d.chosen];
-    d.missing_physics = c.effects;
-    d.curves = EffectCurves(c, d.base.model,
-                            {context.min_displacement_m, context.max_displacement_m, context.max_velocity_m_per_s,
-                             context.max_penetration_m, context.max_amplitude_v, context.min_frequency_hz,
-                             context.max_frequency_hz,
-                             "reached by the base model's orbits on the fit records"});
-    d.fit_after = c.figures;
-    d.model = c.model;
-    d.model_note = "the base model extended by " + c.label + ", every parameter as fitted with it" +
-                   (c.converged ? "" : " (that fit did NOT converge: the parameters may still be off)");
-    std::ostringstream text;
-    text << "missing physics: " << c.label << (c.converged ? "" : " (its fit did NOT converge)")
-         << " (held-out chi-square down by " << Format(c.heldout_gain)
-         << " residual variances; normalised RMS error " << Format(d.fit_before.nrmse) << " -> "
-         << Format(d.fit_after.nrmse) << ", held out " << Format(d.fit_before.heldout_nrmse) << " -> "
-         << Format(d.fit_after.heldout_nrmse) << ")";
-    if (d.unexplained) text << "; more is missing that no library effect explains: " << d.unexplained->description;
-    d.conclusion = text.str();
-  } else {
-    d.fit_after = refit ? Figures(d.after, chosen_parameters) : d.fit_before;
-    d.model = base_model;
-    d.model_note = std::string("nothing named: the base fit's model (") + ToString(options.fit.model) + ")" +
-                   (refit ? ", refitted with the sampling correction's slopes (as `fit` does)" : "");
-    d.conclusion = d.unexplained
-                       ? "unexplained: the model misses something no library effect explains; " +
-                             d.unexplained->description
-                       : "nothing missing: no candidate effect lowers the held-out chi-square by more than " +
-                             Format(options.min_heldout_gain) +
-                             " residual variances, and what the base model leaves on the held-out records is noise";
-  }
+  Conclude(campaign, analyses, context, refit, chosen_parameters, partial, best_partial, options, &d);
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;
 }
