@@ -239,5 +239,26 @@ TEST(PartialExplanationTest, ACandidateThatLeavesMoreThanItRemovesIsNotNamedOnEi
   EXPECT_EQ(internal::PartialExplanation(c, before, 19000, false), "");
 }
 
+// Beside a mode that rings after the impacts, the answer is the best fitted part of the chosen model
+// without its effects at the stop that beats the base: k3 of k3 + contact damping (the lower held-out
+// chi-square of k3's two fits), not c2 (not a part), nor a part that does not beat the base.
+TEST(BestWithoutStopEffectsTest, TakesTheBestPartWithoutTheStopsEffectsThatBeatsTheBase) {
+  auto fit = [](std::vector<Effect> effects, double heldout_chi2, double heldout_gain, bool fitted = true) {
+    CandidateFit c;
+    c.effects = std::move(effects);
+    c.fitted = fitted;
+    c.figures.heldout_chi2 = heldout_chi2;
+    c.heldout_gain = heldout_gain;
+    return c;
+  };
+  const Effect k3 = Effect::kCubicStiffness, cs = Effect::kContactDamping, c2 = Effect::kQuadraticDamping;
+  std::vector<CandidateFit> all = {fit({cs}, 150, 5000), fit({k3}, 900, 4000), fit({c2}, 500, 4500),
+                                   fit({k3, cs}, 120, 5100), fit({k3}, 800, 4100), fit({k3}, 100, 0, false)};
+  EXPECT_EQ(internal::BestWithoutStopEffects(all, 3, 10), 4);
+  all[4].heldout_gain = all[1].heldout_gain = 5;  // neither beats the base by more than 10
+  EXPECT_EQ(internal::BestWithoutStopEffects(all, 3, 10), -1);
+  EXPECT_EQ(internal::BestWithoutStopEffects(all, 0, 10), -1);  // contact damping alone: the base
+}
+
 }  // namespace
 }  // namespace strokelab

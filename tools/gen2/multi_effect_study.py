@@ -17,7 +17,9 @@ Seeds (fixed before the runs): 9901-9908 and 9911-9920 were run first, 9903 was 
 selection's look-ahead was built and 9925 while it was extended from every model on the path;
 9921-9932 (but 9925) and 9941-9950 were run once after. 0.26.0's coil round (the coil's inductance
 tried where the rest leave the misfit unexplained) was built on other seeds (9951, 9952) and changed
-9905 only. Campaigns are kept under --out (generated once, then reused).
+9905 only. 0.27.0's floor probe for the coil (built on 9713, 9917, 9928 and the coil campaigns 9951-9956)
+changed no verdict; its test above the harmonics (built on 9927 and on 72-record campaigns of a stop on
+a flexure, 9957 and 9959) turned 9927 right. Campaigns are kept under --out (generated once, then reused).
 
   tools/gen2/multi_effect_study.py --strokelab build/release/strokelab --out /tmp/multi
   tools/gen2/multi_effect_study.py --strokelab OLD --strokelab NEW --cases 9941-9950

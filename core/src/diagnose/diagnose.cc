@@ -206,8 +206,7 @@ std::optional<FitResult> RefitBaseWithSlopes(const Split& split, ResponseKind ki
 // The residual's ringing after impacts in the worst places' records (FindRinging), and in words.
 void RingingOfWorstPlaces(const Campaign& campaign, std::span<const RecordAnalysis> analyses,
                           const ActuatorModel& model, ResponseKind kind, int orders, Unexplained* u) {
-  constexpr size_t kPlaces = 3;  // as many as the description names
-  for (size_t i = 0; i < u->places.size() && i < kPlaces; ++i) {
+  for (size_t i = 0; i < u->places.size() && i < internal::kRingPlaces; ++i) {
     Unexplained::Place& place = u->places[i];
     const auto analysis = std::find_if(analyses.begin(), analyses.end(), [&](const auto& a) { return a.name == place.record; });
     const auto record = std::find_if(campaign.records.begin(), campaign.records.end(),
@@ -219,7 +218,7 @@ void RingingOfWorstPlaces(const Campaign& campaign, std::span<const RecordAnalys
       // no ringing figures for this record
     }
   }
-  u->description += internal::DescribeRinging(*u, kind, kPlaces);
+  u->description += internal::DescribeRinging(*u, kind, internal::kRingPlaces);
 }
 
 // The stages of one round of the selection: each single, then the forward selection.
@@ -338,7 +337,9 @@ void Conclude(const Campaign& campaign, std::span<const RecordAnalysis> analyses
     const ActuatorModel& diagnosed = d->chosen >= 0 ? d->candidates[d->chosen].model : base_model;
     d->unexplained->missing_force = internal::EstimateMissingForce(diagnosed, d->after, kind);
     RingingOfWorstPlaces(campaign, analyses, diagnosed, kind, orders, &*d->unexplained);
-    d->unexplained->description += internal::DescribeMissingForce(d->unexplained->missing_force);
+    // (Where only the ring above the harmonics is unexplained, the surface from the harmonics is noise.)
+    if (d->unexplained->p_value < internal::kUnexplainedP)
+      d->unexplained->description += internal::DescribeMissingForce(d->unexplained->missing_force);
   }
   internal::LabelDecisions(d->chosen, partial, best_partial, &d->candidates);
 
@@ -587,6 +588,29 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     d.chosen = select();
     answer();
   }
+  // Above the fitted harmonics: the model may miss a mode that the impacts make ring, within noise on
+  // the harmonics or not. That is physics at the stop that no library effect holds, and an effect at
+  // the stop fitted beside it may only stand in for it (gen2's stop on a flexure: contact damping fitted
+  // the harmonics within noise), so such effects are not named: the model without them answers.
+  auto diagnosed = [&]() -> const ActuatorModel& {
+    return d.chosen >= 0 ? d.candidates[d.chosen].model : (refit ? refit->model : d.base.model);
+  };
+  std::optional<Unexplained> ring =
+      internal::FindRingAboveHarmonics(campaign.records, analyses, d.after, diagnosed(), kind, orders, chosen_parameters);
+  const int stand_in = ring ? d.chosen : -1;
+  if (stand_in >= 0 && std::ranges::any_of(d.candidates[stand_in].effects, internal::ActsAtTheStop)) {
+    const std::string why = d.candidates[stand_in].label +
+                            " fits the harmonics, but the impacts excite a mode that no library effect holds, "
+                            "for which an effect at the stop may stand in: it is not named";
+    d.chosen = internal::BestWithoutStopEffects(d.candidates, stand_in, options.min_heldout_gain);
+    answer();
+    if (!d.unexplained)
+      ring = internal::FindRingAboveHarmonics(campaign.records, analyses, d.after, diagnosed(), kind, orders,
+                                              chosen_parameters);
+    partial = partial.empty() ? why : partial + "; " + why;
+    if (best_partial.empty()) best_partial = d.candidates[stand_in].effects;
+  }
+  if (!d.unexplained) d.unexplained = std::move(ring);
   Conclude(campaign, analyses, context, refit, chosen_parameters, partial, best_partial, options, &d);
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;

@@ -57,6 +57,8 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
                              const EffectContext& context, int variant);
 int StartVariants(std::span<const Effect> effects, const EffectContext& context);
 
+// Whether the effect acts only in contact with a stop (Hertzian contact, contact damping, second stop).
+bool ActsAtTheStop(Effect effect);
 // Whether the effect can show in this campaign at all (contact effects need contacts and a stop).
 bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context);
 

@@ -112,15 +112,12 @@ int StartVariants(std::span<const Effect> effects, const EffectContext& context)
   return variants;
 }
 
+bool ActsAtTheStop(Effect effect) {
+  return effect == Effect::kHertzianContact || effect == Effect::kContactDamping || effect == Effect::kSecondStop;
+}
+
 bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context) {
-  switch (effect) {
-    case Effect::kHertzianContact:
-    case Effect::kContactDamping:
-    case Effect::kSecondStop:
-      return kind == FitModelKind::kPaper && context.contacts;
-    default:
-      return true;
-  }
+  return !ActsAtTheStop(effect) || (kind == FitModelKind::kPaper && context.contacts);
 }
 
 ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std::span<const Effect> effects,

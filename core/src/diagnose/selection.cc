@@ -293,6 +293,22 @@ std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& bef
          ": it is not named";
 }
 
+int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stand_in, double min_heldout_gain) {
+  std::vector<Effect> kept = candidates[stand_in].effects;
+  std::erase_if(kept, ActsAtTheStop);
+  int best = -1;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const CandidateFit& c = candidates[i];
+    const bool part = std::all_of(c.effects.begin(), c.effects.end(), [&](Effect e) {
+      return std::find(kept.begin(), kept.end(), e) != kept.end();
+    });
+    if (c.fitted && part && c.heldout_gain > min_heldout_gain &&
+        (best < 0 || c.figures.heldout_chi2 < candidates[best].figures.heldout_chi2))
+      best = static_cast<int>(i);
+  }
+  return best;
+}
+
 void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,
                     std::vector<CandidateFit>* candidates) {
   for (size_t i = 0; i < candidates->size(); ++i) {

@@ -39,6 +39,10 @@
 //      (DiagnoseOptions::coil_when_unexplained; fits done before are not repeated). The coil added to a
 //      model without one is first looked at with tau_e on its floor (effects.cc): where a Gauss-Newton
 //      step from there lowers tau_e, its fit stops there and is scored so (extended_fit.h floor_probe).
+//      The model is also looked at above the fitted harmonics: where the residual rings after the
+//      impacts at one mode's frequency (open_world.h FindRingAboveHarmonics), effects at the stop are
+//      not named (they may stand in for the mode: selection.h BestWithoutStopEffects answers), and a
+//      model that passes the harmonics is unexplained all the same.
 //
 // Reference: "Nonlinear vibrations of a stroke-saturated inertial actuator", Eq. 2-6
 // (Eq. 2 in its continuous form, model.h; Eq. 6 with its square root restored, signal.h).

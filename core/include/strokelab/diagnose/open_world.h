@@ -38,6 +38,19 @@ void FindRinging(const Recording& record, const RecordAnalysis& analysis, const 
 // The first `places` places' ringing in words for Unexplained::description: "; in rec rings at about
 // N Hz ..." for the worst ringing record confirmed by another of a different drive frequency, or "".
 std::string DescribeRinging(const Unexplained& unexplained, ResponseKind kind, size_t places);
+// The places whose ringing the diagnosis looks for and describes (the worst first).
+inline constexpr size_t kRingPlaces = 3;
+
+// The open-world test above the fitted harmonics, for a model the held-out chi-square passed: the
+// harmonics say nothing of what rings after the impacts at a frequency above harmonic `orders`. Every
+// record with impacts is looked at (FindRinging, at `model`); where two of the kRingPlaces strongest
+// rings are one mode's (DescribeRinging's confirmation: records of different drive frequencies, one
+// frequency in Hz), the misfit is unexplained: places are the ringing records, strongest ring first,
+// with the held-out figures of `matches` (a model of `parameters` fitted parameters). Else empty.
+std::optional<Unexplained> FindRingAboveHarmonics(std::span<const Recording> records,
+                                                  std::span<const RecordAnalysis> analyses,
+                                                  const std::vector<RecordMatch>& matches, const ActuatorModel& model,
+                                                  ResponseKind kind, int orders, size_t parameters);
 
 // The surface in words for Unexplained::description: "; ..." (its closest single term), or its note.
 std::string DescribeMissingForce(const MissingForceSurface& surface);

@@ -46,6 +46,12 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
 // than it leaves.
 std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_chi2,
                                bool heldout = true);
+// Where a mode rings after the impacts that no library effect holds (open_world.h
+// FindRingAboveHarmonics), the effects at the stop of candidates[stand_in] may only stand in for it:
+// the fitted candidate whose effects are a part of its effects without those (Applicable's contact
+// effects), beats the base on the held-out records by more than `min_heldout_gain` and has the
+// lowest held-out chi-square, or -1 (the base).
+int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stand_in, double min_heldout_gain);
 // The report's decisions: "named" for `chosen`, "not named: <partial>" for the candidate of
 // `best_partial`, "beats noise, but another model is better", "rejected: <why>".
 void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,
