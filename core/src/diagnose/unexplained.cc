@@ -197,10 +197,12 @@ std::optional<Unexplained> FindRingAboveHarmonics(std::span<const Recording> rec
   // different drive frequencies, at one frequency in Hz.
   if (DescribeRinging(u, kind, kRingPlaces).empty()) return std::nullopt;
   std::ostringstream out;
-  out << "the model matches the fitted harmonics of the held-out records within noise (chi-square "
-      << FormatFigure(u.heldout_chi2, 4) << " against " << FormatFigure(u.expected_chi2, 4)
-      << " from noise alone), but above harmonic " << orders << " the residual rings after the impacts in " << rings
-      << " of the " << impacting << " records with impacts";
+  if (u.p_value >= kUnexplainedP)
+    out << "the model matches the fitted harmonics of the held-out records within noise (chi-square "
+        << FormatFigure(u.heldout_chi2, 4) << " against " << FormatFigure(u.expected_chi2, 4)
+        << " from noise alone), but ";
+  out << "above harmonic " << orders << " the residual rings after the impacts in " << rings << " of the "
+      << impacting << " records with impacts";
   u.description = out.str();
   return u;
 }

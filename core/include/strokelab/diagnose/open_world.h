@@ -41,12 +41,13 @@ std::string DescribeRinging(const Unexplained& unexplained, ResponseKind kind, s
 // The places whose ringing the diagnosis looks for and describes (the worst first).
 inline constexpr size_t kRingPlaces = 3;
 
-// The open-world test above the fitted harmonics, for a model the held-out chi-square passed: the
-// harmonics say nothing of what rings after the impacts at a frequency above harmonic `orders`. Every
-// record with impacts is looked at (FindRinging, at `model`); where two of the kRingPlaces strongest
-// rings are one mode's (DescribeRinging's confirmation: records of different drive frequencies, one
-// frequency in Hz), the misfit is unexplained: places are the ringing records, strongest ring first,
-// with the held-out figures of `matches` (a model of `parameters` fitted parameters). Else empty.
+// The open-world test above the fitted harmonics: they say nothing of what rings after the impacts at
+// a frequency above harmonic `orders`. Every record with impacts is looked at (FindRinging, at
+// `model`); where two of the kRingPlaces strongest rings are one mode's (DescribeRinging's
+// confirmation: records of different drive frequencies, one frequency in Hz), the misfit is
+// unexplained: places are the ringing records, strongest ring first, with the held-out figures of
+// `matches` (a model of `parameters` fitted parameters), which the description calls within noise
+// where they pass. Else empty.
 std::optional<Unexplained> FindRingAboveHarmonics(std::span<const Recording> records,
                                                   std::span<const RecordAnalysis> analyses,
                                                   const std::vector<RecordMatch>& matches, const ActuatorModel& model,
