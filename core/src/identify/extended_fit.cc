@@ -60,17 +60,23 @@ bool OnBound(const FreeParameter& p, double theta) {
   return std::abs(theta - p.theta_min) < 1e-6 || std::abs(theta - p.theta_max) < 1e-6;
 }
 
-// The Jacobian in every parameter with a zero column for each one held or on a bound (the errors of
-// the others are then those with it fixed there). Ceres gives it in the free parameters only (a held
-// one's column is left out): the columns not held, in order.
-Eigen::MatrixXd DenseJacobian(const ceres::CRSMatrix& crs, const std::vector<bool>& held, const ExtendedProblem& problem,
-                              const std::vector<double>& theta) {
+// Ceres' Jacobian in every parameter. Ceres gives it in the free parameters only (a held one's column
+// is left out): the columns not held, in order; a held one's column is zero here.
+Eigen::MatrixXd DenseColumns(const ceres::CRSMatrix& crs, const std::vector<bool>& held) {
   std::vector<int> column;
   for (size_t i = 0; i < held.size(); ++i)
     if (!held[i]) column.push_back(static_cast<int>(i));
   Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, static_cast<Eigen::Index>(held.size()));
   for (int r = 0; r < crs.num_rows; ++r)
     for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, column[crs.cols[k]]) = crs.values[k];
+  return j;
+}
+
+// The Jacobian in every parameter with a zero column for each one held or on a bound (the errors of
+// the others are then those with it fixed there).
+Eigen::MatrixXd DenseJacobian(const ceres::CRSMatrix& crs, const std::vector<bool>& held, const ExtendedProblem& problem,
+                              const std::vector<double>& theta) {
+  Eigen::MatrixXd j = DenseColumns(crs, held);
   for (size_t i = 0; i < held.size(); ++i)
     if (OnBound(problem.parameters[i], theta[i])) j.col(static_cast<Eigen::Index>(i)).setZero();
   return j;
@@ -125,9 +131,7 @@ ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_var
 // the residuals r and their Jacobian J at theta.
 double GaussNewtonTarget(const std::vector<double>& residuals, const ceres::CRSMatrix& crs,
                          const std::vector<double>& theta, int i) {
-  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, static_cast<Eigen::Index>(theta.size()));
-  for (int r = 0; r < crs.num_rows; ++r)
-    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+  Eigen::MatrixXd j = DenseColumns(crs, std::vector<bool>(theta.size(), false));  // nothing held yet
   const Eigen::VectorXd norms = j.colwise().norm();
   for (Eigen::Index c = 0; c < j.cols(); ++c)
     if (norms(c) > 0.0) j.col(c) /= norms(c);
