@@ -1,10 +1,11 @@
-// The leading unknowns' covariance of a sparse least-squares problem (identify/sparse_covariance.h)
+// The leading unknowns' errors of a sparse least-squares problem (identify/sparse_covariance.h)
 // against a dense column-pivoted QR of the whole Jacobian, on Jacobians shaped as the broadband fit's:
 // a few shared columns, segment columns in blocks, and continuity rows weighted 1e6 times the rest.
 #include "strokelab/identify/sparse_covariance.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -53,35 +54,57 @@ Eigen::MatrixXd DenseLeadingCovariance(const RowMajor& sparse, int p) {
   return scale.head(p).asDiagonal() * inverse.topLeftCorner(p, p) * scale.head(p).asDiagonal();
 }
 
-TEST(LeadingCovarianceTest, EqualsADenseQrOfTheWholeJacobian) {
+TEST(LeadingErrorsTest, EqualADenseQrOfTheWholeJacobian) {
   // Rows that fill several of the reduction's blocks and end in a part of one, segments that straddle them.
   for (const auto& [rows, segment_rows, seed] : {std::tuple{5000, 700, 1u}, {3000, 1500, 2u}, {200, 50, 3u}}) {
     const int p = 3;
     const RowMajor j = SegmentedJacobian(rows, segment_rows, p, seed);
-    const std::optional<Eigen::MatrixXd> sparse = internal::LeadingCovariance(j, p);
+    const std::optional<internal::ParameterErrors> sparse = internal::LeadingErrors(j, p, 2.0);
     ASSERT_TRUE(sparse.has_value()) << rows;
     const Eigen::MatrixXd dense = DenseLeadingCovariance(j, p);
     // Both are backward stable on J D, whose condition number here is about 1e3: agreement to ~1e-12.
-    for (int a = 0; a < p; ++a)
+    for (int a = 0; a < p; ++a) {
+      EXPECT_TRUE(sparse->identifiable[a]);
       for (int b = 0; b < p; ++b)
-        EXPECT_NEAR((*sparse)(a, b), dense(a, b), 1e-9 * std::sqrt(dense(a, a) * dense(b, b))) << rows << " " << a << b;
+        EXPECT_NEAR(sparse->covariance(a, b), 2.0 * dense(a, b), 1e-9 * 2.0 * std::sqrt(dense(a, a) * dense(b, b)))
+            << rows << " " << a << b;
+    }
   }
 }
 
-TEST(LeadingCovarianceTest, IsEmptyWhenAColumnRepeatsAnother) {
-  RowMajor j = SegmentedJacobian(3000, 700, 3, 4);
+// Leading columns the rows cannot tell apart, or that no row sees, are not identifiable; the others' errors
+// are those of the problem without them.
+TEST(LeadingErrorsTest, NameTheLeadingColumnsTheRowsCannotTellApart) {
+  const RowMajor j = SegmentedJacobian(3000, 700, 3, 4);
   Eigen::MatrixXd dense = Eigen::MatrixXd(j);
-  dense.col(1) = 2.0 * dense.col(0);  // two parameters the rows cannot tell apart
-  EXPECT_FALSE(internal::LeadingCovariance(dense.sparseView(), 3).has_value());
-  dense.col(1).setZero();  // one no row sees
-  EXPECT_FALSE(internal::LeadingCovariance(dense.sparseView(), 3).has_value());
+  dense.col(1) = 2.0 * dense.col(0);
+  std::optional<internal::ParameterErrors> errors = internal::LeadingErrors(dense.sparseView(), 3, 1.0);
+  ASSERT_TRUE(errors.has_value());
+  EXPECT_EQ(errors->identifiable, (std::vector<bool>{false, false, true}));
+  EXPECT_TRUE(std::isnan(errors->covariance(0, 0)));
+  Eigen::MatrixXd without(dense.rows(), dense.cols() - 2);  // column 2 and the others
+  without << dense.col(2), dense.rightCols(dense.cols() - 3);
+  const Eigen::MatrixXd alone = DenseLeadingCovariance(without.sparseView(), 1);
+  EXPECT_NEAR(errors->covariance(2, 2), alone(0, 0), 1e-9 * alone(0, 0));
+  dense.col(1).setZero();
+  errors = internal::LeadingErrors(dense.sparseView(), 3, 1.0);
+  ASSERT_TRUE(errors.has_value());
+  EXPECT_EQ(errors->identifiable, (std::vector<bool>{true, false, true}));
 }
 
-TEST(LeadingCovarianceTest, RefusesFewerRowsThanColumnsAndBadCounts) {
+// Where the other unknowns cannot be told apart there are no errors at all.
+TEST(LeadingErrorsTest, AreEmptyWhenTheOtherUnknownsAreNotIdentifiable) {
+  const RowMajor j = SegmentedJacobian(3000, 700, 3, 6);
+  Eigen::MatrixXd dense = Eigen::MatrixXd(j);
+  dense.col(5) = -dense.col(4);
+  EXPECT_FALSE(internal::LeadingErrors(dense.sparseView(), 3, 1.0).has_value());
+}
+
+TEST(LeadingErrorsTest, RefuseFewerRowsThanColumnsAndBadCounts) {
   const RowMajor j = SegmentedJacobian(3000, 700, 3, 5);
-  EXPECT_FALSE(internal::LeadingCovariance(j.topRows(4), 3).has_value());
-  EXPECT_FALSE(internal::LeadingCovariance(j, 0).has_value());
-  EXPECT_FALSE(internal::LeadingCovariance(j, static_cast<int>(j.cols()) + 1).has_value());
+  EXPECT_FALSE(internal::LeadingErrors(j.topRows(4), 3, 1.0).has_value());
+  EXPECT_FALSE(internal::LeadingErrors(j, 0, 1.0).has_value());
+  EXPECT_FALSE(internal::LeadingErrors(j, static_cast<int>(j.cols()) + 1, 1.0).has_value());
 }
 
 }  // namespace

@@ -581,12 +581,12 @@ void SegmentSeries(const ActuatorModel& model, ResponseKind kind, const RecordDa
   }
 }
 
-// (J^T J)^-1 of the model's parameters, the first p unknowns (LeadingCovariance).
-std::optional<Eigen::MatrixXd> ModelCovariance(const ceres::CRSMatrix& crs, int p) {
+// The model's parameters' errors, the first p unknowns, the others eliminated (LeadingErrors).
+std::optional<ParameterErrors> ModelErrors(const ceres::CRSMatrix& crs, int p, double residual_variance) {
   const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>> j(
       crs.num_rows, crs.num_cols, static_cast<Eigen::Index>(crs.values.size()), crs.rows.data(), crs.cols.data(),
       crs.values.data());
-  return LeadingCovariance(j, p);
+  return LeadingErrors(j, p, residual_variance);
 }
 
 // The response's misfit over `part`'s samples of `model` flowed from `at`, the state at its first
@@ -786,9 +786,11 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   ExtendedProblem problem = requested;
   if (evaluation) problem.parameters = {HeldStiffness(requested.base)};
   const int p = static_cast<int>(problem.parameters.size());
-  const int d = problem.base.StateSize();
   std::vector<double> theta(p, 1.0);
   const ActuatorModel start_model = problem.Decode(theta.data());
+  // The start model's, not the base's: a coil's pole may be a free parameter that the base lacks (the
+  // coil's force is then a state of every segment's start, and continuous across segments).
+  const int d = start_model.StateSize();
   const StateScale scale(start_model);
 
   // Records, their drives, noise levels and segments.
@@ -805,8 +807,18 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   if (warm && (warm->segment_starts.size() != segments.size() || warm->nuisance.size() != records.size()))
     throw InputError("warm_start", "is a fit of other records or segments (" + std::to_string(warm->segment_starts.size()) +
                                        " segments, this fit has " + std::to_string(segments.size()) + ")");
+  bool add_coil_force = false;
   if (warm) {
-    for (size_t s = 0; s < segments.size(); ++s) scale.Scale(warm->segment_starts[s], d, starts[s].data());
+    // A warm start without the coil's pole has no coil force: each segment's F_e then starts where it
+    // would have settled (a start at 0 begins every segment with a jump of the drive force).
+    add_coil_force = d == 3 && !warm->fit.model.HasCoilPole();
+    for (size_t s = 0; s < segments.size(); ++s) {
+      State y = warm->segment_starts[s];
+      const RecordData& r = data[segments[s].record];
+      if (add_coil_force)
+        y.coil_force_n = QuasiStaticCoilForceN(start_model, r.drive.Voltage(segments[s].T0(r.drive.sample_rate_hz)), y);
+      scale.Scale(y, d, starts[s].data());
+    }
     nuisance = warm->nuisance;
   }
   if (!warm) ParallelFor(records.size(), [&](size_t r) {
@@ -904,20 +916,22 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     ceres::Solve(solver, &solver_problem, &summary);
     iterations += static_cast<int>(summary.iterations.size()) - 1;
   };
-  // A warm start's gaps are closed already: its fit starts at the final weight.
-  for (size_t g = warm ? std::size(kContinuityGaps) - 1 : 0; g < std::size(kContinuityGaps); ++g) {
+  // A warm start's gaps are closed already: its fit starts at the final weight. Not where it lacked the
+  // coil: the coil's pole moves every segment's end, and from gaps of 1e-6 of the scales Ceres then ran
+  // out of iterations with tau_e at a third of its truth (tuning campaign 8301: 0.2 against 0.67 ms).
+  for (size_t g = warm && !add_coil_force ? std::size(kContinuityGaps) - 1 : 0; g < std::size(kContinuityGaps); ++g) {
     continuity_gap = kContinuityGaps[g];
     solve();
   }
-  // (J^T J)^-1 of the model's parameters at the current unknowns (ModelCovariance), or nothing.
+  // The model's parameters' errors at the current unknowns (ModelErrors), or nothing.
   ceres::Problem::EvaluateOptions evaluate;
   evaluate.parameter_blocks.push_back(theta.data());
   for (auto& s : starts) evaluate.parameter_blocks.push_back(s.data());
   for (auto& q : nuisance) evaluate.parameter_blocks.push_back(q.data());
-  auto parameter_covariance = [&]() -> std::optional<Eigen::MatrixXd> {
+  auto parameter_errors = [&](double residual_variance) -> std::optional<ParameterErrors> {
     ceres::CRSMatrix crs;
     if (evaluation || !solver_problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return std::nullopt;
-    return ModelCovariance(crs, p);
+    return ModelErrors(crs, p, residual_variance);
   };
   // With stepped records, solves with refreshed sampling corrections until they move no parameter by
   // more than kSolveTolerancePerError of its standard error (the residual variance taken as 1: the
@@ -927,10 +941,11 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
     if (summary.termination_type != ceres::CONVERGENCE) break;
     const std::vector<double> before = theta;
     solve();
-    const std::optional<Eigen::MatrixXd> covariance = parameter_covariance();
-    if (!covariance) break;
-    double move = 0.0;
-    for (int i = 0; i < p; ++i) move = std::max(move, std::abs(theta[i] - before[i]) / std::sqrt((*covariance)(i, i)));
+    const std::optional<ParameterErrors> errors = parameter_errors(1.0);
+    if (!errors) break;
+    double move = 0.0;  // the largest move of an identifiable theta, in its standard errors
+    for (int i = 0; i < p; ++i)
+      if (errors->identifiable[i]) move = std::max(move, std::abs(theta[i] - before[i]) / std::sqrt(errors->covariance(i, i)));
     corrections_settled = move <= kSolveTolerancePerError;
   }
 
@@ -974,24 +989,32 @@ BroadbandFitResult FitBroadband(std::span<const Recording* const> records, Respo
   }
 
   fit.covariance.assign(static_cast<size_t>(free_parameters) * free_parameters, kNaN);
-  const std::optional<Eigen::MatrixXd> covariance = parameter_covariance();
-  if (!covariance && !evaluation) {
+  const std::optional<ParameterErrors> errors = parameter_errors(fit.residual_variance);
+  if (!errors && !evaluation) {
     converged = false;
-    fit.report += "\nNOT CONVERGED: the parameters are not all identifiable from these records (J^T J is singular)";
+    fit.report += "\nNOT CONVERGED: the segments' start states, offsets and hum are not all identifiable from these "
+                  "records, so neither are the parameters' errors";
   }
+  std::string unidentified;
   for (int i = 0; i < free_parameters; ++i) {
     const FreeParameter& fp = problem.parameters[i];
-    FitParameter parameter =
-        fp.Reported(theta[i], covariance ? (*covariance)(i, i) * fit.residual_variance : kNaN);
-    parameter.identifiable = std::isfinite(parameter.standard_error);
+    const bool identified = errors && errors->identifiable[i];
+    FitParameter parameter = fp.Reported(theta[i], identified ? errors->covariance(i, i) : kNaN);
+    parameter.identifiable = identified;
     const bool on_bound = theta[i] <= fp.theta_min + 1e-9 || theta[i] >= fp.theta_max - 1e-9;
     if (on_bound) parameter.note = "ended on its bound";
+    else if (errors && !identified) parameter.note = "not identifiable from these records";
+    if (errors && !identified) unidentified += (unidentified.empty() ? "" : ", ") + fp.name;
     fit.parameters.push_back(parameter);
-    if (covariance)
+    if (identified)
       for (int j = 0; j < p; ++j)
-        fit.covariance[static_cast<size_t>(i) * p + j] = (*covariance)(i, j) * fit.residual_variance *
-                                                         fp.ValuePerTheta(theta[i]) *
-                                                         problem.parameters[j].ValuePerTheta(theta[j]);
+        if (errors->identifiable[j])
+          fit.covariance[static_cast<size_t>(i) * p + j] =
+              errors->covariance(i, j) * fp.ValuePerTheta(theta[i]) * problem.parameters[j].ValuePerTheta(theta[j]);
+  }
+  if (!unidentified.empty()) {
+    converged = false;
+    fit.report += "\nNOT IDENTIFIABLE from these records: " + unidentified;
   }
   fit.converged = converged;
   if (summary.termination_type != ceres::CONVERGENCE) fit.report += "\nNOT CONVERGED: " + summary.message;

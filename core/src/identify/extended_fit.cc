@@ -18,6 +18,7 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/base/nan.h"
 #include "strokelab/base/parallel_for.h"
+#include "strokelab/identify/sparse_covariance.h"
 #include "strokelab/steady/steady_state.h"
 
 namespace strokelab::internal {
@@ -80,50 +81,6 @@ Eigen::MatrixXd DenseJacobian(const ceres::CRSMatrix& crs, const std::vector<boo
   for (size_t i = 0; i < held.size(); ++i)
     if (OnBound(problem.parameters[i], theta[i])) j.col(static_cast<Eigen::Index>(i)).setZero();
   return j;
-}
-
-struct ParameterErrors {
-  Eigen::MatrixXd covariance;      // of theta; NaN rows and columns for parameters not identifiable
-  std::vector<bool> identifiable;
-};
-
-// Cov(theta) = s^2 (J^T J)^{-1} from the Jacobian at the solution, over the parameters the records
-// constrain. A parameter is not identifiable when its column is zero or it takes part (component above
-// 0.1) in a right singular vector of the column-scaled J whose singular value is below 1e-8 of the
-// largest: the sensitivities are exact to ~1e-8, so such a direction is zero within their error (e.g. an
-// amplifier limit above every record's drive, a stop no record reaches).
-ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_variance) {
-  const int p = static_cast<int>(j.cols());
-  ParameterErrors out{Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN()),
-                      std::vector<bool>(p, true)};
-  const Eigen::VectorXd norms = j.colwise().norm();
-  for (int i = 0; i < p; ++i)
-    if (!(norms(i) > 0.0)) out.identifiable[i] = false;
-  std::vector<int> kept;
-  for (int i = 0; i < p; ++i)
-    if (out.identifiable[i]) kept.push_back(i);
-  Eigen::MatrixXd scaled(j.rows(), kept.size());
-  for (size_t k = 0; k < kept.size(); ++k) scaled.col(k) = j.col(kept[k]) / norms(kept[k]);
-  if (kept.empty()) return out;
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
-  const Eigen::VectorXd& sigma = svd.singularValues();
-  for (int k = 0; k < sigma.size(); ++k) {
-    if (sigma(k) >= 1e-8 * sigma(0)) continue;
-    for (size_t i = 0; i < kept.size(); ++i)
-      if (std::abs(svd.matrixV()(i, k)) > 0.1) out.identifiable[kept[i]] = false;
-  }
-  std::vector<int> identified;
-  for (int i : kept)
-    if (out.identifiable[i]) identified.push_back(i);
-  if (identified.empty()) return out;
-  Eigen::MatrixXd a(j.rows(), identified.size());
-  for (size_t k = 0; k < identified.size(); ++k) a.col(k) = j.col(identified[k]) / norms(identified[k]);
-  const Eigen::MatrixXd inverse = (a.transpose() * a).inverse();
-  for (size_t r = 0; r < identified.size(); ++r)
-    for (size_t c = 0; c < identified.size(); ++c)
-      out.covariance(identified[r], identified[c]) =
-          residual_variance * inverse(r, c) / (norms(identified[r]) * norms(identified[c]));
-  return out;
 }
 
 // Where a Gauss-Newton step from `theta`, every parameter free, takes parameter i: -J^+ r, the

@@ -1,6 +1,8 @@
 // The covariance of a sparse least-squares problem's leading unknowns (identify/sparse_covariance.h).
 #include "strokelab/identify/sparse_covariance.h"
 
+#include <Eigen/OrderingMethods>
+#include <Eigen/SVD>
 #include <Eigen/SparseQR>
 #include <algorithm>
 #include <cmath>
@@ -51,7 +53,41 @@ Eigen::SparseMatrix<double> ReducedRows(const Rows& j, const Eigen::VectorXd& co
 
 }  // namespace
 
-std::optional<Eigen::MatrixXd> LeadingCovariance(const Rows& j, int p) {
+ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_variance) {
+  const int p = static_cast<int>(j.cols());
+  ParameterErrors out{Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::quiet_NaN()),
+                      std::vector<bool>(p, true)};
+  const Eigen::VectorXd norms = j.colwise().norm();
+  for (int i = 0; i < p; ++i)
+    if (!(norms(i) > 0.0)) out.identifiable[i] = false;
+  std::vector<int> kept;
+  for (int i = 0; i < p; ++i)
+    if (out.identifiable[i]) kept.push_back(i);
+  Eigen::MatrixXd scaled(j.rows(), kept.size());
+  for (size_t k = 0; k < kept.size(); ++k) scaled.col(k) = j.col(kept[k]) / norms(kept[k]);
+  if (kept.empty()) return out;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
+  const Eigen::VectorXd& sigma = svd.singularValues();
+  for (int k = 0; k < sigma.size(); ++k) {
+    if (sigma(k) >= 1e-8 * sigma(0)) continue;
+    for (size_t i = 0; i < kept.size(); ++i)
+      if (std::abs(svd.matrixV()(i, k)) > 0.1) out.identifiable[kept[i]] = false;
+  }
+  std::vector<int> identified;
+  for (int i : kept)
+    if (out.identifiable[i]) identified.push_back(i);
+  if (identified.empty()) return out;
+  Eigen::MatrixXd a(j.rows(), identified.size());
+  for (size_t k = 0; k < identified.size(); ++k) a.col(k) = j.col(identified[k]) / norms(identified[k]);
+  const Eigen::MatrixXd inverse = (a.transpose() * a).inverse();
+  for (size_t r = 0; r < identified.size(); ++r)
+    for (size_t c = 0; c < identified.size(); ++c)
+      out.covariance(identified[r], identified[c]) =
+          residual_variance * inverse(r, c) / (norms(identified[r]) * norms(identified[c]));
+  return out;
+}
+
+std::optional<ParameterErrors> LeadingErrors(const Rows& j, int p, double residual_variance) {
   const Eigen::Index n = j.cols();
   if (p < 1 || p > n || j.rows() < n) return std::nullopt;
   // Columns scaled to unit norm (J D): the rank decision then does not depend on each unknown's units.
@@ -61,22 +97,28 @@ std::optional<Eigen::MatrixXd> LeadingCovariance(const Rows& j, int p) {
       column_norm(it.col()) += it.value() * it.value();
   Eigen::VectorXd column_scale(n);
   for (Eigen::Index c = 0; c < n; ++c) column_scale(c) = column_norm(c) > 0 ? 1.0 / std::sqrt(column_norm(c)) : 1.0;
-  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr;
-  qr.setPivotThreshold(20.0 * static_cast<double>(j.rows() + n) * std::numeric_limits<double>::epsilon());
-  qr.compute(ReducedRows(j, column_scale));
-  if (qr.info() != Eigen::Success || qr.rank() < n) return std::nullopt;
-  const Eigen::SparseMatrix<double> r = qr.matrixR().topLeftCorner(n, n);
-  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(n, p);
-  for (int i = 0; i < p; ++i) unit(i, i) = 1.0;
-  const Eigen::MatrixXd permuted = qr.colsPermutation().transpose() * unit;
-  const Eigen::MatrixXd z = r.transpose().triangularView<Eigen::Lower>().solve(permuted);
-  const Eigen::MatrixXd w = r.triangularView<Eigen::Upper>().solve(z);
-  const Eigen::MatrixXd x = qr.colsPermutation() * w;
-  const Eigen::MatrixXd block = column_scale.head(p).asDiagonal() * x.topRows(p) * column_scale.head(p).asDiagonal();
-  if (!block.allFinite()) return std::nullopt;
-  for (int i = 0; i < p; ++i)
-    if (!(block(i, i) > 0.0)) return std::nullopt;
-  return block;
+  // The other unknowns' columns first, in their order (their blocks stay banded: little fill without a
+  // fill-reducing ordering), the first p last.
+  const Eigen::SparseMatrix<double> reduced = ReducedRows(j, column_scale);
+  if (reduced.rows() < n) return std::nullopt;
+  std::vector<Eigen::Triplet<double>> entries;
+  for (Eigen::Index c = 0; c < n; ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(reduced, c); it; ++it)
+      entries.emplace_back(it.row(), c < p ? n - p + c : c - p, it.value());
+  Eigen::SparseMatrix<double> ordered(reduced.rows(), n);
+  ordered.setFromTriplets(entries.begin(), entries.end());
+  ordered.makeCompressed();
+  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::NaturalOrdering<int>> qr;
+  qr.setPivotThreshold(0.0);  // no column is set aside: R keeps the order given
+  qr.compute(ordered);
+  if (qr.info() != Eigen::Success) return std::nullopt;
+  const Eigen::MatrixXd r = Eigen::MatrixXd(qr.matrixR().topLeftCorner(n, n));
+  const double tiny = 20.0 * static_cast<double>(j.rows() + n) * std::numeric_limits<double>::epsilon();
+  for (Eigen::Index i = 0; i < n - p; ++i)
+    if (!(std::abs(r(i, i)) > tiny)) return std::nullopt;
+  Eigen::MatrixXd leading = r.bottomRightCorner(p, p);
+  for (int c = 0; c < p; ++c) leading.col(c) /= column_scale(c);  // back to the unknowns' own units
+  return ErrorsFromJacobian(leading, residual_variance);
 }
 
 }  // namespace strokelab::internal

@@ -207,11 +207,16 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
   return 0.0;  // the mass (see the header), tau_e (it acts through F_e) and fields that are not forces
 }
 
+double QuasiStaticCoilForceN(const ActuatorModel& m, double drive_voltage_v, const State& y) {
+  return m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) -
+         m.back_emf_damping_n_s_per_m * ForceFactorShape(m, y.x_m) * y.v_m_per_s;
+}
+
 CoilForceRate CoilForceRateJacobian(const ActuatorModel& m, double drive_voltage_v, const State& y) {
   const double tau = m.coil_time_constant_s, x = y.x_m, v = y.v_m_per_s;
   const double phi = ForceFactorShape(m, x), c_emf = m.back_emf_damping_n_s_per_m;
   CoilForceRate r;
-  r.rate_n_per_s = (m.gain_n_per_v * ClippedVoltage(m, drive_voltage_v) - c_emf * phi * v - y.coil_force_n) / tau;
+  r.rate_n_per_s = (QuasiStaticCoilForceN(m, drive_voltage_v, y) - y.coil_force_n) / tau;
   r.d_dx_n_per_m_s = -c_emf * ForceFactorSlope(m, x) * v / tau;
   r.d_dv_n_per_m = -c_emf * phi / tau;
   r.d_dcoil_per_s = -1.0 / tau;

@@ -1,21 +1,37 @@
-// The covariance of a few leading unknowns of a large, sparse least-squares problem (the broadband
-// fit's model parameters among its segments' start states and records' offsets and hum).
+// The standard errors of a least-squares problem's parameters, and which of them the data identify:
+// from a dense Jacobian, or from a few leading unknowns of a large, sparse one (the broadband fit's).
 #pragma once
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
 #include <optional>
+#include <vector>
 
 namespace strokelab::internal {
 
-// (J^T J)^-1 restricted to J's first p columns (the other unknowns eliminated), by a sparse QR of J with
-// its columns scaled to unit norm, J D P = Q R: (J^T J)^-1 = D P R^-1 R^-T P^T D, applied to the p unit
-// vectors. Not the normal equations, which square J's condition number (the broadband fit's continuity
-// rows weigh 1e6 times its samples'). Empty when J is rank deficient, by the rank a QR of J takes:
-// Eigen's default pivot threshold, 20 (m + n) eps times the largest column norm (1 after scaling), for J
-// of m rows and n columns. The QR is of far fewer rows than J's (each block of consecutive rows replaced
-// by the R of its dense QR over the columns it uses), exact up to rounding.
-std::optional<Eigen::MatrixXd> LeadingCovariance(const Eigen::Ref<const Eigen::SparseMatrix<double, Eigen::RowMajor>>& j,
-                                                 int p);
+// Cov(theta) = s^2 (J^T J)^{-1} of a least-squares problem's parameters from its Jacobian J (dense, one
+// column per parameter) at the solution, over the parameters the rows constrain. A parameter is not
+// identifiable when its column is zero or it takes part (component above 0.1) in a right singular vector
+// of the column-scaled J whose singular value is below 1e-8 of the largest: the sensitivities are exact
+// to ~1e-8, so such a direction is zero within their error (e.g. an amplifier limit above every record's
+// drive, a stop no record reaches). The others' covariance is that of the problem with those held.
+struct ParameterErrors {
+  Eigen::MatrixXd covariance;  // NaN rows and columns for parameters not identifiable
+  std::vector<bool> identifiable;
+};
+ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_variance);
+
+// The same for the first p columns of a large, sparse J (the broadband fit's model parameters among
+// its segments' start states and records' offsets and hum), the other unknowns eliminated: with J's
+// columns scaled to unit norm and ordered the others first, a sparse QR of J D P = Q R has in R's last p
+// x p block a Jacobian of the first p alone whose R^T R is the Schur complement of J^T J on them (Golub
+// and Van Loan, "Matrix Computations", 4th ed., 2013, Sec. 6.2.6 on eliminating unknowns by QR). Not
+// the normal equations, which square J's condition number (the broadband fit's continuity rows weigh 1e6
+// times its samples'). Empty when the other unknowns are not all identifiable: a diagonal of R in their
+// columns within 20 (m + n) eps of the unit column norm, Eigen's default pivot threshold, for J of m rows
+// and n columns. The QR is of far fewer rows than J's (each block of consecutive rows replaced by the R of
+// its dense QR over the columns it uses), exact up to rounding.
+std::optional<ParameterErrors> LeadingErrors(const Eigen::Ref<const Eigen::SparseMatrix<double, Eigen::RowMajor>>& j,
+                                             int p, double residual_variance);
 
 }  // namespace strokelab::internal

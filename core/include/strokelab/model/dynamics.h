@@ -103,6 +103,9 @@ struct CoilForceRate {
   double d_dvoltage_n_per_v_s = 0.0;  // d/d(unclipped drive voltage): g / tau_e, 0 where the amplifier clips
 };
 CoilForceRate CoilForceRateJacobian(const ActuatorModel& model, double drive_voltage_v, const State& y);
+// The coil force where F_e' = 0 at (x, v) and the drive voltage: g u - c_emf phi v [N] (model.h). F_e
+// settles there within a few tau_e of any start.
+double QuasiStaticCoilForceN(const ActuatorModel& model, double drive_voltage_v, const State& y);
 double CoilForceRateParameterDerivative(const ActuatorModel& model, double ActuatorModel::*parameter,
                                         double drive_voltage_v, const State& y);
 
