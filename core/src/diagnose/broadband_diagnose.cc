@@ -373,8 +373,10 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   d.fit_before = Figures(split, base_motion, base_heldout);
   d.before = Matches(split, base_motion.records, base_heldout);
   d.heldout_dof = base_heldout.dof;
-  const EffectContext context =
-      Context(base_model, split, base_motion.records, kind, d.base.stop_free, d.base.linear_model);
+  EffectContext context = Context(base_model, split, base_motion.records, kind, d.base.stop_free, d.base.linear_model);
+  context.stop_identified = std::ranges::none_of(d.base.result.fit.parameters, [](const FitParameter& p) {
+    return (p.name == "d" || p.name == "k_s") && !p.identifiable;
+  });
 
   // 3. Signatures.
   progress(3, "signatures of the base model's residuals");

@@ -40,6 +40,11 @@ struct EffectContext {
   double min_amplitude_v = 0, max_amplitude_v = 0;  // drive amplitudes of the campaign
   double min_frequency_hz = 0, max_frequency_hz = 0;  // drive frequencies of the campaign
   bool contacts = false;          // some record reaches the stop
+  // Whether the base fit identified the stop's d and k_s. The broadband base fit fits them wherever the
+  // records show impacts, which its model may never reach (a coil's campaign whose few impacts the model
+  // without the coil misses, tuning campaign 8302); then every candidate holds them, and fits nothing
+  // that only the stop's contacts tell (c_s, a Hertzian k_s, the back-EMF's part of c_p).
+  bool stop_identified = true;
   // The stiffest (linear) contact the records resolve: one whose natural frequency sqrt(k_s / m_p) / 2pi
   // reaches the Nyquist frequency fs / 2 of the records sampled slowest, k_s = m_p (pi fs)^2. A stiffer
   // stop rings between samples; the records cannot tell it from a rigid one.
@@ -59,7 +64,8 @@ int StartVariants(std::span<const Effect> effects, const EffectContext& context)
 
 // Whether the effect acts only in contact with a stop (Hertzian contact, contact damping, second stop).
 bool ActsAtTheStop(Effect effect);
-// Whether the effect can show in this campaign at all (contact effects need contacts and a stop).
+// Whether the effect can show in this campaign at all (contact effects need contacts and a stop, and
+// those at the stop the base model has, that stop identified).
 bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context);
 
 // The effect's own parameters among the fitted ones.

@@ -117,7 +117,8 @@ bool ActsAtTheStop(Effect effect) {
 }
 
 bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context) {
-  return !ActsAtTheStop(effect) || (kind == FitModelKind::kPaper && context.contacts);
+  if (!ActsAtTheStop(effect)) return true;
+  return kind == FitModelKind::kPaper && context.contacts && (effect == Effect::kSecondStop || context.stop_identified);
 }
 
 ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std::span<const Effect> effects,
@@ -129,7 +130,8 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
   p.push_back(LogParameter("k_p", "N/m", &ActuatorModel::stiffness_n_per_m, k, kBaseRange));
   p.push_back(LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, start.damping_n_s_per_m, kBaseRange));
   p.push_back(LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, start.gain_n_per_v, kBaseRange));
-  const bool stop = kind == FitModelKind::kPaper && (start.HasLowerStop() || start.HasUpperStop());
+  const bool stop =
+      kind == FitModelKind::kPaper && (start.HasLowerStop() || start.HasUpperStop()) && context.stop_identified;
   if (stop) {
     if (start.HasLowerStop())
       p.push_back(LogParameter("d", "m", &ActuatorModel::lower_stop_m, start.lower_stop_m, kBaseRange));
@@ -218,7 +220,14 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         const double t0 = std::max(start.HasCoilPole() ? start.coil_time_constant_s : scale, floor);
         p.push_back(LinearParameter("tau_e", "s", &ActuatorModel::coil_time_constant_s, t0, scale, (floor - t0) / scale,
                                     (std::max(ceiling, t0) - t0) / scale));
-        if (!Has(effects, Effect::kForceFactor)) p.push_back(BackEmfDamping(start));
+        // The back-EMF's part of c_p, c_emf, only where the model's stop meets the records' impacts.
+        // Without them the response is linear, and the coil's transfer function has four coefficients (m_p
+        // known) for g, k_p, c_p, tau_e and c_emf: one direction of the five is not identifiable (tuning
+        // campaign 8302, a coil clear of the stop but for a few impacts the base model missed: every
+        // standard error undefined). c_emf is then held at the start's (0 for a model without the coil:
+        // the coil delays the drive only).
+        if (!Has(effects, Effect::kForceFactor) && context.contacts && context.stop_identified)
+          p.push_back(BackEmfDamping(start));
         break;
       }
       case Effect::kSecondStop: {
