@@ -48,13 +48,15 @@ CASES = [
     ("hertzian_contact", {"contact_law": "hertzian", "k_s": 1.5e7}, "k_s", CONTACT_LEVELS),
     ("contact_damping", {"c_s": 40.0}, "c_s", CONTACT_LEVELS),
     ("second_stop", {"d_upper": 1.2e-3}, "d_upper", CONTACT_LEVELS),
+    # L = 2 mH over R = 3 Ohm, 0.8 N s/m of c_p the coil's back-EMF (tried in the coil's round).
+    ("coil_inductance", {"tau_e": 2e-3 / 3, "c_emf": 0.8}, "tau_e", SMOOTH_LEVELS),
 ]
 
 # Parameter keys (as the fit reports them) to the JSON names truth.json's model uses.
 JSON_NAMES = {"k3": "cubic_stiffness_n_per_m3", "k2": "quadratic_stiffness_n_per_m2", "friction_n": "friction_force_n",
               "c2": "quadratic_damping_n_s2_per_m2", "b2": "force_factor_b2_per_m2",
               "amplifier_limit_v": "amplifier_limit_v", "k_s": "contact_stiffness", "c_s": "contact_damping_n_s_per_m",
-              "d_upper": "upper_stop_m"}
+              "d_upper": "upper_stop_m", "tau_e": "coil_time_constant_s"}
 
 
 def campaign_options(seed):

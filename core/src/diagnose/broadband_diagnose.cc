@@ -386,13 +386,15 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   std::vector<Effect> singles;
   for (const EffectInfo* info : library)
     if (internal::Applicable(info->effect, options.fit.model, context)) singles.push_back(info->effect);
-  stages = 3 + static_cast<int>(singles.size()) + (options.pairs ? 1 : 0);
+  int first_stage = 4;  // of the current round of the selection
+  const auto round_stages = [&] { return static_cast<int>(singles.size()) + (options.pairs ? 1 : 0); };
+  stages = 3 + round_stages();
   // Each candidate's best fit, by label: the warm start of the candidates fitted from it (broadband_fit.h).
   std::map<std::string, BroadbandFitResult> fits;
-  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
-                 int index, const std::string& name) {
+  auto fit_new = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
+                     int index, const std::string& name) {
     const BroadbandFitResult* warm = from.empty() ? &d.base.result : &fits.at(internal::Label(from));
-    const int stage = 4 + index;
+    const int stage = first_stage + index;
     progress(stage, name);
     const auto candidate_start = std::chrono::steady_clock::now();
     CandidateFit c;
@@ -470,7 +472,19 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - candidate_start).count();
     return c;
   };
-  d.chosen = internal::SelectEffects(singles, d.fit_before, base_model, options, seconds_left, fit, &d.candidates);
+  // Every fit so far, by its effects and start model: the coil's round fits again only what is new.
+  std::map<std::string, CandidateFit> done;
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
+                 int index, const std::string& name) {
+    const std::string key = internal::FitKey(effects, start);
+    if (const auto it = done.find(key); it != done.end()) return it->second;
+    return done[key] = fit_new(effects, start, from, index, name);
+  };
+  auto select = [&] {
+    d.candidates.clear();
+    return internal::SelectEffects(singles, d.fit_before, base_model, options, seconds_left, fit, &d.candidates);
+  };
+  d.chosen = select();
 
   // 6. The open world.
   auto heldout_of = [&](int chosen) {
@@ -479,28 +493,47 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     const BroadbandFitResult warm = HeldOutWarmStart(c.model, split, fits.at(c.label));
     return Evaluate(c.model, split, true, kind, true, seconds_left(), &warm);
   };
-  BroadbandFitResult chosen_heldout = heldout_of(d.chosen);
-  // A named model must explain its own fit parts too (broadband_diagnose.h step 6): its evaluation
-  // there, with the series the open-world test reads.
-  std::optional<BroadbandFitResult> chosen_fit;
-  if (d.chosen >= 0) {
-    const CandidateFit& c = d.candidates[d.chosen];
-    chosen_fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
-  }
-  d.unexplained = FindUnexplained(split, chosen_heldout, chosen_fit ? &*chosen_fit : nullptr,
-                                  d.chosen >= 0 ? d.candidates[d.chosen].model : base_model, kind);
+  BroadbandFitResult chosen_heldout;
   std::string partial;
   std::vector<Effect> best_partial;
-  if (d.chosen >= 0 && d.unexplained) {
-    partial = internal::PartialExplanation(d.candidates[d.chosen], d.fit_before, d.unexplained->dof,
-                                           d.unexplained->parts == "held-out");
-    if (!partial.empty()) {
-      best_partial = d.candidates[d.chosen].effects;
-      d.chosen = -1;
-      chosen_heldout = base_heldout;
-      d.unexplained = FindUnexplained(split, base_heldout, &base_motion, base_model, kind);
-      if (d.unexplained) d.unexplained->description += "; " + partial;
+  auto answer = [&] {
+    chosen_heldout = heldout_of(d.chosen);
+    // A named model must explain its own fit parts too (broadband_diagnose.h step 6): its evaluation
+    // there, with the series the open-world test reads.
+    std::optional<BroadbandFitResult> chosen_fit;
+    if (d.chosen >= 0) {
+      const CandidateFit& c = d.candidates[d.chosen];
+      chosen_fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
     }
+    d.unexplained = FindUnexplained(split, chosen_heldout, chosen_fit ? &*chosen_fit : nullptr,
+                                    d.chosen >= 0 ? d.candidates[d.chosen].model : base_model, kind);
+    partial.clear();
+    best_partial.clear();
+    if (d.chosen >= 0 && d.unexplained) {
+      partial = internal::PartialExplanation(d.candidates[d.chosen], d.fit_before, d.unexplained->dof,
+                                             d.unexplained->parts == "held-out");
+      if (!partial.empty()) {
+        best_partial = d.candidates[d.chosen].effects;
+        d.chosen = -1;
+        chosen_heldout = base_heldout;
+        d.unexplained = FindUnexplained(split, base_heldout, &base_motion, base_model, kind);
+        if (d.unexplained) d.unexplained->description += "; " + partial;
+      }
+    }
+  };
+  answer();
+  // The coil's inductance, where the library without it leaves the misfit unexplained: the selection
+  // again with it among the singles (only its own fits are new), as diagnose.h step 5 does. Its fits
+  // cost about the others' here (a sampled drive's steps are the samples'), but a coil found where the
+  // rest explains the records would only add candidates that noise can pick.
+  if (d.unexplained && !options.coil_inductance && options.coil_when_unexplained && seconds_left() > 0 &&
+      internal::Applicable(Effect::kCoilInductance, options.fit.model, context)) {
+    first_stage += round_stages();
+    singles.push_back(Effect::kCoilInductance);
+    stages += round_stages();
+    d.coil_round = true;
+    d.chosen = select();
+    answer();
   }
   internal::LabelDecisions(d.chosen, partial, best_partial, &d.candidates);
 

@@ -66,6 +66,7 @@ nlohmann::json BroadbandDiagnosisToJson(const BroadbandDiagnosis& d, nlohmann::j
                               {"heldout_chi2_per_sample_after", JsonNumber(a.heldout_chi2_per_sample)}});
   }
   out["warnings"] = d.warnings;
+  out["coil_round"] = d.coil_round;
   out["seconds"] = JsonNumber(d.seconds);
   return out;
 }

@@ -309,15 +309,6 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateSta
   return c;
 }
 
-// The key of a candidate's fit in the diagnosis's cache: its effects and its start model, exactly.
-std::string FitKey(const std::vector<Effect>& effects, const ActuatorModel& start) {
-  std::ostringstream key;
-  key << internal::Label(effects) << std::hexfloat;
-  for (const ParameterInfo& p : Parameters()) key << ' ' << start.*p.field;
-  key << ' ' << static_cast<int>(start.contact_law);
-  return key.str();
-}
-
 // Whether `f`'s fit records reject its model (extended_fit.h BeyondNoise).
 bool BeyondNoise(const FitFigures& f) { return internal::BeyondNoise(f.chi2, f.dof); }
 
@@ -495,7 +486,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     const std::string name = from_staged && from.empty() ? label + ", also from the staged estimates" : label;
     progress(stage, name);
     auto fit_from = [&](const CandidateStart& s) {
-      const std::string key = FitKey(effects, s.model);
+      const std::string key = internal::FitKey(effects, s.model);
       if (const auto it = done.find(key); it != done.end()) return it->second;
       return done[key] = RunCandidate(effects, s, options, split, analyses, kind, d.fit_before, seconds_left(),
                                       [&](const std::string& step) { progress(stage, name, step); });

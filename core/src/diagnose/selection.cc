@@ -157,6 +157,14 @@ std::string Label(const std::vector<Effect>& effects) {
   return label;
 }
 
+std::string FitKey(const std::vector<Effect>& effects, const ActuatorModel& start) {
+  std::ostringstream key;
+  key << Label(effects) << std::hexfloat;
+  for (const ParameterInfo& p : ::strokelab::Parameters()) key << ' ' << start.*p.field;
+  key << ' ' << static_cast<int>(start.contact_law);
+  return key.str();
+}
+
 double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
   const double variance = std::max(1.0, to.residual_variance);
   return ((heldout ? from.heldout_chi2 : from.chi2) - (heldout ? to.heldout_chi2 : to.chi2)) / variance;

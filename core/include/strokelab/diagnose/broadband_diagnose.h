@@ -26,7 +26,12 @@
 //      positive (up to an impact the model follows the records, so it stands at the stop there). A candidate's held-out chi-square is its evaluation on the held-out
 //      parts (their starts, offsets and hum fitted, the model held), from the motion continued from the
 //      fit parts: the state the model reaches at the end of each record's fit part.
-//   5. Choice: as diagnose.h step 5, the same rules and numbers (diagnose/selection.h).
+//   5. Choice: as diagnose.h step 5, the same rules and numbers (diagnose/selection.h), the coil's
+//      round included: where step 6 finds the misfit unexplained and coil_inductance was not a candidate,
+//      steps 5 and 6 run again with it (DiagnoseOptions::coil_when_unexplained). The coil's pole adds
+//      its force as a state of every segment, started where it settles. The back-EMF's part of c_p is
+//      fitted only where the base model's stop meets the records' impacts (effects.cc); clear of them
+//      it is held at 0.
 //   6. Open world: the chosen model's held-out chi-square against its 1e-3 upper tail under noise alone,
 //      the noise levels' own spread included (broadband_fit.h's rejection test). Beyond it, the misfit is
 //      "unexplained", with the parts where it lives and the residual's dominant frequency there. A named
@@ -98,6 +103,8 @@ struct BroadbandDiagnosis {
   std::vector<EffectCurve> curves;
   std::string conclusion;
   std::vector<std::string> warnings;
+  // Whether the selection ran once more with coil_inductance (DiagnoseOptions::coil_when_unexplained).
+  bool coil_round = false;
   double seconds = 0.0;
 };
 

@@ -100,7 +100,7 @@ struct DiagnoseOptions {
   bool coil_inductance = false;
   // Where it is not, whether the selection runs again with it when the library without it leaves the
   // misfit unexplained (the open-world test): a campaign that a cheaper model explains never pays
-  // for the coil's fits. Stepped sines only: the broadband diagnosis tries the coil on request only.
+  // for the coil's fits. The broadband diagnosis does the same (broadband_diagnose.h step 5).
   bool coil_when_unexplained = true;
   int max_passes = 8;           // solves of an extended fit (sampling corrections refreshed between)
   double max_seconds = 600;     // wall time of the whole diagnosis [s]; candidates left are skipped

@@ -20,6 +20,9 @@ ActuatorModel WithoutEffect(const ActuatorModel& model, Effect effect, const Act
 
 // "cubic_stiffness+contact_damping".
 std::string Label(const std::vector<Effect>& effects);
+// The key of a candidate's fit in a diagnosis's cache: its effects and its start model, exactly (a later
+// round of the selection fits again only what it has not fitted).
+std::string FitKey(const std::vector<Effect>& effects, const ActuatorModel& start);
 // Chi-square drop from `from` to `to` (held-out or fit records) in `to`'s residual variances.
 double GainOver(const FitFigures& from, const FitFigures& to, bool heldout);
 // Fits the base model extended by `effects` from `start` (a fitted model's parameters as start values:
