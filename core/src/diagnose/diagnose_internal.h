@@ -43,7 +43,8 @@ struct EffectContext {
   // Whether the base fit identified the stop's d and k_s. The broadband base fit fits them wherever the
   // records show impacts, which its model may never reach (a coil's campaign whose few impacts the model
   // without the coil misses, tuning campaign 8302); then every candidate holds them, and fits nothing
-  // that only the stop's contacts tell (c_s, a Hertzian k_s, the back-EMF's part of c_p).
+  // that only the stop's contacts tell (c_s, a Hertzian k_s, the back-EMF's part of c_p), but for a
+  // second stop's candidates: its impacts tell k_s and c_s, which both stops share.
   bool stop_identified = true;
   // The stiffest (linear) contact the records resolve: one whose natural frequency sqrt(k_s / m_p) / 2pi
   // reaches the Nyquist frequency fs / 2 of the records sampled slowest, k_s = m_p (pi fs)^2. A stiffer
