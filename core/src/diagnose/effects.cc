@@ -131,8 +131,8 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
   p.push_back(LogParameter("c_p", "N s/m", &ActuatorModel::damping_n_s_per_m, start.damping_n_s_per_m, kBaseRange));
   p.push_back(LogParameter("g", "N/V", &ActuatorModel::gain_n_per_v, start.gain_n_per_v, kBaseRange));
   // The stop's parameters where some impacts tell them: a stop the base fit could not identify is held,
-  // but k_s (and c_s), which both stops share, are fitted beside a second stop from its impacts (gen2
-  // broadband 8403: held, the second stop's fit left 1.6 times the noise).
+  // but k_s (and c_s), which both stops share, are fitted beside a second stop from its impacts (the
+  // broadband study's second-stop campaign 8403: held, its fit left 1.6 times the noise).
   const bool stop = kind == FitModelKind::kPaper && (start.HasLowerStop() || start.HasUpperStop()) &&
                     (context.stop_identified || Has(effects, Effect::kSecondStop));
   if (stop) {

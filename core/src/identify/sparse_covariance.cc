@@ -1,4 +1,5 @@
-// The covariance of a sparse least-squares problem's leading unknowns (identify/sparse_covariance.h).
+// The standard errors of a least-squares problem's parameters, from a dense Jacobian or as the leading unknowns
+// of a sparse one (identify/sparse_covariance.h).
 #include "strokelab/identify/sparse_covariance.h"
 
 #include <Eigen/OrderingMethods>
