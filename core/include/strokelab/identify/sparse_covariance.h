@@ -23,9 +23,9 @@ ParameterErrors ErrorsFromJacobian(const Eigen::MatrixXd& j, double residual_var
 
 // The same for the first p columns of a large, sparse J (the broadband fit's model parameters among
 // its segments' start states and records' offsets and hum), the other unknowns eliminated: with J's
-// columns scaled to unit norm and ordered the others first, a sparse QR of J D P = Q R has in R's last p
-// x p block a Jacobian of the first p alone whose R^T R is the Schur complement of J^T J on them (Golub
-// and Van Loan, "Matrix Computations", 4th ed., 2013, Sec. 6.2.6 on eliminating unknowns by QR). Not
+// columns scaled to unit norm and ordered the others first, [J_o J_p] = Q [R_oo R_op; 0 R_pp], and
+// J^T J's Schur complement on the first p, J_p^T J_p - J_p^T J_o (J_o^T J_o)^-1 J_o^T J_p, is R_pp^T R_pp
+// (substitute J = Q R): R_pp is a Jacobian of the first p alone, the others at their best. Not
 // the normal equations, which square J's condition number (the broadband fit's continuity rows weigh 1e6
 // times its samples'). Empty when the other unknowns are not all identifiable: a diagonal of R in their
 // columns within 20 (m + n) eps of the unit column norm, Eigen's default pivot threshold, for J of m rows
