@@ -246,8 +246,9 @@ TEST(BroadbandFit, AWarmStartStartsWhereTheOtherFitEnded) {
 // A coil's pole added to a fit warm-started from one without it (the diagnosis's coil candidate):
 // the coil's force is a state of every segment, started where it settles, and the fit recovers tau_e
 // within 4 standard errors.
-// Before, the state stayed at the base's two components (F_e restarted at 0 in every segment), and
-// tau_e ended at a tenth of its truth with a misfit above the base's.
+// Before, the state stayed at the base's two components (F_e restarted at 0 in every segment): on a
+// diagnosis's coil campaign (tuning campaign 8301) tau_e ended at a tenth of its truth with a misfit
+// above the base's.
 TEST(BroadbandFit, ACoilAddedToAWarmStartWithoutOneIsRecovered) {
   ActuatorModel truth = PaperModel();
   truth.lower_stop_m = ActuatorModel::kNoLowerStop;

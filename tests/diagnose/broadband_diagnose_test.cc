@@ -102,6 +102,8 @@ TEST_P(BroadbandDiagnoseTest, NamesTheConcealedEffect) {
     std::printf("%s: %s = %.5g +- %.3g (truth %.5g, %.1f %%)\n", c.name.c_str(), p.name.c_str(), p.value,
                 p.standard_error, truth, 100 * (p.value / truth - 1));
     EXPECT_NEAR(p.value, truth, 0.25 * std::abs(truth));
+    // Clear of the stop, c_emf is held, and tau_e's report says so (its error leaves c_emf's out).
+    if (c.name == "coil_inductance") EXPECT_THAT(p.note, ::testing::HasSubstr("with c_emf held at 0 N s/m"));
   }
   EXPECT_TRUE(found) << "no parameter " << c.parameter << " in the chosen candidate";
   const double true_chi2 = HeldOutChi2(synthesis.campaign, synthesis.model);

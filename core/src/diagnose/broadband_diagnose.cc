@@ -464,7 +464,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     c.model = r.fit.model;
     c.parameters = r.fit.parameters;
     c.covariance = r.fit.covariance;
-    c.effect_parameters = internal::EffectParameters(effects, r.fit.parameters);
+    internal::NoteHeldParameters(effects, problem, &c.parameters);
+    c.effect_parameters = internal::EffectParameters(effects, c.parameters);
     c.max_drive_v = context.max_amplitude_v;
     const double variance = std::max(1.0, c.figures.residual_variance);
     c.heldout_gain = (d.fit_before.heldout_chi2 - c.figures.heldout_chi2) / variance;

@@ -296,7 +296,8 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateSta
   c.model = r.model;
   c.parameters = r.parameters;
   c.covariance = r.covariance;
-  c.effect_parameters = internal::EffectParameters(effects, r.parameters);
+  internal::NoteHeldParameters(effects, problem, &c.parameters);
+  c.effect_parameters = internal::EffectParameters(effects, c.parameters);
   c.max_drive_v = context.max_amplitude_v;
   if (step) step("every record at the fitted model");
   const std::vector<RecordMatch> matches =

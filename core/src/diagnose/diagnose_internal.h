@@ -71,6 +71,10 @@ bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context);
 
 // The effect's own parameters among the fitted ones.
 std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all);
+// Notes on effect parameters whose value rests on one that `problem` (BuildProblem's) holds: tau_e where
+// c_emf is held (no impacts at an identified stop), whose error then leaves out c_emf's.
+void NoteHeldParameters(std::span<const Effect> effects, const ExtendedProblem& problem,
+                        std::vector<FitParameter>* parameters);
 
 // Evidence from the base model's matches (before) and the records.
 Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAnalysis> analyses,

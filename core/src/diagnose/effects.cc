@@ -278,6 +278,20 @@ ActuatorModel WithoutEffect(const ActuatorModel& model, Effect effect, const Act
   return out;
 }
 
+void NoteHeldParameters(std::span<const Effect> effects, const ExtendedProblem& problem,
+                        std::vector<FitParameter>* parameters) {
+  if (!Has(effects, Effect::kCoilInductance)) return;
+  if (std::ranges::any_of(problem.parameters, [](const FreeParameter& p) { return p.name == "c_emf"; })) return;
+  const double c_emf = problem.base.back_emf_damping_n_s_per_m;
+  for (FitParameter& p : *parameters) {
+    if (p.name != "tau_e") continue;
+    const std::string held = "with c_emf held at " + FormatFigure(c_emf, 4) +
+                             " N s/m (no impacts at an identified stop: the records cannot separate it from g, k_p, "
+                             "c_p and tau_e); its error leaves out c_emf's, which moves tau_e by up to c_emf tau_e / m_p";
+    p.note = p.note.empty() ? held : p.note + "; " + held;
+  }
+}
+
 std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all) {
   std::vector<FitParameter> out;
   for (Effect e : effects)
