@@ -102,9 +102,16 @@ TEST_P(BroadbandDiagnoseTest, NamesTheConcealedEffect) {
     std::printf("%s: %s = %.5g +- %.3g (truth %.5g, %.1f %%)\n", c.name.c_str(), p.name.c_str(), p.value,
                 p.standard_error, truth, 100 * (p.value / truth - 1));
     EXPECT_NEAR(p.value, truth, 0.25 * std::abs(truth));
-    // Clear of the stop, c_emf is held, and tau_e's report says so (its error leaves c_emf's out).
-    if (c.name == "coil_inductance") EXPECT_THAT(p.note, ::testing::HasSubstr("with c_emf held at 0 N s/m"));
+    if (c.name != "coil_inductance") continue;
+    // Clear of the stop, c_emf (0.8 N s/m here) is held at 0, and tau_e's report says so. Its error takes
+    // in c_emf's spread, so it covers the 1.7 % that holding c_emf moves tau_e (6.8 errors before 0.29.0).
+    EXPECT_THAT(p.note, ::testing::HasSubstr("with c_emf held at 0 N s/m"));
+    EXPECT_LE(std::abs(p.value - truth), 3.0 * p.standard_error);
   }
+  if (c.name == "coil_inductance")
+    for (const FitParameter& p : chosen.parameters)
+      if (p.name == "k_p" || p.name == "c_p" || p.name == "g")
+        EXPECT_THAT(p.note, ::testing::HasSubstr("c_emf's spread")) << p.name;
   EXPECT_TRUE(found) << "no parameter " << c.parameter << " in the chosen candidate";
   const double true_chi2 = HeldOutChi2(synthesis.campaign, synthesis.model);
   const double before = d.fit_before.heldout_chi2 - true_chi2, after = d.fit_after.heldout_chi2 - true_chi2;

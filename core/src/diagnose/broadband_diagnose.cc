@@ -464,7 +464,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     c.model = r.fit.model;
     c.parameters = r.fit.parameters;
     c.covariance = r.fit.covariance;
-    internal::NoteHeldParameters(effects, problem, &c.parameters);
+    internal::ChargeHeldBackEmf(effects, problem, c.model, &c.parameters, &c.covariance);
     c.effect_parameters = internal::EffectParameters(effects, c.parameters);
     c.max_drive_v = context.max_amplitude_v;
     const double variance = std::max(1.0, c.figures.residual_variance);

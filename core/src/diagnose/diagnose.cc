@@ -296,7 +296,7 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateSta
   c.model = r.model;
   c.parameters = r.parameters;
   c.covariance = r.covariance;
-  internal::NoteHeldParameters(effects, problem, &c.parameters);
+  internal::ChargeHeldBackEmf(effects, problem, c.model, &c.parameters, &c.covariance);
   c.effect_parameters = internal::EffectParameters(effects, c.parameters);
   c.max_drive_v = context.max_amplitude_v;
   if (step) step("every record at the fitted model");

@@ -71,10 +71,11 @@ bool Applicable(Effect effect, FitModelKind kind, const EffectContext& context);
 
 // The effect's own parameters among the fitted ones.
 std::vector<FitParameter> EffectParameters(std::span<const Effect> effects, const std::vector<FitParameter>& all);
-// Notes on effect parameters whose value rests on one that `problem` (BuildProblem's) holds: tau_e where
-// c_emf is held (no impacts at an identified stop), whose error then leaves out c_emf's.
-void NoteHeldParameters(std::span<const Effect> effects, const ExtendedProblem& problem,
-                        std::vector<FitParameter>* parameters);
+// Where `problem` (BuildProblem's) holds the coil's c_emf (no impacts at an identified stop), the
+// parameters the records then know only together with it (tau_e, k_p, c_p, g and the other mechanical
+// force terms) get c_emf's spread over its physical range in their errors and covariance, and a note.
+void ChargeHeldBackEmf(std::span<const Effect> effects, const ExtendedProblem& problem, const ActuatorModel& fitted,
+                       std::vector<FitParameter>* parameters, std::vector<double>* covariance);
 
 // Evidence from the base model's matches (before) and the records.
 Signatures MeasureSignatures(const Campaign& campaign, std::span<const RecordAnalysis> analyses,

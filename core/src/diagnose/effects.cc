@@ -278,16 +278,48 @@ ActuatorModel WithoutEffect(const ActuatorModel& model, Effect effect, const Act
   return out;
 }
 
-void NoteHeldParameters(std::span<const Effect> effects, const ExtendedProblem& problem,
-                        std::vector<FitParameter>* parameters) {
+void ChargeHeldBackEmf(std::span<const Effect> effects, const ExtendedProblem& problem, const ActuatorModel& fitted,
+                       std::vector<FitParameter>* parameters, std::vector<double>* covariance) {
   if (!Has(effects, Effect::kCoilInductance)) return;
   if (std::ranges::any_of(problem.parameters, [](const FreeParameter& p) { return p.name == "c_emf"; })) return;
-  const double c_emf = problem.base.back_emf_damping_n_s_per_m;
-  for (FitParameter& p : *parameters) {
-    if (p.name != "tau_e") continue;
-    const std::string held = "with c_emf held at " + FormatFigure(c_emf, 4) +
-                             " N s/m (no impacts at an identified stop: the records cannot separate it from g, k_p, "
-                             "c_p and tau_e); its error leaves out c_emf's, which moves tau_e by up to c_emf tau_e / m_p";
+  // Without impacts the coil model's transfer function g m s^2 / (m tau s^3 + (m + (c_p - c_emf) tau) s^2 +
+  // (c_p + k_p tau) s + k_p) (m_p known) fixes four ratios of five parameters. Along the family that keeps
+  // them (differentiate a0/a3 = k/(m tau), a1/a3 = c/(m tau) + k/m, a2/a3 = 1/tau + (c - e)/m, b/a3 = g/tau):
+  //   dtau/tau = dk/k = dg/g = tau de / (c tau - k tau^2 - m),  dc/c = (1 - k tau / c) dtau/tau,
+  // about -tau de / m each; the other mechanical force terms scale as k_p does (to first order in tau the
+  // equation of motion is (m - tau e) x'' + c x' + ... = g (u - tau u'), known only up to m - tau e). Over
+  // c_emf uniform in its physical range [0, c_p], held at e0, the mean square of e - e0 is
+  // c_p^2 / 3 - c_p e0 + e0^2; that spread joins the covariance as the rank-one term it makes.
+  const double tau = fitted.coil_time_constant_s, m = fitted.mass_kg, c = fitted.damping_n_s_per_m;
+  const double k = fitted.stiffness_n_per_m, e0 = problem.base.back_emf_damping_n_s_per_m;
+  if (!(c > 0.0) || !(tau > 0.0)) return;
+  const double per_e = tau / (c * tau - k * tau * tau - m);  // relative move per N s/m of c_emf
+  const double spread = c * c / 3.0 - c * e0 + e0 * e0;      // mean square of c_emf - e0 [(N s/m)^2]
+  const size_t n = parameters->size();
+  std::vector<double> move(n, 0.0);  // each parameter's move per N s/m of c_emf, in its unit
+  for (size_t i = 0; i < n; ++i) {
+    const std::string& name = (*parameters)[i].name;
+    const double value = (*parameters)[i].value;
+    if (name == "tau_e" || name == "k_p" || name == "g" || name == "k2" || name == "k3" || name == "c2" ||
+        name == "friction_n")
+      move[i] = value * per_e;
+    else if (name == "c_p")
+      move[i] = value * (1.0 - k * tau / c) * per_e;
+  }
+  const bool has_covariance = covariance->size() == n * n;
+  for (size_t i = 0; i < n; ++i) {
+    FitParameter& p = (*parameters)[i];
+    if (move[i] == 0.0 || p.fixed) continue;
+    p.standard_error = std::sqrt(p.standard_error * p.standard_error + move[i] * move[i] * spread);
+    if (has_covariance)
+      for (size_t j = 0; j < n; ++j) (*covariance)[i * n + j] += move[i] * move[j] * spread;
+    const std::string held =
+        p.name == "tau_e"
+            ? "with c_emf held at " + FormatFigure(e0, 4) +
+                  " N s/m (no impacts at an identified stop: the records cannot separate it from g, k_p, c_p and "
+                  "tau_e); its error includes c_emf's spread over [0, c_p], which moves tau_e, k_p, c_p and g "
+                  "together, by " + FormatFigure(100.0 * per_e * (c - e0), 2) + " % at c_emf = c_p"
+            : "its error includes c_emf's spread over [0, c_p] (c_emf held: see tau_e)";
     p.note = p.note.empty() ? held : p.note + "; " + held;
   }
 }
