@@ -300,6 +300,7 @@ void ChargeHeldBackEmf(std::span<const Effect> effects, const ExtendedProblem& p
   for (size_t i = 0; i < n; ++i) {
     const std::string& name = (*parameters)[i].name;
     const double value = (*parameters)[i].value;
+    if ((*parameters)[i].fixed) continue;
     if (name == "tau_e" || name == "k_p" || name == "g" || name == "k2" || name == "k3" || name == "c2" ||
         name == "friction_n")
       move[i] = value * per_e;
@@ -309,7 +310,7 @@ void ChargeHeldBackEmf(std::span<const Effect> effects, const ExtendedProblem& p
   const bool has_covariance = covariance->size() == n * n;
   for (size_t i = 0; i < n; ++i) {
     FitParameter& p = (*parameters)[i];
-    if (move[i] == 0.0 || p.fixed) continue;
+    if (move[i] == 0.0) continue;
     p.standard_error = std::sqrt(p.standard_error * p.standard_error + move[i] * move[i] * spread);
     if (has_covariance)
       for (size_t j = 0; j < n; ++j) (*covariance)[i * n + j] += move[i] * move[j] * spread;
