@@ -6,6 +6,7 @@
 #                          tests, the Slurm array on a real single-node Slurm (tests/slurm/run.sh),
 #                          then ASan+UBSan on the service, campaign files and fuzz harnesses
 #   deploy/local.sh test-release    the Release build and its tests only (the quick loop)
+#   deploy/local.sh test-asan       the ASan+UBSan stage of test alone (its own build directory)
 #   deploy/local.sh test-slow       the Release build and the tests labelled "slow" (long diagnosis cases)
 #   deploy/local.sh test-slurm      the Release build, then the Slurm array of deploy/slurm/ on a real
 #                                   single-node Slurm started here (root; tests/slurm/run.sh) alone
@@ -142,13 +143,14 @@ asan_stage() {  # FUZZ_SECONDS
 # code that takes outside input only: the service (tests/server), campaign files (tests/recordings)
 # and the fuzz harnesses, whose corpora are replayed and fuzzed. Left out there: the tests that fit
 # or diagnose whole campaigns through the service or a worker process (30-100 s each under ASan;
-# UploadedCampaignFitsAsTheDirectFit stays as the one that does), the backup of a running service
+# UploadedCampaignFitsAsTheDirectFit and BroadbandAndMixedCampaignsAreFitted stay as the ones that do;
+# the broadband diagnosis, 85 s here, runs under ASan in DiagnoseCli), the backup of a running service
 # and the kill-and-resume runs (sweeps under ASan, 40-60 s each). `deploy/local.sh sanitize` runs
 # both whole sanitizer stages; it is run before each stop and its result is in the closing note.
 # From a clean clone with ccache off the whole test command took 17 min 19 s at 5c0af4d (Release
 # build 238 s, its tests 293 s, the Slurm array 13 s, this stage 492 s).
 ASAN_CI_DIRS=(tests/server tests/recordings tests/fuzz)
-ASAN_CI_EXCLUDE='^(CampaignJobsTest\.(ZipUploadFitsAsTheTarUpload|AFitSurvivesARestartAndCanBeCancelled|CampaignAtTheArchiveTopAndUnderTheDataRoot|WithoutInProcessWorkersARemoteWorkerRunsTheFit|AFitThatDidNotConvergeSucceedsWithAWarning|DiagnoseJobHasAResultAndAnHtmlReport|AFitsModelFileIsADownload|CancelledDiagnosesDoNotRunBeyondTheWorkerCount)|RemoteCampaignProcess\..*|Backup\.SnapshotsOfARunningServiceAreWholeAndConsistent|ServiceProcess\.(CrashAndResume|RemoteWorkerKilledMidLease))$'
+ASAN_CI_EXCLUDE='^(CampaignJobsTest\.(ZipUploadFitsAsTheTarUpload|BroadbandCampaignsAreDiagnosedByTheirTimeSeries|AFitSurvivesARestartAndCanBeCancelled|CampaignAtTheArchiveTopAndUnderTheDataRoot|WithoutInProcessWorkersARemoteWorkerRunsTheFit|AFitThatDidNotConvergeSucceedsWithAWarning|DiagnoseJobHasAResultAndAnHtmlReport|AFitsModelFileIsADownload|CancelledDiagnosesDoNotRunBeyondTheWorkerCount)|RemoteCampaignProcess\..*|Backup\.SnapshotsOfARunningServiceAreWholeAndConsistent|ServiceProcess\.(CrashAndResume|RemoteWorkerKilledMidLease))$'
 asan_ci_stage() {  # FUZZ_SECONDS
   configure_clang "$ASAN_DIR" -DSTROKELAB_SANITIZE=address,undefined -DSTROKELAB_FUZZ=ON
   build_test_dirs "$ASAN_DIR" "${ASAN_CI_DIRS[@]}"
@@ -236,6 +238,11 @@ case "${1:-}" in
     release_stages
     printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
     ;;
+  test-asan)
+    install_missing
+    ci_sanitizer_stage
+    printf '%s\n' "stage times:" "${STAGE_TIMES[@]}"
+    ;;
   test-slow)
     install_missing
     stage "release build" build
@@ -263,7 +270,7 @@ case "${1:-}" in
     build
     ;;
   *)
-    echo "usage: deploy/local.sh run|demo|test|test-release|test-slow|test-slurm|build|sanitize|fuzz [SECONDS]" >&2
+    echo "usage: deploy/local.sh run|demo|test|test-release|test-asan|test-slow|test-slurm|build|sanitize|fuzz [SECONDS]" >&2
     exit 2
     ;;
 esac
