@@ -228,7 +228,7 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         // known) for g, k_p, c_p, tau_e and c_emf: one direction of the five is not identifiable (tuning
         // campaign 8302, a coil clear of the stop but for a few impacts the base model missed: every
         // standard error undefined). c_emf is then held at the start's (0 for a model without the coil:
-        // the coil delays the drive only).
+        // the coil delays the drive only), and ChargeHeldBackEmf adds its spread to the errors it moves.
         if (!Has(effects, Effect::kForceFactor) && context.contacts && context.stop_identified)
           p.push_back(BackEmfDamping(start));
         break;
