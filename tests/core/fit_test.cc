@@ -397,29 +397,34 @@ TEST(AnalyseRecord, ASubharmonicResponseIsAnalysedOverWholePeriodsOfItsOwn) {
   }
 }
 
-// 0.5 s at 7 Hz and 10 kHz (3 whole periods, 0.43 s): 50 Hz hum (1 mN, 2.5 times the noise) lies 0.43
-// bins from harmonic 7, which cannot be told from it and is left out (usable false). The hum is removed
-// all the same: left in, it leaked into harmonics 6 and 8 (2.6 bins away) by 7 and 9 standard errors.
+// 0.5 s at 7 Hz and 10 kHz (3 whole periods, 0.43 s): 50 Hz hum lies 0.43 bins from harmonic 7, which
+// cannot be told from it and is left out (usable false). The hum is removed all the same: left in, a
+// hum of 1 mN (2.5 times the noise) leaked into harmonics 6 and 8 (2.6 bins away) by 7 and 9 standard
+// errors. Fitted in turn with the drive's harmonics (three passes), a hum of 10 mN was half removed and
+// the rest leaked into harmonics 5, 6, 8 and 9 by 4.9-9.1 standard errors; fitted together, nothing leaks.
 TEST(AnalyseRecord, HumBesideAHigherHarmonicIsRemovedAndSparesItsNeighbours) {
-  const double fs = 10000.0, f = 7.0, amplitude_v = 0.3;
-  std::mt19937_64 rng(11);
-  std::normal_distribution<double> noise(0.0, 4e-4);
-  Recording r = EmptyRecord("hum_beside_h7", fs, f, amplitude_v);
-  std::vector<std::complex<double>> truth;
-  for (int h = 1; h <= 10; ++h) truth.push_back(std::polar(0.05 / h, 0.5 * h));
-  for (int i = 0; i < static_cast<int>(0.5 * fs); ++i) {
-    const double t = i / fs, theta = kTwoPi * f * t;
-    double y = 1e-3 * std::sin(kTwoPi * 50.0 * t + 0.3) + noise(rng);
-    for (int h = 1; h <= 10; ++h) y += std::real(truth[h - 1] * std::polar(1.0, h * theta));
-    r.voltage_v.push_back(amplitude_v * std::sin(theta));
-    r.response.push_back(y);
-  }
-  const RecordAnalysis a = AnalyseRecord(r, ResponseKind::kForce, {});
-  ASSERT_EQ(a.window.periods, 3.0);
-  EXPECT_FALSE(a.usable[6]);
-  EXPECT_EQ(a.hum_frequency_hz, 50.0);
-  for (size_t h = 0; h < truth.size(); ++h) {
-    if (a.usable[h]) EXPECT_LT(std::abs(a.harmonics[h] - truth[h]), 5 * a.harmonic_se) << "harmonic " << h + 1;
+  for (const double hum : {1e-3, 1e-2}) {
+    SCOPED_TRACE(hum);
+    const double fs = 10000.0, f = 7.0, amplitude_v = 0.3;
+    std::mt19937_64 rng(11);
+    std::normal_distribution<double> noise(0.0, 4e-4);
+    Recording r = EmptyRecord("hum_beside_h7", fs, f, amplitude_v);
+    std::vector<std::complex<double>> truth;
+    for (int h = 1; h <= 10; ++h) truth.push_back(std::polar(0.05 / h, 0.5 * h));
+    for (int i = 0; i < static_cast<int>(0.5 * fs); ++i) {
+      const double t = i / fs, theta = kTwoPi * f * t;
+      double y = hum * std::sin(kTwoPi * 50.0 * t + 0.3) + noise(rng);
+      for (int h = 1; h <= 10; ++h) y += std::real(truth[h - 1] * std::polar(1.0, h * theta));
+      r.voltage_v.push_back(amplitude_v * std::sin(theta));
+      r.response.push_back(y);
+    }
+    const RecordAnalysis a = AnalyseRecord(r, ResponseKind::kForce, {});
+    ASSERT_EQ(a.window.periods, 3.0);
+    EXPECT_FALSE(a.usable[6]);
+    EXPECT_EQ(a.hum_frequency_hz, 50.0);
+    for (size_t h = 0; h < truth.size(); ++h) {
+      if (a.usable[h]) EXPECT_LT(std::abs(a.harmonics[h] - truth[h]), 4 * a.harmonic_se) << "harmonic " << h + 1;
+    }
   }
 }
 

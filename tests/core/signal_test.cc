@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/signal/harmonic_fit.h"
 #include "test_util.h"
 
 namespace strokelab {
@@ -200,6 +201,93 @@ TEST(HarmonicAmplitudesTest, RejectsBadArgumentsNamingTheField) {
   EXPECT_EQ(InputErrorField([&] { HarmonicAmplitudes(with_nan, kFs, 100.0, all, 1); }), "signal");
   const std::vector<double> silent(1000, 0.0);
   EXPECT_EQ(InputErrorField([&] { FirstOrderFrf(x, silent, kFs, 100.0, all); }), "drive");
+}
+
+// ---- FitHarmonicFamilies ------------------------------------------------------------------------
+
+// Drive harmonics of 7 Hz and a 50 Hz hum with two overtones over 0.43 s (three drive periods): the
+// hum lies 0.43 frequency bins from harmonic 7, so the series are far from orthogonal. On noise, with
+// samples left out, the joint fit is the least-squares solution of a dense QR solve on the same basis.
+TEST(FitHarmonicFamiliesTest, MatchesDenseQrLeastSquaresBesideNearlyEqualFrequencies) {
+  std::mt19937 rng(43);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const std::vector<internal::HarmonicFamily> families{{7.0, 10}, {50.0, 3}};
+  std::vector<double> x(30000);
+  for (double& v : x) v = noise(rng);
+  const SampleWindow window{8055, 8055 + 3 * 7314, 3.0};  // 3 periods of 7 Hz at 51.2 kHz
+  std::vector<char> excluded(window.size(), 0);
+  for (size_t i = 4000; i < 4100; ++i) excluded[i] = 1;
+  int columns = 1;
+  for (const auto& family : families) columns += 2 * family.orders;
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(window.size(), columns);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(window.size());
+  for (size_t i = 0; i < window.size(); ++i) {
+    if (excluded[i]) continue;  // a zero row leaves the least-squares solution as it is without it
+    a(i, 0) = 1.0;
+    int column = 1;
+    for (const auto& family : families) {
+      const double theta = 2.0 * kPi * family.frequency_hz * static_cast<double>(window.begin + i) / kFs;
+      for (int h = 1; h <= family.orders; ++h, column += 2) {
+        a(i, column) = std::cos(h * theta);
+        a(i, column + 1) = std::sin(h * theta);
+      }
+    }
+    b[i] = x[window.begin + i];
+  }
+  const Eigen::VectorXd beta = a.householderQr().solve(b);
+  const std::vector<internal::HarmonicFit> fits = internal::FitHarmonicFamilies(x, kFs, families, window, excluded);
+  ASSERT_EQ(fits.size(), 2u);
+  EXPECT_NEAR(fits[0].offset, beta[0], 1e-10 * std::abs(beta[0]) + 1e-14);
+  EXPECT_EQ(fits[1].offset, 0.0);
+  int column = 1;
+  for (size_t i = 0; i < families.size(); ++i) {
+    ASSERT_EQ(fits[i].amplitudes.size(), static_cast<size_t>(families[i].orders));
+    for (int h = 1; h <= families[i].orders; ++h, column += 2) {
+      EXPECT_REL_NEAR(fits[i].amplitudes[h - 1], Complex(beta[column], -beta[column + 1]), 1e-8)
+          << "family " << i << ", h = " << h;
+    }
+  }
+}
+
+// Noise-free drive harmonics and hum 0.43 bins apart are recovered exactly. A hum overtone on a drive harmonic (50 Hz on harmonic
+// 5 of 10 Hz) is the same sinusoid: the drive's harmonic holds both and the sum is exact.
+TEST(FitHarmonicFamiliesTest, RecoversSeriesExactlyAndLetsACoincidentHarmonicHoldBoth) {
+  const SampleWindow window{0, 3 * 7314, 3.0};
+  const std::vector<double> drive = HarmonicSignal(window.end, kFs, 7.0, 0.2, kKnownHarmonics);
+  const std::vector<Complex> hum_truth{{1e-3, 2e-3}, {0.0, 0.0}, {-4e-4, 1e-4}};
+  const std::vector<double> hum = HarmonicSignal(window.end, kFs, 50.0, 0.0, hum_truth);
+  std::vector<double> x(window.end);
+  for (size_t n = 0; n < x.size(); ++n) x[n] = drive[n] + hum[n];
+  const std::vector<internal::HarmonicFamily> families{{7.0, static_cast<int>(kKnownHarmonics.size())}, {50.0, 3}};
+  const std::vector<internal::HarmonicFit> fits = internal::FitHarmonicFamilies(x, kFs, families, window);
+  EXPECT_NEAR(fits[0].offset, 0.2, 1e-12);
+  for (size_t h = 0; h < kKnownHarmonics.size(); ++h)
+    EXPECT_NEAR(std::abs(fits[0].amplitudes[h] - kKnownHarmonics[h]), 0.0, 1e-11) << "drive h = " << h + 1;
+  for (size_t h = 0; h < hum_truth.size(); ++h)
+    EXPECT_NEAR(std::abs(fits[1].amplitudes[h] - hum_truth[h]), 0.0, 1e-11) << "hum h = " << h + 1;
+
+  const std::vector<double> on_h5 = HarmonicSignal(window.end, kFs, 10.0, 0.0, {0.1, 0.0, 0.0, 0.0, {0.01, 0.0}});
+  const std::vector<double> hum_on_h5 = HarmonicSignal(window.end, kFs, 50.0, 0.0, {{0.0, 0.02}});
+  for (size_t n = 0; n < x.size(); ++n) x[n] = on_h5[n] + hum_on_h5[n];
+  const std::vector<internal::HarmonicFamily> coincident{{10.0, 6}, {50.0, 1}};
+  const std::vector<internal::HarmonicFit> both = internal::FitHarmonicFamilies(x, kFs, coincident, window);
+  EXPECT_EQ(both[1].amplitudes[0], Complex(0.0, 0.0));
+  EXPECT_NEAR(std::abs(both[0].amplitudes[4] - Complex(0.01, 0.02)), 0.0, 1e-12);
+  EXPECT_NEAR(std::abs(both[0].amplitudes[0] - Complex(0.1, 0.0)), 0.0, 1e-12);
+}
+
+TEST(FitHarmonicFamiliesTest, RejectsBadArgumentsNamingTheField) {
+  const std::vector<double> x(1000, 1.0);
+  const SampleWindow all{0, 1000, 0.0};
+  EXPECT_EQ(InputErrorField([&] { internal::FitHarmonicFamilies(x, kFs, {}, all); }), "families");
+  const std::vector<internal::HarmonicFamily> above_nyquist{{100.0, 2}, {50.0, 600}};
+  EXPECT_EQ(InputErrorField([&] { internal::FitHarmonicFamilies(x, kFs, above_nyquist, all); }), "orders");
+  const std::vector<internal::HarmonicFamily> no_frequency{{100.0, 2}, {0.0, 1}};
+  EXPECT_EQ(InputErrorField([&] { internal::FitHarmonicFamilies(x, kFs, no_frequency, all); }), "frequency_hz");
+  const std::vector<internal::HarmonicFamily> two{{100.0, 2}, {50.0, 1}};
+  EXPECT_EQ(InputErrorField([&] { internal::FitHarmonicFamilies(x, kFs, two, SampleWindow{0, 6, 0.0}); }), "window");
+  EXPECT_EQ(InputErrorField([&] { internal::FitHarmonicFamilies(x, kFs, two, all, std::vector<char>(3, 0)); }),
+            "excluded");
 }
 
 // ---- HannSpectrum --------------------------------------------------------------------------------

@@ -188,6 +188,72 @@ void CheckWindow(std::span<const double> signal, SampleWindow window) {
   }
 }
 
+// One series' frequency and orders. Harmonics at or above Nyquist alias onto each other and make the
+// basis degenerate.
+void CheckSeries(double sample_rate_hz, double frequency_hz, int orders) {
+  RequirePositiveFinite(frequency_hz, "frequency_hz");
+  if (orders < 0) throw InputError("orders", "must be >= 0");
+  if (orders * frequency_hz >= 0.5 * sample_rate_hz) {
+    throw InputError("orders", "harmonic " + std::to_string(orders) + " of " + std::to_string(frequency_hz) +
+                                   " Hz is not below the Nyquist frequency " +
+                                   std::to_string(0.5 * sample_rate_hz) + " Hz");
+  }
+}
+
+// The window can hold `unknowns` coefficients, and `excluded` has one entry per window sample.
+void CheckSamples(SampleWindow window, size_t unknowns, std::span<const char> excluded) {
+  if (window.size() < unknowns) {
+    throw InputError("window", "holds " + std::to_string(window.size()) + " samples, fewer than the " +
+                                   std::to_string(unknowns) + " coefficients to fit");
+  }
+  if (!excluded.empty() && excluded.size() != window.size()) {
+    throw InputError("excluded", "must have one entry per window sample");
+  }
+}
+
+// beta = G^-1 b by LDLT; NumericalError where the Gram matrix is singular (the samples kept do not
+// determine `what`).
+Eigen::VectorXd SolveNormalEquations(const Eigen::MatrixXd& gram, const Eigen::VectorXd& rhs, const std::string& what) {
+  if (!rhs.allFinite()) throw InputError("signal", "holds a non-finite sample in the analysed window");
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(gram);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > kMinReciprocalCondition)) {
+    throw NumericalError("harmonic fit: the samples kept do not determine " + what + " (Gram matrix singular)");
+  }
+  Eigen::VectorXd beta = ldlt.solve(rhs);
+  if (!beta.allFinite()) throw NumericalError("harmonic fit: non-finite coefficients");
+  return beta;
+}
+
+// sum_{n=first}^{first+count-1} exp(j 2 pi x n) for any |x| < 1 (the Dirichlet kernel, as PhasorSums).
+std::complex<double> PhasorSum(size_t first, size_t count, double x) {
+  const double n = static_cast<double>(count);
+  const double middle = static_cast<double>(first) + 0.5 * (n - 1.0);
+  if (x == 0.0) return n;
+  return std::sin(std::numbers::pi * std::fmod(x * n, 2.0)) / std::sin(std::numbers::pi * x) *
+         PhasorAtCycles(x * middle);
+}
+
+// G = sum_n phi_n phi_n^T for the basis [1, cos(2 pi c_k n), sin(2 pi c_k n)], k over `cycles` (per
+// sample, each in (0, 1/2)), over a contiguous window: the product rules give sums at c_k -+ c_l.
+Eigen::MatrixXd JointGram(size_t first, size_t count, std::span<const double> cycles) {
+  const auto columns = static_cast<Eigen::Index>(2 * cycles.size() + 1);
+  Eigen::MatrixXd gram(columns, columns);
+  gram(0, 0) = static_cast<double>(count);
+  for (size_t k = 0; k < cycles.size(); ++k) {
+    const std::complex<double> single = PhasorSum(first, count, cycles[k]);
+    gram(0, 2 * k + 1) = gram(2 * k + 1, 0) = single.real();
+    gram(0, 2 * k + 2) = gram(2 * k + 2, 0) = single.imag();
+    for (size_t l = 0; l < cycles.size(); ++l) {
+      const std::complex<double> difference = PhasorSum(first, count, cycles[k] - cycles[l]);
+      const std::complex<double> sum = PhasorSum(first, count, cycles[k] + cycles[l]);
+      gram(2 * k + 1, 2 * l + 1) = 0.5 * (difference.real() + sum.real());
+      gram(2 * k + 2, 2 * l + 2) = 0.5 * (difference.real() - sum.real());
+      gram(2 * k + 1, 2 * l + 2) = gram(2 * l + 2, 2 * k + 1) = 0.5 * (sum.imag() - difference.imag());
+    }
+  }
+  return gram;
+}
+
 }  // namespace
 
 namespace internal {
@@ -195,24 +261,9 @@ namespace internal {
 HarmonicFit FitHarmonics(std::span<const double> signal, double sample_rate_hz, double frequency_hz,
                          SampleWindow window, int orders, std::span<const char> excluded) {
   RequirePositiveFinite(sample_rate_hz, "sample_rate_hz");
-  RequirePositiveFinite(frequency_hz, "frequency_hz");
   CheckWindow(signal, window);
-  if (orders < 0) throw InputError("orders", "must be >= 0");
-  // Harmonics at or above Nyquist alias onto each other and make the basis degenerate.
-  if (orders * frequency_hz >= 0.5 * sample_rate_hz) {
-    throw InputError("orders", "harmonic " + std::to_string(orders) + " of " + std::to_string(frequency_hz) +
-                                   " Hz is not below the Nyquist frequency " +
-                                   std::to_string(0.5 * sample_rate_hz) + " Hz");
-  }
-  const size_t unknowns = static_cast<size_t>(2 * orders + 1);
-  if (window.size() < unknowns) {
-    throw InputError("window", "holds " + std::to_string(window.size()) + " samples, fewer than the " +
-                                   std::to_string(unknowns) + " coefficients of " + std::to_string(orders) +
-                                   " harmonics");
-  }
-  if (!excluded.empty() && excluded.size() != window.size()) {
-    throw InputError("excluded", "must have one entry per window sample");
-  }
+  CheckSeries(sample_rate_hz, frequency_hz, orders);
+  CheckSamples(window, static_cast<size_t>(2 * orders + 1), excluded);
 
   const double cycles_per_sample = frequency_hz / sample_rate_hz;
   std::span<const double> values = signal.subspan(window.begin, window.size());
@@ -229,15 +280,7 @@ HarmonicFit FitHarmonics(std::span<const double> signal, double sample_rate_hz, 
     values = kept;
   }
   const Eigen::VectorXd rhs = ProjectOntoBasis(values, window.begin, cycles_per_sample, orders);
-  if (!rhs.allFinite()) throw InputError("signal", "holds a non-finite sample in the analysed window");
-
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(gram);
-  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > kMinReciprocalCondition)) {
-    throw NumericalError("harmonic fit: the samples kept do not determine " + std::to_string(orders) +
-                         " harmonics (Gram matrix singular)");
-  }
-  const Eigen::VectorXd beta = ldlt.solve(rhs);
-  if (!beta.allFinite()) throw NumericalError("harmonic fit: non-finite coefficients");
+  const Eigen::VectorXd beta = SolveNormalEquations(gram, rhs, std::to_string(orders) + " harmonics");
 
   // a cos + b sin = Re((a - j b) exp(j h theta)).
   HarmonicFit fit;
@@ -245,6 +288,74 @@ HarmonicFit FitHarmonics(std::span<const double> signal, double sample_rate_hz, 
   fit.amplitudes.reserve(orders);
   for (int h = 1; h <= orders; ++h) fit.amplitudes.emplace_back(beta[CosColumn(h)], -beta[SinColumn(h)]);
   return fit;
+}
+
+std::vector<HarmonicFit> FitHarmonicFamilies(std::span<const double> signal, double sample_rate_hz,
+                                             std::span<const HarmonicFamily> families, SampleWindow window,
+                                             std::span<const char> excluded) {
+  // Closer than this many frequency bins the two sinusoids differ by under 0.4 % over the window.
+  constexpr double kCoincidentBins = 1e-3;
+  RequirePositiveFinite(sample_rate_hz, "sample_rate_hz");
+  CheckWindow(signal, window);
+  if (families.empty()) throw InputError("families", "must name at least one harmonic series");
+  struct Column {
+    size_t family;
+    int harmonic;
+  };
+  std::vector<Column> columns;
+  std::vector<double> cycles;  // per sample, one per column
+  for (size_t i = 0; i < families.size(); ++i) {
+    CheckSeries(sample_rate_hz, families[i].frequency_hz, families[i].orders);
+    for (int h = 1; h <= families[i].orders; ++h) {
+      const double c = h * families[i].frequency_hz / sample_rate_hz;
+      const bool coincident = std::any_of(cycles.begin(), cycles.end(), [&](double other) {
+        return std::abs(c - other) * static_cast<double>(window.size()) < kCoincidentBins;
+      });
+      if (coincident) continue;
+      columns.push_back({i, h});
+      cycles.push_back(c);
+    }
+  }
+  CheckSamples(window, 2 * columns.size() + 1, excluded);
+
+  std::span<const double> values = signal.subspan(window.begin, window.size());
+  Eigen::MatrixXd gram = JointGram(window.begin, window.size(), cycles);
+  std::vector<double> kept;  // the window with excluded samples zeroed: they drop out of b
+  if (!excluded.empty()) {
+    kept.assign(values.begin(), values.end());
+    Eigen::VectorXd phi(gram.rows());
+    phi[0] = 1.0;
+    for (size_t i = 0; i < kept.size(); ++i) {
+      if (!excluded[i]) continue;
+      kept[i] = 0.0;
+      for (size_t k = 0; k < cycles.size(); ++k) {
+        const std::complex<double> z = PhasorAtCycles(cycles[k] * static_cast<double>(window.begin + i));
+        phi[2 * k + 1] = z.real();
+        phi[2 * k + 2] = z.imag();
+      }
+      gram.noalias() -= phi * phi.transpose();
+    }
+    values = kept;
+  }
+  Eigen::VectorXd rhs(gram.rows());
+  for (size_t i = 0; i < families.size(); ++i) {
+    const Eigen::VectorXd projected =
+        ProjectOntoBasis(values, window.begin, families[i].frequency_hz / sample_rate_hz, families[i].orders);
+    if (i == 0) rhs[0] = projected[0];
+    for (size_t k = 0; k < columns.size(); ++k) {
+      if (columns[k].family != i) continue;
+      rhs[2 * k + 1] = projected[CosColumn(columns[k].harmonic)];
+      rhs[2 * k + 2] = projected[SinColumn(columns[k].harmonic)];
+    }
+  }
+  const Eigen::VectorXd beta = SolveNormalEquations(gram, rhs, std::to_string(columns.size()) + " sinusoids");
+
+  std::vector<HarmonicFit> fits(families.size());
+  for (size_t i = 0; i < families.size(); ++i) fits[i].amplitudes.assign(families[i].orders, 0.0);
+  fits[0].offset = beta[0];
+  for (size_t k = 0; k < columns.size(); ++k)
+    fits[columns[k].family].amplitudes[columns[k].harmonic - 1] = {beta[2 * k + 1], -beta[2 * k + 2]};
+  return fits;
 }
 
 void EvaluateHarmonics(const HarmonicFit& fit, double sample_rate_hz, double frequency_hz, SampleWindow window,
