@@ -293,7 +293,7 @@ HarmonicFit FitHarmonics(std::span<const double> signal, double sample_rate_hz, 
 std::vector<HarmonicFit> FitHarmonicFamilies(std::span<const double> signal, double sample_rate_hz,
                                              std::span<const HarmonicFamily> families, SampleWindow window,
                                              std::span<const char> excluded) {
-  // Closer than this many frequency bins the two sinusoids differ by under 0.4 % over the window.
+  // Closer than this many frequency bins two sinusoids part by at most 2 pi 1e-3 rad (0.63 %) over the window.
   constexpr double kCoincidentBins = 1e-3;
   RequirePositiveFinite(sample_rate_hz, "sample_rate_hz");
   CheckWindow(signal, window);
