@@ -249,8 +249,9 @@ TEST(FitHarmonicFamiliesTest, MatchesDenseQrLeastSquaresBesideNearlyEqualFrequen
   }
 }
 
-// Noise-free drive harmonics and hum 0.43 bins apart are recovered exactly. A hum overtone on a drive harmonic (50 Hz on harmonic
-// 5 of 10 Hz) is the same sinusoid: the drive's harmonic holds both and the sum is exact.
+// Noise-free drive harmonics and hum 0.43 bins apart are recovered exactly. A hum overtone on a drive
+// harmonic (50 Hz on harmonic 5 of 10 Hz) is the same sinusoid: the drive's harmonic holds both and the
+// sum is exact.
 TEST(FitHarmonicFamiliesTest, RecoversSeriesExactlyAndLetsACoincidentHarmonicHoldBoth) {
   const SampleWindow window{0, 3 * 7314, 3.0};
   const std::vector<double> drive = HarmonicSignal(window.end, kFs, 7.0, 0.2, kKnownHarmonics);

@@ -8,7 +8,9 @@
 //       cos a cos b = (cos(a-b) + cos(a+b))/2 etc., sums S(m) = sum_n exp(j m theta_n), m = 0..2H,
 //       a geometric series with a closed form (the Dirichlet kernel), O(H).
 // With at least one whole period in the window G is close to diag(N, N/2, ..., N/2), so the normal
-// equations lose nothing worth mentioning against QR.
+// equations lose nothing worth mentioning against QR. FitHarmonicFamilies fits several series (drive
+// harmonics and mains hum) by the same normal equations, G's entries from sums at c_k -+ c_l (JointGram:
+// O(K^2) sums for K sinusoids, where one series needs O(H), so FitHarmonics keeps its own).
 //
 // The phasors exp(j h theta_n) are never computed by sin/cos per sample and harmonic: each block of
 // kBlockSamples samples starts from an exact phasor (angle reduced to one cycle with fmod, so sample
