@@ -145,10 +145,21 @@ inline Rect PlotArea(const std::string& svg) {
   return {Attribute(clip, "x"), Attribute(clip, "y"), Attribute(clip, "width"), Attribute(clip, "height")};
 }
 
+// The start tags <tag ...> in svg_part. Found by hand, not by std::regex: libstdc++'s matcher recurses
+// once per character of [^>]*, and a polyline's points (tens of thousands of characters) overflowed the
+// stack of an unoptimised ASan build (LinePlotTest.DecimationKeepsExtremes).
 inline std::vector<std::string> Elements(const std::string& svg_part, const std::string& tag) {
-  const std::regex re("<" + tag + "\\b[^>]*>");
   std::vector<std::string> out;
-  for (std::sregex_iterator it(svg_part.begin(), svg_part.end(), re), end; it != end; ++it) out.push_back(it->str());
+  const std::string open = "<" + tag;
+  for (size_t at = svg_part.find(open); at != std::string::npos; at = svg_part.find(open, at + 1)) {
+    const size_t after = at + open.size();
+    const bool longer_name =
+        after < svg_part.size() && (std::isalnum(static_cast<unsigned char>(svg_part[after])) || svg_part[after] == '_');
+    if (longer_name) continue;
+    const size_t close = svg_part.find('>', after);
+    if (close == std::string::npos) break;
+    out.push_back(svg_part.substr(at, close - at + 1));
+  }
   return out;
 }
 
