@@ -1,6 +1,7 @@
 // The diagnosis's choice among candidates (diagnose/selection.h) on scripted fits: the backward check
 // refits the current model from the larger one's solution, and a second effect that only takes up what
-// the first one's fit from the base left is not named.
+// the first one's fit from the base left is not named; an effect that only stood in for others is
+// swapped out or dropped.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -48,12 +49,13 @@ TEST(WithoutEffectTest, PutsBackOnlyTheEffectsOwnParameters) {
 }
 
 // Scripted candidate fits: chi-square on the fit and held-out records (residual variance 1, kDof
-// degrees of freedom) by the candidate's label and the label it starts from ("" the base), with a
-// significant parameter.
+// degrees of freedom) by the candidate's label and the label it starts from ("" the base), with
+// significant parameters (1 +- 0.1) but those of the effect `insignificant` names (0.05 +- 0.1).
 class ScriptedFits {
  public:
   std::map<std::string, double> chi2;     // "effects<-from" -> chi-square (fit and held-out alike)
   std::map<std::string, double> heldout;  // "effects<-from" -> held-out chi-square, where it differs
+  std::map<std::string, Effect> insignificant;  // "effects<-from" -> the effect within noise of zero
   std::vector<std::pair<std::string, ActuatorModel>> starts;  // every fit's label and start model
 
   internal::CandidateFitter Fitter() {
@@ -72,8 +74,10 @@ class ScriptedFits {
       c.figures.dof = kDof;
       c.fit_gain = kBase - c.figures.chi2;
       c.heldout_gain = kBase - c.figures.heldout_chi2;
-      for (Effect e : effects)
-        for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", 1.0, 0.1});
+      for (Effect e : effects) {
+        const bool weak = insignificant.count(key) > 0 && insignificant.at(key) == e;
+        for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", weak ? 0.05 : 1.0, 0.1});
+      }
       c.model = start;
       if (std::find(effects.begin(), effects.end(), Effect::kCubicStiffness) != effects.end())
         c.model.cubic_stiffness_n_per_m3 = 1.5e7;
@@ -221,6 +225,59 @@ TEST(SelectEffectsTest, TheLookAheadFromTheFirstEffectsWidestPairReachesATriple)
   ASSERT_GE(chosen, 0);
   EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+quadratic_damping+dry_friction");
   EXPECT_EQ(candidates[chosen].decision, "");
+}
+
+// Three effects present where one's single fit stands in for another: k3 first, then k3 + quadratic
+// damping beats it beyond noise with k3 within noise of zero. Its significant part, quadratic damping
+// refitted from its solution, beats k3 alone, and from there the pair with friction is the truth. (Without
+// the swap the selection ends at k3 + friction, which gains 20 over k3.)
+TEST(SelectEffectsTest, AnExtensionWithAnInsignificantEffectSwapsItOut) {
+  ScriptedFits fits;
+  fits.chi2 = {{"cubic_stiffness<-", 500},
+               {"dry_friction<-", 900},
+               {"quadratic_damping<-", 950},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 480},
+               {"cubic_stiffness+quadratic_damping<-cubic_stiffness", 300},
+               {"quadratic_damping<-cubic_stiffness+quadratic_damping", 310},
+               {"quadratic_damping+cubic_stiffness<-quadratic_damping", 305},
+               {"quadratic_damping+dry_friction<-quadratic_damping", 100},
+               {"quadratic_damping<-quadratic_damping+dry_friction", 320}};
+  fits.insignificant = {{"cubic_stiffness+quadratic_damping<-cubic_stiffness", Effect::kCubicStiffness}};
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "quadratic_damping+dry_friction");
+  EXPECT_EQ(candidates[chosen].decision, "");
+  bool swapped_from_the_pair = false;
+  for (const auto& [key, start] : fits.starts)
+    if (key == "quadratic_damping<-cubic_stiffness+quadratic_damping") {
+      swapped_from_the_pair = true;
+      EXPECT_EQ(start.cubic_stiffness_n_per_m3, 0.0);  // the pair's solution without k3
+    }
+  EXPECT_TRUE(swapped_from_the_pair);
+}
+
+// A stand-in taken first: friction, then k3, then quadratic damping. The triple's pair without
+// friction was never fitted; fitted from the triple's solution, it is within noise of the triple, so
+// friction is dropped and the pair is the answer, not the triple.
+TEST(SelectEffectsTest, AnEarlierEffectThatTheLaterOnesMakeNeedlessIsDropped) {
+  ScriptedFits fits;
+  fits.chi2 = {{"dry_friction<-", 500},
+               {"cubic_stiffness<-", 600},
+               {"quadratic_damping<-", 700},
+               {"dry_friction+cubic_stiffness<-dry_friction", 300},
+               {"dry_friction+quadratic_damping<-dry_friction", 400},
+               {"dry_friction<-dry_friction+cubic_stiffness", 490},
+               {"dry_friction+cubic_stiffness+quadratic_damping<-dry_friction+cubic_stiffness", 100},
+               {"cubic_stiffness+quadratic_damping<-dry_friction+cubic_stiffness+quadratic_damping", 105},
+               {"dry_friction+cubic_stiffness<-dry_friction+cubic_stiffness+quadratic_damping", 300}};
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+quadratic_damping");
+  for (const CandidateFit& c : candidates)
+    if (c.label == "dry_friction+cubic_stiffness+quadratic_damping")
+      EXPECT_NE(c.decision.find("backward check: without dry_friction"), std::string::npos) << c.decision;
 }
 
 TEST(PartialExplanationTest, ACandidateThatLeavesMoreThanItRemovesIsNotNamedOnEitherParts) {

@@ -33,10 +33,14 @@ using CandidateFitter =
     std::function<CandidateFit(const std::vector<Effect>& effects, const ActuatorModel& start,
                                const std::vector<Effect>& from, int stage, const std::string& name)>;
 // Steps 4 and 5 of diagnose.h: each of `singles` fitted from `base` (skipped once seconds_left() is
-// spent), sorted by held-out gain, then forward selection with its backward check. The check compares
-// the larger model with the best fit of the model without each effect; the current model is refitted
-// from the larger one's solution for it (WithoutEffect of the added effect), since a fit from the base
-// can end short of its optimum and leave a misfit that a spurious second effect then takes up. Where
+// spent), sorted by held-out gain, then forward selection with its backward check. An extension that
+// beats the current model beyond noise but holds an effect within noise of its null has its significant
+// part refitted from its solution, which competes as a move (the stand-in swapped out). The check
+// compares the larger model with the best fit of the model without each effect; the current model is
+// refitted from the larger one's solution for it (WithoutEffect of the added effect), since a fit from
+// the base can end short of its optimum and leave a misfit that a spurious second effect then takes
+// up, and so is any model without one effect that was never fitted. Where the effect not needed is one
+// the model held before, the selection goes on from the model without it. Where
 // the model so chosen still fails the fit records' noise test, it looks ahead from each model on its
 // path through that model's extension with the largest fit-records gain (selection.cc). Appends
 // every candidate to `candidates`, each with its decision (empty: it beats the model it extends beyond
