@@ -19,7 +19,10 @@ selection's look-ahead was built and 9925 while it was extended from every model
 tried where the rest leave the misfit unexplained) was built on other seeds (9951, 9952) and changed
 9905 only. 0.27.0's floor probe for the coil (built on 9713, 9917, 9928 and the coil campaigns 9951-9956)
 changed no verdict; its test above the harmonics (built on 9927 and on 72-record campaigns of a stop on
-a flexure, 9957 and 9959) turned 9927 right. Campaigns are kept under --out (generated once, then reused).
+a flexure, 9957 and 9959) turned 9927 right. 9961-9970 were run once at 0.30.0 (7 right, 3 wrong); the
+swap and the backward check's new fits of 0.31.0 were built on 9966 and 9967 of them, and 9971-9980 (their
+combinations fixed before) were run once after, both versions side by side. Campaigns are kept under
+--out (generated once, then reused).
 
   tools/gen2/multi_effect_study.py --strokelab build/release/strokelab --out /tmp/multi
   tools/gen2/multi_effect_study.py --strokelab OLD --strokelab NEW --cases 9941-9950
@@ -76,6 +79,21 @@ CASES = {
     9947: (["cubic_stiffness", "contact_damping"], None), 9948: (["quadratic_damping", "dry_friction"], None),
     9949: (["hertzian_contact", "cubic_stiffness"], None),
     9950: (["force_factor", "hertzian_contact", "quadratic_damping"], None),
+    9961: (["force_factor", "dry_friction"], None), 9962: (["quadratic_stiffness", "hertzian_contact"], "velocity"),
+    9963: (["amplifier_saturation", "cubic_stiffness"], None),
+    9964: (["coil_inductance", "hertzian_contact"], None), 9965: (["second_stop", "hertzian_contact"], None),
+    9966: (["contact_damping", "cubic_stiffness"], "displacement"),
+    9967: (["quadratic_damping", "force_factor", "quadratic_stiffness"], None),
+    9968: (["position_damping", "cubic_stiffness"], None), 9969: (["stop_mount", "quadratic_damping"], None),
+    9970: (["cubic_stiffness", "hertzian_contact"], "acceleration"),
+    9971: (["force_factor", "quadratic_stiffness"], None),
+    9972: (["quadratic_damping", "quadratic_stiffness", "force_factor"], None),
+    9973: (["contact_damping", "cubic_stiffness"], None), 9974: (["dry_friction", "quadratic_stiffness"], None),
+    9975: (["hertzian_contact", "force_factor", "cubic_stiffness"], None),
+    9976: (["amplifier_saturation", "contact_damping"], None), 9977: (["second_stop", "quadratic_damping"], None),
+    9978: (["cubic_stiffness", "quadratic_stiffness", "dry_friction"], None),
+    9979: (["contact_damping", "cubic_stiffness"], "displacement"),
+    9980: (["quadratic_damping", "force_factor"], "velocity"),
 }
 
 
