@@ -66,7 +66,8 @@ struct BroadbandSplit : BroadbandParts {
 bool HoldUnidentifiedBackEmf(const std::vector<FitParameter>& fitted, internal::ExtendedProblem* problem) {
   const bool unidentified =
       std::ranges::any_of(fitted, [](const FitParameter& p) { return p.name == "c_emf" && !p.identifiable; });
-  if (unidentified) std::erase_if(problem->parameters, [](const internal::FreeParameter& p) { return p.name == "c_emf"; });
+  if (unidentified)
+    std::erase_if(problem->parameters, [](const internal::FreeParameter& p) { return p.name == "c_emf"; });
   return unidentified;
 }
 
