@@ -26,6 +26,7 @@ combinations fixed before) were run once after, both versions side by side. Camp
 
   tools/gen2/multi_effect_study.py --strokelab build/release/strokelab --out /tmp/multi
   tools/gen2/multi_effect_study.py --strokelab OLD --strokelab NEW --cases 9941-9950
+  tools/gen2/multi_effect_study.py --strokelab build/release/strokelab --cases 9961-9980  (not in the default)
 
 A campaign takes 3-5 s to generate (20 s with the coil) and 5-20 s to diagnose, so the 40 cases take
 about 10 minutes per binary on 2 cores.
