@@ -123,6 +123,12 @@ int FindFit(const std::vector<CandidateFit>& candidates, const std::vector<Effec
   return best;
 }
 
+// `effects` without `e`.
+std::vector<Effect> Without(std::vector<Effect> effects, Effect e) {
+  std::erase(effects, e);
+  return effects;
+}
+
 // Backward check of candidates[index]: dropping any one effect must raise the held-out chi-square
 // beyond noise. Returns why not (empty: each is needed), and in `smaller` the best fit of the model
 // without the unneeded effect (of several, the one with the least held-out chi-square).
@@ -131,25 +137,18 @@ std::string UnneededEffect(const std::vector<CandidateFit>& candidates, int inde
   const CandidateFit& c = candidates[index];
   std::string why;
   *smaller = -1;
-  for (size_t drop = 0; drop < c.effects.size(); ++drop) {
-    std::vector<Effect> without = c.effects;
-    without.erase(without.begin() + static_cast<long>(drop));
-    const int other = FindFit(candidates, without);
+  for (Effect drop : c.effects) {
+    const int other = FindFit(candidates, Without(c.effects, drop));
     if (other < 0) continue;
     const double gain = GainOver(candidates[other].figures, c.figures, true);
     if (gain > min_heldout_gain ||
         (*smaller >= 0 && candidates[other].figures.heldout_chi2 >= candidates[*smaller].figures.heldout_chi2))
       continue;
     *smaller = other;
-    why = std::string("backward check: without ") + Info(c.effects[drop]).id + " the held-out chi-square rises by only " +
+    why = std::string("backward check: without ") + Info(drop).id + " the held-out chi-square rises by only " +
           Format(gain) + " <= " + Format(min_heldout_gain);
   }
   return why;
-}
-
-std::vector<Effect> Without(std::vector<Effect> effects, Effect e) {
-  std::erase(effects, e);
-  return effects;
 }
 
 // The fitted model that extends all[from] (the base when from < 0) by one effect and lowers the fit
