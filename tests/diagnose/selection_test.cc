@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -312,9 +313,84 @@ TEST(BestWithoutStopEffectsTest, TakesTheBestPartWithoutTheStopsEffectsThatBeats
   std::vector<CandidateFit> all = {fit({cs}, 150, 5000), fit({k3}, 900, 4000), fit({c2}, 500, 4500),
                                    fit({k3, cs}, 120, 5100), fit({k3}, 800, 4100), fit({k3}, 100, 0, false)};
   EXPECT_EQ(internal::BestWithoutStopEffects(all, 3, 10), 4);
+  EXPECT_EQ(internal::BestPart(all, {k3, c2}, 10), 2);  // any part: c2's held-out chi-square is the lowest
   all[4].heldout_gain = all[1].heldout_gain = 5;  // neither beats the base by more than 10
   EXPECT_EQ(internal::BestWithoutStopEffects(all, 3, 10), -1);
   EXPECT_EQ(internal::BestWithoutStopEffects(all, 0, 10), -1);  // contact damping alone: the base
+}
+
+// A model that misses by ten times the noise: its standard errors, from noise alone, scaled by ten. An
+// effect 12 standard errors from zero (1.2 scaled ones) is left out, one 30 from zero stands, and so
+// does an amplifier limit 25 below the largest drive (2.5 scaled ones), but not one 16.7 below; within
+// noise (a ratio of 1 or less, or undefined) nothing is scaled.
+TEST(SignificantUnderMisfitTest, ScalesTheStandardErrorsByTheMisfitsRatioToNoise) {
+  CandidateFit c;
+  c.effects = {Effect::kCubicStiffness, Effect::kContactDamping, Effect::kAmplifierSaturation};
+  c.label = internal::Label(c.effects);
+  c.max_drive_v = 0.5;
+  c.effect_parameters = {{.name = "k3", .value = 1.2e7, .standard_error = 1e6},
+                         {.name = "c_s", .value = 30.0, .standard_error = 1.0},
+                         {.name = "amplifier_limit_v", .value = 0.45, .standard_error = 0.002}};
+  std::string why;
+  EXPECT_EQ(internal::SignificantUnderMisfit(c, 10.0, &why),
+            (std::vector<Effect>{Effect::kContactDamping, Effect::kAmplifierSaturation}));
+  EXPECT_EQ(why, "cubic_stiffness+contact_damping+amplifier_saturation leaves a misfit of 10 times the noise, and "
+                 "with its standard errors scaled by that, k3 = 1.2e+07 +- 1e+07 is within 2 standard errors of "
+                 "zero: cubic_stiffness not named");
+  c.effect_parameters[2].standard_error = 0.003;  // 16.7 standard errors, 1.67 scaled ones
+  why.clear();
+  EXPECT_EQ(internal::SignificantUnderMisfit(c, 10.0, &why), (std::vector<Effect>{Effect::kContactDamping}));
+  for (double within_noise : {1.0, 0.7, std::nan("")}) {
+    why.clear();
+    EXPECT_EQ(internal::SignificantUnderMisfit(c, within_noise, &why), c.effects) << within_noise;
+    EXPECT_EQ(why, "");
+  }
+}
+
+// The open world's naming: k3 + c_s misses by ten times the noise and c_s (5 standard errors) does not
+// stand then, so k3 alone answers. Where k3 alone is within noise, or misses but removed more of the
+// excess than it leaves, it is named; where it removed less, nothing is, and the base is tested last.
+TEST(NameWhatStandsTest, TakesThePartThatStandsThenAsksItToExplainMostOfTheMisfit) {
+  auto fit = [](std::vector<Effect> effects, std::vector<FitParameter> parameters, double chi2) {
+    CandidateFit c;
+    c.effects = std::move(effects);
+    c.label = internal::Label(c.effects);
+    c.fitted = true;
+    c.effect_parameters = std::move(parameters);
+    c.figures.chi2 = c.figures.heldout_chi2 = chi2;
+    c.heldout_gain = 500;
+    return c;
+  };
+  const FitParameter k3 = {.name = "k3", .value = 1.5e7, .standard_error = 1e5};
+  const FitParameter c_s = {.name = "c_s", .value = 5.0, .standard_error = 1.0};
+  FitFigures before;
+  before.chi2 = before.heldout_chi2 = 10000;
+  struct Case {
+    double k3_chi2;
+    bool k3_within_noise;
+    int named;
+    std::vector<int> tested;
+  };
+  for (const Case& x : {Case{3000, true, 0, {1, 0}}, Case{3000, false, 0, {1, 0}}, Case{6000, false, -1, {1, 0, -1}}}) {
+    const std::vector<CandidateFit> all = {
+        fit({Effect::kCubicStiffness}, {k3}, x.k3_chi2),
+        fit({Effect::kCubicStiffness, Effect::kContactDamping}, {k3, c_s}, 2500)};
+    std::vector<int> tested;
+    auto test = [&](int index) -> std::optional<internal::Misfit> {
+      tested.push_back(index);
+      if (index == 1) return internal::Misfit{10.0, 100.0, true};
+      if (index == 0 && !x.k3_within_noise) return internal::Misfit{5.0, 100.0, true};  // k3: 30 scaled errors
+      return std::nullopt;
+    };
+    std::string partial;
+    std::vector<Effect> best_partial;
+    EXPECT_EQ(internal::NameWhatStands(all, 1, before, 10, test, &partial, &best_partial), x.named) << x.k3_chi2;
+    EXPECT_EQ(tested, x.tested);
+    EXPECT_EQ(best_partial, all[1].effects);
+    EXPECT_NE(partial.find("c_s = 5 +- 10 is within 2 standard errors of zero: contact_damping not named"),
+              std::string::npos) << partial;
+    EXPECT_EQ(partial.find("removes only") != std::string::npos, x.named < 0) << partial;  // PartialExplanation
+  }
 }
 
 }  // namespace

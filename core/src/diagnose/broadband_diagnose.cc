@@ -516,30 +516,26 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   BroadbandFitResult chosen_heldout;
   std::string partial;
   std::vector<Effect> best_partial;
-  auto answer = [&] {
+  auto judge = [&](int index) -> std::optional<internal::Misfit> {  // the open-world test of candidates[index]
+    d.chosen = index;
     chosen_heldout = heldout_of(d.chosen);
-    // A named model must explain its own fit parts too (broadband_diagnose.h step 6): its evaluation
-    // there, with the series the open-world test reads.
-    std::optional<BroadbandFitResult> chosen_fit;
-    if (d.chosen >= 0) {
+    if (d.chosen < 0) {  // the base; in place of a model not named (`partial`), on its fit parts too
+      d.unexplained = FindUnexplained(split, base_heldout, partial.empty() ? nullptr : &base_motion, base_model, kind);
+    } else {
+      // A named model must explain its own fit parts too (broadband_diagnose.h step 6): its evaluation
+      // there, with the series the open-world test reads.
       const CandidateFit& c = d.candidates[d.chosen];
-      chosen_fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
+      const BroadbandFitResult fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
+      d.unexplained = FindUnexplained(split, chosen_heldout, &fit, c.model, kind);
     }
-    d.unexplained = FindUnexplained(split, chosen_heldout, chosen_fit ? &*chosen_fit : nullptr,
-                                    d.chosen >= 0 ? d.candidates[d.chosen].model : base_model, kind);
-    partial.clear();
-    best_partial.clear();
-    if (d.chosen >= 0 && d.unexplained) {
-      partial = internal::PartialExplanation(d.candidates[d.chosen], d.fit_before, d.unexplained->dof,
-                                             d.unexplained->parts == "held-out");
-      if (!partial.empty()) {
-        best_partial = d.candidates[d.chosen].effects;
-        d.chosen = -1;
-        chosen_heldout = base_heldout;
-        d.unexplained = FindUnexplained(split, base_heldout, &base_motion, base_model, kind);
-        if (d.unexplained) d.unexplained->description += "; " + partial;
-      }
-    }
+    if (!d.unexplained) return std::nullopt;
+    return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->dof, d.unexplained->parts == "held-out"};
+  };
+  auto answer = [&] {
+    d.chosen =
+        internal::NameWhatStands(d.candidates, d.chosen, d.fit_before, options.min_heldout_gain, judge, &partial,
+                                 &best_partial);
+    if (d.unexplained && !partial.empty()) d.unexplained->description += "; " + partial;
   };
   answer();
   // The coil's inductance, where the library without it leaves the misfit unexplained: the selection

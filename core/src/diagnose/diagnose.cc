@@ -533,28 +533,22 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   std::optional<FitResult> slopes_refit;  // RefitBaseWithSlopes, once it was needed
   bool slopes_refit_tried = false;
   const FitResult* refit = nullptr;       // slopes_refit, where the answer stands on it
-  auto answer = [&] {
-    refit = nullptr;
+  auto judge = [&](int index) -> std::optional<internal::Misfit> {  // the open-world test of candidates[index]
+    d.chosen = index;
     chosen_parameters =
         internal::BuildProblem(d.chosen >= 0 ? d.candidates[d.chosen].model : d.base.model, options.fit.model,
                                d.chosen >= 0 ? d.candidates[d.chosen].effects : std::vector<Effect>{}, context, 0)
             .parameters.size();
     d.after = d.chosen >= 0 ? MatchAll(d.candidates[d.chosen].model, analyses, split.heldout, kind, orders) : d.before;
     d.unexplained = internal::FindUnexplained(d.after, analyses, chosen_parameters);
-    // A library effect that removes less of the misfit than it leaves does not explain it: say so.
-    partial.clear();
-    best_partial.clear();
-    if (d.chosen >= 0 && d.unexplained) {
-      const CandidateFit& c = d.candidates[d.chosen];
-      partial = internal::PartialExplanation(c, d.fit_before, d.unexplained->expected_chi2);
-      if (!partial.empty()) {
-        best_partial = c.effects;
-        d.chosen = -1;
-        d.after = d.before;
-        const ExtendedProblem base_problem = internal::BuildProblem(d.base.model, options.fit.model, {}, context, 0);
-        d.unexplained = internal::FindUnexplained(d.after, analyses, base_problem.parameters.size());
-      }
-    }
+    if (!d.unexplained) return std::nullopt;
+    return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->expected_chi2, true};
+  };
+  auto answer = [&] {
+    refit = nullptr;
+    d.chosen =
+        internal::NameWhatStands(d.candidates, d.chosen, d.fit_before, options.min_heldout_gain, judge, &partial,
+                                 &best_partial);
     if (d.chosen >= 0 || !partial.empty() || !d.unexplained || seconds_left() <= 0) return;
     if (!slopes_refit_tried) {
       progress(stages - internal::MapStages(options), "the open-world test",

@@ -364,9 +364,29 @@ std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& bef
          ": it is not named";
 }
 
-int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stand_in, double min_heldout_gain) {
-  std::vector<Effect> kept = candidates[stand_in].effects;
-  std::erase_if(kept, ActsAtTheStop);
+std::vector<Effect> SignificantUnderMisfit(const CandidateFit& c, double misfit_to_noise, std::string* why) {
+  CandidateFit scaled = c;
+  const double ratio = std::isfinite(misfit_to_noise) ? std::max(1.0, misfit_to_noise) : 1.0;
+  for (FitParameter& p : scaled.effect_parameters) p.standard_error *= ratio;
+  std::vector<Effect> kept, dropped;
+  std::string reasons;
+  for (Effect e : c.effects) {
+    const std::string insignificant = Insignificance(scaled, e);
+    if (insignificant.empty()) {
+      kept.push_back(e);
+    } else {
+      dropped.push_back(e);
+      reasons += (reasons.empty() ? "" : "; ") + insignificant;
+    }
+  }
+  if (!dropped.empty())
+    *why += (why->empty() ? "" : "; ") + c.label + " leaves a misfit of " + Format(ratio, 3) +
+            " times the noise, and with its standard errors scaled by that, " + reasons + ": " + Label(dropped) +
+            " not named";
+  return kept;
+}
+
+int BestPart(const std::vector<CandidateFit>& candidates, const std::vector<Effect>& kept, double min_heldout_gain) {
   int best = -1;
   for (size_t i = 0; i < candidates.size(); ++i) {
     const CandidateFit& c = candidates[i];
@@ -378,6 +398,35 @@ int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stan
       best = static_cast<int>(i);
   }
   return best;
+}
+
+int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stand_in, double min_heldout_gain) {
+  std::vector<Effect> kept = candidates[stand_in].effects;
+  std::erase_if(kept, ActsAtTheStop);
+  return BestPart(candidates, kept, min_heldout_gain);
+}
+
+int NameWhatStands(const std::vector<CandidateFit>& candidates, int chosen, const FitFigures& before,
+                   double min_heldout_gain, const std::function<std::optional<Misfit>(int)>& test,
+                   std::string* partial, std::vector<Effect>* best_partial) {
+  partial->clear();
+  best_partial->clear();
+  std::optional<Misfit> misfit = test(chosen);
+  while (chosen >= 0 && misfit) {
+    const CandidateFit& c = candidates[chosen];
+    const std::vector<Effect> kept = SignificantUnderMisfit(c, misfit->to_noise, partial);
+    if (kept.size() == c.effects.size()) break;
+    if (best_partial->empty()) *best_partial = c.effects;
+    chosen = BestPart(candidates, kept, min_heldout_gain);
+    misfit = test(chosen);
+  }
+  if (chosen < 0 || !misfit) return chosen;
+  const std::string why = PartialExplanation(candidates[chosen], before, misfit->expected_chi2, misfit->heldout);
+  if (why.empty()) return chosen;
+  *partial = partial->empty() ? why : *partial + "; " + why;
+  if (best_partial->empty()) *best_partial = candidates[chosen].effects;
+  test(-1);
+  return -1;
 }
 
 void LabelDecisions(int chosen, const std::string& partial, const std::vector<Effect>& best_partial,

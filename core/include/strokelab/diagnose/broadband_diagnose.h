@@ -34,7 +34,9 @@
 //      it is held at 0.
 //   6. Open world: the chosen model's held-out chi-square against its 1e-3 upper tail under noise alone,
 //      the noise levels' own spread included (broadband_fit.h's rejection test). Beyond it, the misfit is
-//      "unexplained", with the parts where it lives and the residual's dominant frequency there. A named
+//      "unexplained", with the parts where it lives and the residual's dominant frequency there. Its
+//      effects must then stand with their standard errors scaled by the misfit's ratio to noise, as in
+//      the stepped diagnosis (selection.h SignificantUnderMisfit). A named
 //      model must also explain the parts it was fitted to by the same test: where it does not, it is
 //      named only if it removed more of the fit parts' excess than it leaves (else, as for the held-out
 //      parts, "unexplained", with that candidate's share). Records with hard impacts can hold a fit in a

@@ -33,8 +33,11 @@
 //      more than `min_heldout_gain` on the held-out records. With two effects missing, either one's
 //      fit alone can do worse on the held-out records (selection.h).
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
-//      is beyond noise, the report says where; when the chosen effects removed less of the excess than
-//      they leave, they are not named (the misfit is "unexplained", with the best candidate's share).
+//      is beyond noise, the report says where, and its effects must stand again with their standard
+//      errors scaled by the misfit's ratio to noise (selection.h SignificantUnderMisfit; the best part
+//      of the model whose effects do answers instead); when the chosen effects removed less of the
+//      excess than they leave, they are not named (the misfit is "unexplained", with the best
+//      candidate's share).
 //      Where it is unexplained and coil_inductance was not a candidate, steps 4-6 run again with it
 //      (DiagnoseOptions::coil_when_unexplained; fits done before are not repeated). The coil added to a
 //      model without one is first looked at with tau_e on its floor (effects.cc): where a Gauss-Newton

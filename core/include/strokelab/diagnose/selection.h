@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -53,11 +54,35 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
 // than it leaves.
 std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& before, double expected_chi2,
                                bool heldout = true);
+// The effects of `c` that stand where its model leaves a misfit of `misfit_to_noise` times the noise
+// (the open-world test's ratio): its standard errors, which assume residuals of noise alone, are scaled
+// by that ratio (at least 1; Birge's ratio: R. T. Birge, "The calculation of errors by the method of
+// least squares", Phys. Rev. 40 (1932) 207-227), and an effect whose parameter is then within two of
+// its null is left out, with why appended to `why`. A model that misses by ten times the noise fits
+// library effects to a force it lacks, and their parameters' noise-only standard errors then say
+// nothing (gen2 9998: damping that grows with x^2 was "explained" by three library effects).
+std::vector<Effect> SignificantUnderMisfit(const CandidateFit& c, double misfit_to_noise, std::string* why);
+// The fitted candidate whose effects are all among `kept`, that beats the base on the held-out records
+// by more than `min_heldout_gain` and has the lowest held-out chi-square, or -1 (the base).
+int BestPart(const std::vector<CandidateFit>& candidates, const std::vector<Effect>& kept, double min_heldout_gain);
+// What the open-world test found beyond noise in a model's held-out (or fit) residuals.
+struct Misfit {
+  double to_noise = 1.0;       // the misfit's RMS over noise's
+  double expected_chi2 = 0.0;  // the chi-square noise alone gives (PartialExplanation's)
+  bool heldout = true;         // false: the fit records' (PartialExplanation's)
+};
+// The open world's naming (diagnose.h step 6): `test(index)` runs the open-world test of
+// candidates[index] (-1: the base) and returns its misfit where it is beyond noise. While the chosen
+// model's misfit leaves one of its effects insignificant (SignificantUnderMisfit), its BestPart of the
+// effects that stand answers instead; then a model that removes less of the excess than it leaves
+// (PartialExplanation) is not named. Returns the index named (-1: none; the last test run was of it),
+// with why the others were not in `partial` and the first of them in `best_partial` (LabelDecisions').
+int NameWhatStands(const std::vector<CandidateFit>& candidates, int chosen, const FitFigures& before,
+                   double min_heldout_gain, const std::function<std::optional<Misfit>(int)>& test,
+                   std::string* partial, std::vector<Effect>* best_partial);
 // Where a mode rings after the impacts that no library effect holds (open_world.h
 // FindRingAboveHarmonics), the effects at the stop of candidates[stand_in] may only stand in for it:
-// the fitted candidate whose effects are a part of its effects without those (Applicable's contact
-// effects), beats the base on the held-out records by more than `min_heldout_gain` and has the
-// lowest held-out chi-square, or -1 (the base).
+// BestPart of its effects without those (Applicable's contact effects).
 int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stand_in, double min_heldout_gain);
 // The report's decisions: "named" for `chosen`, "not named: <partial>" for the candidate of
 // `best_partial`, "beats noise, but another model is better", "rejected: <why>".
