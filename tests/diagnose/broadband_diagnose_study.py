@@ -50,7 +50,17 @@ CASES = [
     ("second_stop", {"d_upper": 1.2e-3}, "d_upper", CONTACT_LEVELS),
     # L = 2 mH over R = 3 Ohm, 0.8 N s/m of c_p the coil's back-EMF (tried in the coil's round).
     ("coil_inductance", {"tau_e": 2e-3 / 3, "c_emf": 0.8}, "tau_e", SMOOTH_LEVELS),
+    # Two effects at once (0.32.0, not in the default: --cases PAIRS): each named, each within 25 %.
+    ("cubic_stiffness+quadratic_damping", {"k3": 1.5e7, "c2": 1.0}, "k3,c2", SMOOTH_LEVELS),
+    ("hertzian_contact+cubic_stiffness", {"contact_law": "hertzian", "k_s": 1.5e7, "k3": 1.5e7}, "k_s,k3",
+     CONTACT_LEVELS),
+    ("dry_friction+quadratic_stiffness", {"friction_n": 0.003, "k2": 1.5e4}, "friction_n,k2", SMOOTH_LEVELS),
+    ("contact_damping+force_factor", {"c_s": 40.0, "b2": -6e4, "back_emf_damping_n_s_per_m": 0.8}, "c_s,b2",
+     CONTACT_LEVELS),
+    ("amplifier_saturation+cubic_stiffness", {"amplifier_limit_v": 1.0, "k3": 1.5e7}, "amplifier_limit_v,k3",
+     SMOOTH_LEVELS),
 ]
+PAIRS = [c[0] for c in CASES if "+" in c[0]]
 
 # Parameter keys (as the fit reports them) to the JSON names truth.json's model uses.
 JSON_NAMES = {"k3": "cubic_stiffness_n_per_m3", "k2": "quadratic_stiffness_n_per_m2", "friction_n": "friction_force_n",
@@ -81,20 +91,19 @@ def run(binary, case, seed, workdir):
     out = subprocess.run([binary, "diagnose", "--data", data, "--json"], check=True, capture_output=True, text=True)
     d = json.loads(out.stdout)
     named = [m["effect"] for m in d["missing_physics"]]
-    value = truth = None
-    if parameter and named:
-        for m in d["missing_physics"]:
-            if parameter in m["parameters"]:
-                value = m["parameters"][parameter]["value"]
-    if parameter:
-        with open(os.path.join(data, "truth.json")) as f:
-            truth = json.load(f)["model"][JSON_NAMES[parameter]]
+    keys = parameter.split(",") if parameter else []
+    fitted = {k: m["parameters"][k]["value"] for m in d["missing_physics"] for k in keys if k in m["parameters"]}
+    with open(os.path.join(data, "truth.json")) as f:
+        model_truth = json.load(f)["model"]
+    truths = {k: model_truth[JSON_NAMES[k]] for k in keys}
+    value = ",".join(f"{fitted[k]:.4g}" if k in fitted else "-" for k in keys) or None
+    truth = ",".join(f"{truths[k]:.4g}" for k in keys) or None
     dof = d["heldout_dof"]
     excess_before = d["fit_before"]["heldout_chi2"] - dof
     excess_after = d["fit_after"]["heldout_chi2"] - dof
-    ok = None
-    if parameter:
-        ok = named == [name] and value is not None and truth and abs(value / truth - 1) <= 0.25
+    if keys:
+        ok = sorted(named) == sorted(name.split("+")) and all(
+            k in fitted and truths[k] and abs(fitted[k] / truths[k] - 1) <= 0.25 for k in keys)
     else:
         ok = not named and d["unexplained"] is None
     return {"case": name, "seed": seed, **o, "named": named, "value": value, "truth": truth,
@@ -108,11 +117,13 @@ def main():
     parser.add_argument("--binary", default=DEFAULT_BINARY)
     parser.add_argument("--seeds", type=int, default=2, help="campaigns per case")
     parser.add_argument("--first-seed", type=int, default=8201)
-    parser.add_argument("--cases", default="", help="comma-separated case names (default: all)")
+    parser.add_argument("--cases", default="",
+                        help="comma-separated case names, PAIRS for the pairs (default: all single effects)")
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--out", default=None, help="JSONL of every campaign (replaced)")
     args = parser.parse_args()
-    cases = [c for c in CASES if not args.cases or c[0] in args.cases.split(",")]
+    chosen = args.cases.replace("PAIRS", ",".join(PAIRS)).split(",")
+    cases = [c for c in CASES if (c[0] in chosen if args.cases else "+" not in c[0])]
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     print(f"cases {[c[0] for c in cases]}, seeds {seeds[0]}..{seeds[-1]}", flush=True)
     rows = []
