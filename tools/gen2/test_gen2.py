@@ -182,7 +182,7 @@ class DiagnosisTest(unittest.TestCase):
     an effect in no library (damping that grows with x^2) gets `unexplained` and no library effect
     named; the coil's inductance is named, tried where the other effects leave the misfit unexplained or
     on request (--coil-inductance), and left unexplained with --no-coil-when-unexplained.
-    Two cases fail today and are marked expected failures with what happens:
+    One case fails today and is marked an expected failure with what happens:
     an unexpected success is reported, so a fix shows."""
 
     def diagnose(self, seed, effects, options=()):
@@ -260,10 +260,8 @@ class DiagnosisTest(unittest.TestCase):
         self.expect_named(1410, ["--effect", "coil_inductance=2e-3"], {"coil_inductance": {"tau_e": 2e-3 / 3.0}},
                           ["--coil-inductance"])
 
-    # Open (issue 13), as of 2026-11-26: "unexplained" is set (8.78 x noise), but contact_damping +
-    # cubic_stiffness is named beside it, as a partial explanation (it removes more of the misfit than
-    # it leaves).
-    @unittest.expectedFailure
+    # An expected failure until 0.32.0: contact_damping + cubic_stiffness was named beside "unexplained"
+    # (8.78 x noise), as a partial explanation; with standard errors scaled by the misfit, neither stands.
     def test_position_damping_in_no_library(self):
         self.expect_nothing(1409, ["--effect", "position_damping=2e5"], unexplained=True)
 
