@@ -4,8 +4,8 @@
 Each case is one campaign of this generator (6 frequencies x 4 amplitudes, 1 s records at 51.2 kHz
 after 5 s from rest, 0.5 mV noise, 10 mV offset, 0.5 mV hum, k_p, c_p, g, d and k_s perturbed by up to
 10 %; the response channel where the case says) with the listed effects, each at the size the
-diagnosis tests use (SHAPED's cases: their own sizes, and campaign arguments in place of these). Every --strokelab binary diagnoses every campaign (side by side), and each verdict
-is scored:
+diagnosis tests use (SHAPED's cases: their own sizes, and campaign arguments in place of these). Every
+--strokelab binary diagnoses every campaign (side by side), and each verdict is scored:
 - right: exactly the library effects concealed are named, each parameter within 25 % of the truth,
   and nothing is left unexplained (for a case with an effect in no library, a stop on a flexure or
   damping that grows with x^2: the library effects named, or fewer, and "unexplained" set);
@@ -99,8 +99,8 @@ CASES = {
     9980: (["quadratic_damping", "force_factor"], "velocity"),
 }
 # Cases at sizes and in campaigns of other shapes (0.32.0): seed -> ({effect: value}, response, campaign
-# arguments that replace the default ones). Fixed before any was run; 9981-9990 to look at, 9991-10000 run
-# once at the end.
+# arguments that replace the default ones). 9981-10000 were fixed before any was run, then all run at
+# 0.31.0; of them, 9998 was looked at.
 WIDE, FEW = ["--frequencies-hz", "4,5,6,7,7.5,8,9,10,12,14"], ["--frequencies-hz", "5,7,8,10", "--amplitudes-v",
                                                                  "0.15,0.35,0.55"]
 NOISY, LONG = ["--noise-rms", "0.002"], ["--sample-rate-hz", "25600", "--duration-s", "2"]
