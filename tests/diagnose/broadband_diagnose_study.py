@@ -3,11 +3,12 @@
 of the library, and for controls, campaigns of multisines at three levels, diagnosed by their time series.
 
 Each campaign is `strokelab synth --excitation multisine` of the paper's model (k_p, c_p, g perturbed
-by up to 10 %, d by 5 %, k_s by 10 %) with one effect of CASES added (none for the control), noise,
-hum and offset drawn per seed, then `strokelab diagnose --json`. Per campaign one JSON line: what was
-named, the effect's parameter against its truth, the held-out chi-square's excess over noise before and
-after, whether the misfit was left unexplained, and the time. The summary counts, per case, campaigns
-whose effect was named alone, within 25 % of its truth; and controls with anything named or flagged. The
+by up to 10 %, d by 5 %, k_s by 10 %) with one effect (or a pair) of CASES added (none for the
+control), noise, hum and offset drawn per seed, then `strokelab diagnose --json`. Per campaign one JSON
+line: what was named, each effect's parameter against its truth (by parameter name), the held-out
+chi-square's excess over noise before and after, whether the misfit was left unexplained, and the time.
+The summary counts, per case, campaigns whose effects were named alone, each within 25 % of its truth;
+and controls with anything named or flagged. The
 held-out chi-square's excess over its degrees of freedom is printed, not judged: each part's noise level
 is estimated from the part, and that estimate's own spread (var 2.5 / n) moves the excess by about
 sqrt(10 n) per part, while the drop between two models on the same parts is exact (the halving against
@@ -96,8 +97,6 @@ def run(binary, case, seed, workdir):
     with open(os.path.join(data, "truth.json")) as f:
         model_truth = json.load(f)["model"]
     truths = {k: model_truth[JSON_NAMES[k]] for k in keys}
-    value = ",".join(f"{fitted[k]:.4g}" if k in fitted else "-" for k in keys) or None
-    truth = ",".join(f"{truths[k]:.4g}" for k in keys) or None
     dof = d["heldout_dof"]
     excess_before = d["fit_before"]["heldout_chi2"] - dof
     excess_after = d["fit_after"]["heldout_chi2"] - dof
@@ -106,10 +105,15 @@ def run(binary, case, seed, workdir):
             k in fitted and truths[k] and abs(fitted[k] / truths[k] - 1) <= 0.25 for k in keys)
     else:
         ok = not named and d["unexplained"] is None
-    return {"case": name, "seed": seed, **o, "named": named, "value": value, "truth": truth,
+    return {"case": name, "seed": seed, **o, "named": named, "value": {k: fitted.get(k) for k in keys}, "truth": truths,
             "heldout_excess_before": excess_before, "heldout_excess_after": excess_after,
             "unexplained": d["unexplained"] is not None, "ok": bool(ok), "conclusion": d["conclusion"],
             "seconds": d["seconds"]}
+
+
+def shown(values):
+    """{"k3": 1.5e7, "c2": None} as "1.5e+07,-" ("-" where nothing was fitted)."""
+    return ",".join("-" if v is None else f"{v:.4g}" for v in values.values()) or "-"
 
 
 def main():
@@ -133,7 +137,7 @@ def main():
             r = future.result()
             rows.append(r)
             print(f"{r['case']:26s} {r['seed']} ok={r['ok']!s:5s} named={','.join(r['named']) or '-':40s} "
-                  f"value={r['value']} truth={r['truth']} excess {r['heldout_excess_before']:.4g} -> "
+                  f"value={shown(r['value'])} truth={shown(r['truth'])} excess {r['heldout_excess_before']:.4g} -> "
                   f"{r['heldout_excess_after']:.4g} unexplained={r['unexplained']} {r['seconds']:.1f} s", flush=True)
     if args.out:
         with open(args.out, "w") as f:
