@@ -14,7 +14,8 @@
 //      (ImpactOnsetsM; the data sheet's where none does), k_s at the data sheet's (paper Table 2).
 //   3. k_p, c_p, g, d (and k_s) fitted to every record's time series, m_p held at options.mass_kg. A fit
 //      the records reject (chi-square beyond its 1e-3 tail) is tried again from d 3 % and 6 % either
-//      side of its start; the first accepted, or the least chi-square, is the result.
+//      side of its start, where no record shows an impact each also from a soft k_s (halfway in log
+//      between k_p and the data sheet's); the first accepted, or the least chi-square, is the result.
 #pragma once
 
 #include <nlohmann/json_fwd.hpp>
