@@ -51,12 +51,14 @@ TEST(WithoutEffectTest, PutsBackOnlyTheEffectsOwnParameters) {
 
 // Scripted candidate fits: chi-square on the fit and held-out records (residual variance 1, kDof
 // degrees of freedom) by the candidate's label and the label it starts from ("" the base), with
-// significant parameters (1 +- 0.1) but those of the effect `insignificant` names (0.05 +- 0.1).
+// significant parameters (1 +- 0.1) but those of the effect `insignificant` names (0.05 +- 0.1) and of
+// the one `unidentified` names (1 without a standard error).
 class ScriptedFits {
  public:
   std::map<std::string, double> chi2;     // "effects<-from" -> chi-square (fit and held-out alike)
   std::map<std::string, double> heldout;  // "effects<-from" -> held-out chi-square, where it differs
   std::map<std::string, Effect> insignificant;  // "effects<-from" -> the effect within noise of zero
+  std::map<std::string, Effect> unidentified;   // "effects<-from" -> the effect not identifiable
   std::vector<std::pair<std::string, ActuatorModel>> starts;  // every fit's label and start model
 
   internal::CandidateFitter Fitter() {
@@ -77,7 +79,8 @@ class ScriptedFits {
       c.heldout_gain = kBase - c.figures.heldout_chi2;
       for (Effect e : effects) {
         const bool weak = insignificant.count(key) > 0 && insignificant.at(key) == e;
-        for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", weak ? 0.05 : 1.0, 0.1});
+        const double error = unidentified.count(key) > 0 && unidentified.at(key) == e ? std::nan("") : 0.1;
+        for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", weak ? 0.05 : 1.0, error});
       }
       c.model = start;
       if (std::find(effects.begin(), effects.end(), Effect::kCubicStiffness) != effects.end())
@@ -125,6 +128,29 @@ TEST(SelectEffectsTest, ASecondEffectThatTakesUpWhatTheFirstFitLeftIsNotNamed) {
       EXPECT_EQ(start.friction_force_n, 0.0);
     }
   EXPECT_TRUE(refit_seen);
+}
+
+// An effect whose null is a limit at infinity stands on its gains alone, unless none of its parameters
+// is identifiable: a second stop the motion never reaches changes nothing the records show, and what
+// its fit gained the refit of the other parameters did (broadband study 8410).
+TEST(SelectEffectsTest, AnEffectWithoutAnIdentifiableParameterIsNotNamed) {
+  ScriptedFits fits;
+  fits.chi2 = {{"second_stop<-", 300}, {"cubic_stiffness<-", 500}};
+  fits.unidentified = {{"second_stop<-", Effect::kSecondStop}};
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, {Effect::kSecondStop, Effect::kCubicStiffness});
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness");
+  for (const CandidateFit& c : candidates) {
+    if (c.label == "second_stop")
+      EXPECT_EQ(c.decision,
+                "d_upper = 1 not identifiable from these records (the gain is the other parameters' refit)");
+  }
+  fits.unidentified.clear();  // reached: its gains decide
+  candidates.clear();
+  const int reached = Select(fits, &candidates, {Effect::kSecondStop, Effect::kCubicStiffness});
+  ASSERT_GE(reached, 0);
+  EXPECT_EQ(candidates[reached].label, "second_stop");
 }
 
 TEST(SelectEffectsTest, APairThatAlsoBeatsTheRefitBeyondNoiseIsNamed) {

@@ -52,14 +52,32 @@ std::string UnclippedLimit(const CandidateFit& c) {
   return "";
 }
 
+// Why an effect whose null is a law or a limit at infinity is not significant: none of its parameters
+// has a standard error (not identifiable: a second stop the motion never reaches, a Hertzian stop never
+// touched). It then changes nothing the records show, and its gain is the other parameters' refit (a
+// broadband campaign whose base fit lacked a soft stop, study seed 8410: a second stop above the motion
+// was named for the lower stop its fit added). Empty when one has a standard error: the held-out gain
+// alone decides for such effects.
+std::string Unidentified(const CandidateFit& c, Effect e) {
+  std::string why;
+  for (const char* key : Info(e).parameters)
+    for (const FitParameter& p : c.effect_parameters) {
+      if (p.name != key) continue;
+      if (std::isfinite(p.standard_error)) return "";
+      why += (why.empty() ? "" : ", ") + p.name + " = " + Format(p.value);
+    }
+  if (why.empty()) return "";
+  return why + " not identifiable from these records (the gain is the other parameters' refit)";
+}
+
 // Why effect `e` of candidate `c` is not significant (empty: it is). A zero-null effect is not when
 // none of its parameters lies beyond kMinSignificance standard errors of zero (within them, or
 // without a standard error: held at a bound or not identifiable). An amplifier limit's null is the
-// largest drive (UnclippedLimit); the other effects' null is a law or a limit at infinity, and the
-// held-out gain alone decides for them.
+// largest drive (UnclippedLimit); the other effects' null is a law or a limit at infinity
+// (Unidentified).
 std::string Insignificance(const CandidateFit& c, Effect e) {
   if (e == Effect::kAmplifierSaturation) return UnclippedLimit(c);
-  if (!NullIsZero(e)) return "";
+  if (!NullIsZero(e)) return Unidentified(c, e);
   std::string why;
   bool significant = false;
   for (const char* key : Info(e).parameters)

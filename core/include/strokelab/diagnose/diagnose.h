@@ -19,7 +19,8 @@
 //      the fit records) by more than `min_heldout_gain`, the fit records' chi-square by more than the
 //      Akaike penalty 2 k (k its new parameters), and its parameter lies beyond two standard errors of
 //      zero (for effects whose absence is a zero parameter; an amplifier limit, beyond two standard
-//      errors below the campaign's largest drive). The best accepted single is taken; then
+//      errors below the campaign's largest drive; a second stop or a Hertzian stop, a parameter the records
+//      identify). The best accepted single is taken; then
 //      every other fitted effect is added in turn (up to three effects; not only the accepted ones:
 //      beside a large first effect a second one's single fit can do worse than the base), the best
 //      that beats the current model by the same rules is kept if dropping any of its effects again
