@@ -185,8 +185,9 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
   // when the records reject the fit without it: a displacement record that grazes the stop by a few
   // micrometres shows no impact in its differences, yet no stop-free model fits it. A stop no record
   // shows an impact of may also be soft, and from the data sheet's stiff one a fit runs the stop out of
-  // the motion (a Hertzian stop beside a hardening suspension, broadband study 8410: d and k_s ended on
-  // their bounds at 3.2 times the noise's chi-square, where a linear stop of 7e4 N/m fits at 1.005).
+  // the motion (a Hertzian stop beside a hardening suspension, broadband study 8410: d and k_s ran to
+  // their bounds, and the stop-free fit stayed the base at 3.2 times the noise's chi-square, where a
+  // linear stop of 7e4 N/m fits at 1.005).
   // Such a stop is also tried from a soft start at each position: halfway (in log) between the
   // suspension's stiffness, below which a stop hardly stops, and the data sheet's.
   constexpr double kStopFactors[] = {1.0, 0.97, 1.03, 0.94, 1.06};
