@@ -50,9 +50,10 @@ TEST(WithoutEffectTest, PutsBackOnlyTheEffectsOwnParameters) {
 }
 
 // Scripted candidate fits: chi-square on the fit and held-out records (residual variance 1, kDof
-// degrees of freedom) by the candidate's label and the label it starts from ("" the base), with
-// significant parameters (1 +- 0.1) but those of the effect `insignificant` names (0.05 +- 0.1) and of
-// the one `unidentified` names (1 without a standard error).
+// degrees of freedom; with `broadband`, none, and the fit's own test's verdict) by the candidate's
+// label and the label it starts from ("" the base), with significant parameters (1 +- 0.1) but those
+// of the effect `insignificant` names (0.05 +- 0.1) and of the one `unidentified` names (1 without a
+// standard error).
 class ScriptedFits {
  public:
   std::map<std::string, double> chi2;     // "effects<-from" -> chi-square (fit and held-out alike)
@@ -60,6 +61,12 @@ class ScriptedFits {
   std::map<std::string, Effect> insignificant;  // "effects<-from" -> the effect within noise of zero
   std::map<std::string, Effect> unidentified;   // "effects<-from" -> the effect not identifiable
   std::vector<std::pair<std::string, ActuatorModel>> starts;  // every fit's label and start model
+  bool broadband = false;  // figures as the broadband diagnosis's: beyond noise past kBroadbandChi2Limit
+
+  void SetNoiseTest(FitFigures* f) const {
+    f->dof = broadband ? 0 : kDof;
+    f->beyond_noise = broadband ? f->chi2 > kBroadbandChi2Limit : internal::BeyondNoise(f->chi2, kDof);
+  }
 
   internal::CandidateFitter Fitter() {
     return [this](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
@@ -74,7 +81,7 @@ class ScriptedFits {
       c.figures.chi2 = c.figures.heldout_chi2 = chi2.at(key);
       if (heldout.count(key) > 0) c.figures.heldout_chi2 = heldout.at(key);
       c.figures.residual_variance = 1.0;
-      c.figures.dof = kDof;
+      SetNoiseTest(&c.figures);
       c.fit_gain = kBase - c.figures.chi2;
       c.heldout_gain = kBase - c.figures.heldout_chi2;
       for (Effect e : effects) {
@@ -92,6 +99,7 @@ class ScriptedFits {
   }
   static constexpr double kBase = 1000.0;
   static constexpr size_t kDof = 100;  // chi-square(100)'s 0.999 point is 149
+  static constexpr double kBroadbandChi2Limit = 149.0;
 };
 
 int Select(ScriptedFits& fits, std::vector<CandidateFit>* candidates,
@@ -99,7 +107,7 @@ int Select(ScriptedFits& fits, std::vector<CandidateFit>* candidates,
   FitFigures base;
   base.chi2 = base.heldout_chi2 = ScriptedFits::kBase;
   base.residual_variance = 1.0;
-  base.dof = ScriptedFits::kDof;
+  fits.SetNoiseTest(&base);
   return SelectEffects(singles, base, PaperModel(), DiagnoseOptions{}, [] { return 1e9; }, fits.Fitter(), candidates);
 }
 
@@ -211,6 +219,25 @@ TEST(SelectEffectsTest, APairWhoseSinglesLoseOnTheHeldOutRecordsIsFoundFromTheLa
   ASSERT_GE(chosen, 0);
   EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+dry_friction");
   EXPECT_EQ(candidates[chosen].decision, "");
+}
+
+// The broadband diagnosis's figures carry no degrees of freedom: the fit's own test says whether the
+// chosen model leaves its fit records beyond noise (broadband pair 8413, contact damping and a force
+// factor, where the first path took k2).
+TEST(SelectEffectsTest, ABroadbandSelectionLooksAheadWhereItsFitsOwnTestRejectsTheChosenModel) {
+  ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(950);
+  fits.broadband = true;
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].figures.dof, 0u);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+dry_friction");
+
+  fits.chi2["quadratic_damping<-"] = 120;  // within the fit's own test: no look-ahead
+  candidates.clear();
+  const int within = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(within, 0);
+  EXPECT_EQ(candidates[within].label, "quadratic_damping");
 }
 
 TEST(SelectEffectsTest, TheLookAheadMustBeatTheFirstPathBeyondNoise) {

@@ -150,6 +150,7 @@ FitFigures Figures(const BroadbandSplit& split, const BroadbandFitResult& fit, c
   f.nrmse = Nrmse(split.fit_pointers, fit.records);
   f.heldout_chi2 = heldout.fit.chi2;
   f.heldout_nrmse = Nrmse(split.heldout_pointers, heldout.records);
+  f.beyond_noise = fit.rejected;
   return f;
 }
 

@@ -101,6 +101,7 @@ FitFigures Figures(const std::vector<RecordMatch>& matches, size_t parameters) {
   f.heldout_nrmse = power_ho > 0 ? std::sqrt(mismatch_ho / power_ho) : kNaN;
   f.residual_variance = residuals > parameters ? f.chi2 / static_cast<double>(residuals - parameters) : kNaN;
   f.dof = residuals > parameters ? residuals - parameters : 0;
+  f.beyond_noise = internal::BeyondNoise(f.chi2, f.dof);
   return f;
 }
 
@@ -310,9 +311,6 @@ CandidateFit RunCandidate(const std::vector<Effect>& effects, const CandidateSta
   return c;
 }
 
-// Whether `f`'s fit records reject its model (extended_fit.h BeyondNoise).
-bool BeyondNoise(const FitFigures& f) { return internal::BeyondNoise(f.chi2, f.dof); }
-
 // The diagnosis's end (diagnose.h, step 6 on): the misfit left described from the data, the
 // candidates' decisions labelled, and the answer: the diagnosed model, its effects' curves and the
 // conclusion. `refit` (may be null) is the base refitted with the sampling slopes where the answer
@@ -514,9 +512,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // noise, the selection runs again with each single also fitted from the staged estimates (with the
   // scales of their orbits), the better of its two fits counting.
   const bool any_within_noise = std::any_of(d.candidates.begin(), d.candidates.end(), [](const CandidateFit& c) {
-    return c.fitted && !BeyondNoise(c.figures);
+    return c.fitted && !c.figures.beyond_noise;
   });
-  if (d.base.refinement.ended_on_bound && BeyondNoise(d.fit_before) && !any_within_noise) {
+  if (d.base.refinement.ended_on_bound && d.fit_before.beyond_noise && !any_within_noise) {
     FitResult staged = d.base;
     staged.model = d.base.staged;
     from_staged = CandidateStart{d.base.staged, Context(staged, split.fit)};

@@ -28,11 +28,11 @@
 //      refitted from the larger one's solution with the added effect taken out, and the better of its
 //      two fits counts: a fit from the base can end short of its optimum, and a second effect then
 //      takes up only what that fit left. Where the model so chosen (or the base, when none was)
-//      still fails the fit records' noise test, the selection looks ahead: from each model on its
-//      path, forward selection again from that model's extension with the largest fit-records gain,
-//      whose model is taken if it beats the base by the same rules and the model chosen so far by
-//      more than `min_heldout_gain` on the held-out records. With two effects missing, either one's
-//      fit alone can do worse on the held-out records (selection.h).
+//      still fails the fit records' noise test (FitFigures::beyond_noise), the selection looks ahead:
+//      from each model on its path, forward selection again from that model's extension with the
+//      largest fit-records gain, whose model is taken if it beats the base by the same rules and
+//      the model chosen so far by more than `min_heldout_gain` on the held-out records. With two
+//      effects missing, either one's fit alone can do worse on the held-out records (selection.h).
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
 //      is beyond noise, the report says where, and its effects must stand again with their standard
 //      errors scaled by the misfit's ratio to noise (selection.h SignificantUnderMisfit; the best part
@@ -161,6 +161,9 @@ struct FitFigures {
   double heldout_chi2 = 0.0;   // over the held-out records
   double residual_variance = 0.0;  // chi2 / (M - P) on the fit records
   size_t dof = 0;                  // M - P
+  // The fit records reject the model: its chi-square is beyond noise by the fit's own test (stepped:
+  // extended_fit.h BeyondNoise over dof; broadband: broadband_fit.h's, the noise levels' spread included).
+  bool beyond_noise = false;
 };
 
 // One piece of evidence: a measured figure, what it means, and which effects it points to.

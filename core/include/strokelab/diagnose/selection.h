@@ -42,10 +42,10 @@ using CandidateFitter =
 // the base can end short of its optimum and leave a misfit that a spurious second effect then takes
 // up, and so is any model without one effect that was never fitted. Where the effect not needed is one
 // the model held before, the selection goes on from the model without it. Where
-// the model so chosen still fails the fit records' noise test, it looks ahead from each model on its
-// path through that model's extension with the largest fit-records gain (selection.cc). Appends
-// every candidate to `candidates`, each with its decision (empty: it beats the model it extends beyond
-// noise), and returns the chosen one's index (-1: none beats the base).
+// the model so chosen still fails the fit records' noise test (FitFigures::beyond_noise), it looks ahead
+// from each model on its path through that model's extension with the largest fit-records gain
+// (selection.cc). Appends every candidate to `candidates`, each with its decision (empty: it beats the
+// model it extends beyond noise), and returns the chosen one's index (-1: none beats the base).
 int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
                   const DiagnoseOptions& options, const std::function<double()>& seconds_left,
                   const CandidateFitter& fit, std::vector<CandidateFit>* candidates);
