@@ -240,6 +240,19 @@ TEST(SelectEffectsTest, ABroadbandSelectionLooksAheadWhereItsFitsOwnTestRejectsT
   EXPECT_EQ(candidates[within].label, "quadratic_damping");
 }
 
+TEST(SelectEffectsTest, ALookAheadModelThatItsFitRecordsRejectIsNotTaken) {
+  ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(950);
+  fits.chi2["cubic_stiffness+dry_friction<-cubic_stiffness"] = 300;  // beyond noise (149)
+  std::vector<CandidateFit> candidates;
+  const int chosen = Select(fits, &candidates, kThreeSingles);
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "quadratic_damping");
+  const auto pair = std::find_if(candidates.begin(), candidates.end(),
+                                 [](const CandidateFit& c) { return c.label == "cubic_stiffness+dry_friction"; });
+  ASSERT_NE(pair, candidates.end());
+  EXPECT_EQ(pair->decision, "looked ahead to, but its fit records reject it too");
+}
+
 TEST(SelectEffectsTest, TheLookAheadMustBeatTheFirstPathBeyondNoise) {
   ScriptedFits fits = TwoEffectsHiddenFromTheFirstPath(105);  // the pair gains only 5 over it
   std::vector<CandidateFit> candidates;

@@ -30,9 +30,10 @@
 //      takes up only what that fit left. Where the model so chosen (or the base, when none was)
 //      still fails the fit records' noise test (FitFigures::beyond_noise), the selection looks ahead:
 //      from each model on its path, forward selection again from that model's extension with the
-//      largest fit-records gain, whose model is taken if it beats the base by the same rules and
-//      the model chosen so far by more than `min_heldout_gain` on the held-out records. With two
-//      effects missing, either one's fit alone can do worse on the held-out records (selection.h).
+//      largest fit-records gain, whose model is taken if it beats the base by the same rules, fits
+//      its fit records within noise, and beats the model chosen so far by more than
+//      `min_heldout_gain` on the held-out records. With two effects missing, either one's fit alone
+//      can do worse on the held-out records (selection.h).
 //   6. Open world (Unexplained): the chosen model's held-out chi-square against noise alone. When it
 //      is beyond noise, the report says where, and its effects must stand again with their standard
 //      errors scaled by the misfit's ratio to noise (selection.h SignificantUnderMisfit; the best part

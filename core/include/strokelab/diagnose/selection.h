@@ -43,9 +43,10 @@ using CandidateFitter =
 // up, and so is any model without one effect that was never fitted. Where the effect not needed is one
 // the model held before, the selection goes on from the model without it. Where
 // the model so chosen still fails the fit records' noise test (FitFigures::beyond_noise), it looks ahead
-// from each model on its path through that model's extension with the largest fit-records gain
-// (selection.cc). Appends every candidate to `candidates`, each with its decision (empty: it beats the
-// model it extends beyond noise), and returns the chosen one's index (-1: none beats the base).
+// from each model on its path through that model's extension with the largest fit-records gain, and
+// takes a model found so only where its fit records accept it (selection.cc). Appends every candidate
+// to `candidates`, each with its decision (empty: it beats the model it extends beyond noise), and
+// returns the chosen one's index (-1: none beats the base).
 int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
                   const DiagnoseOptions& options, const std::function<double()>& seconds_left,
                   const CandidateFitter& fit, std::vector<CandidateFit>* candidates);
