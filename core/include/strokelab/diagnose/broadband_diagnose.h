@@ -27,9 +27,9 @@
 //      parts (their starts, offsets and hum fitted, the model held), from the motion continued from the
 //      fit parts: the state the model reaches at the end of each record's fit part.
 //   5. Choice: as diagnose.h step 5, the same rules and numbers (diagnose/selection.h), the look-ahead
-//      where the chosen model's fit parts reject it by broadband_fit.h's test, and the coil's
-//      round: where step 6 finds the misfit unexplained and coil_inductance was not a candidate,
-//      steps 5 and 6 run again with it (DiagnoseOptions::coil_when_unexplained). The coil's pole adds
+//      where broadband_fit.h's test of the fit parts rejects the chosen model, and the coil's round:
+//      where step 6 finds the misfit unexplained and coil_inductance was not a candidate, steps 5 and
+//      6 run again with it (DiagnoseOptions::coil_when_unexplained). The coil's pole adds
 //      its force as a state of every segment, started where it settles. The back-EMF's part of c_p is
 //      fitted only where the base model's stop meets the records' impacts (effects.cc); clear of them
 //      it is held at 0.
