@@ -149,11 +149,11 @@ TEST(SelectEffectsTest, AnEffectWithoutAnIdentifiableParameterIsNotNamed) {
   const int chosen = Select(fits, &candidates, {Effect::kSecondStop, Effect::kCubicStiffness});
   ASSERT_GE(chosen, 0);
   EXPECT_EQ(candidates[chosen].label, "cubic_stiffness");
-  for (const CandidateFit& c : candidates) {
-    if (c.label == "second_stop")
-      EXPECT_EQ(c.decision,
-                "d_upper = 1 not identifiable from these records (the gain is the other parameters' refit)");
-  }
+  const auto second_stop = std::find_if(candidates.begin(), candidates.end(),
+                                        [](const CandidateFit& c) { return c.label == "second_stop"; });
+  ASSERT_NE(second_stop, candidates.end());
+  EXPECT_EQ(second_stop->decision,
+            "d_upper = 1 not identifiable from these records (the gain is the other parameters' refit)");
   fits.unidentified.clear();  // reached: its gains decide
   candidates.clear();
   const int reached = Select(fits, &candidates, {Effect::kSecondStop, Effect::kCubicStiffness});
