@@ -34,7 +34,8 @@ A campaign of broadband records (noise, multisine, sweep) is fitted by its time 
 model driven by the measured voltage, in segments whose start states are unknowns (multiple shooting),
 from paper Eq. 3 fitted to the quietest record's FRF, then to the time series of the records without
 impacts; the stop's d and k_s are fitted where a record shows impacts, d from where the impacts set in.
-A fit that still ends away from the optimum (records with hard impacts) is reported as rejected by the
+Where none does, the stop is fitted only if the records reject the fit without it, and kept only if it
+lowers the chi-square by more than Akaike's penalty for its two parameters. A fit that still ends away from the optimum (records with hard impacts) is reported as rejected by the
 records. A campaign of both kinds is fitted jointly: its stepped sines alone first, then
 every parameter refined on all records at once (the stepped records' harmonics and the broadband
 records' time series in one least-squares problem).

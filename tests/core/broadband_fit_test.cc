@@ -465,6 +465,23 @@ TEST(BroadbandCampaignFit, ASoftStopThatNoRecordShowsAsImpactsIsFound) {
   ExpectStopModelWithin4Errors(fit, synthesis.model);
 }
 
+// Clipping (the amplifier's limit at 1 V under multisines up to 0.5 V rms) leaves the records beyond
+// noise without a stop, and no record shows an impact. A stop is then fitted from each start, but the
+// motion does not reach it and it lowers the chi-square by nothing: it must be left out, not kept at
+// whichever start's last bits were lowest (broadband study 8414: d at -0.94 mm, hit by the held-out parts).
+TEST(BroadbandCampaignFit, AStopThatLowersTheChiSquareByNothingIsLeftOut) {
+  ActuatorModel truth = PaperModel();
+  truth.amplifier_limit_v = 1.0;
+  const Synthesis synthesis = MultisineCampaign(truth, {0.1, 0.25, 0.5}, 53, {{"k_p", 0.1}, {"c_p", 0.1}, {"g", 0.1}});
+  const BroadbandCampaignFit fit = FitBroadbandCampaign(synthesis.campaign, FitOptions{});
+  EXPECT_EQ(fit.impact_onsets, 0u);
+  EXPECT_TRUE(fit.result.rejected) << "clipping is not in the paper's model";
+  EXPECT_GT(fit.starts_tried, 2);
+  EXPECT_FALSE(fit.stop_free);
+  EXPECT_FALSE(fit.result.fit.model.HasLowerStop()) << fit.result.fit.model.lower_stop_m;
+  EXPECT_TRUE(std::ranges::any_of(fit.warnings, [](const std::string& w) { return w.ends_with("it is left out"); }));
+}
+
 // A nominal sensitivity whose sensor truly reads 10 % high: g and d come out 10 % high and are
 // reported as not identifiable; k_p/m_p, c_p/m_p, k_s/m_p and d/g, which the sensitivity does not touch,
 // are reported in their place, within 4 standard errors of the truth (d/g's error from the covariance

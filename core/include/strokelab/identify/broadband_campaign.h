@@ -16,6 +16,8 @@
 //      the records reject (chi-square beyond its 1e-3 tail) is tried again from d 3 % and 6 % either
 //      side of its start, where no record shows an impact each also from a soft k_s (halfway in log
 //      between k_p and the data sheet's); the first accepted, or the least chi-square, is the result.
+//      Where no record shows an impact, the stop is fitted only if the records reject the fit without
+//      it, and kept only if it lowers the chi-square by more than Akaike's penalty for d and k_s (4).
 #pragma once
 
 #include <nlohmann/json_fwd.hpp>
@@ -34,7 +36,7 @@ struct BroadbandCampaignFit {
   std::string start_record;    // the record it came from
   size_t linear_records = 0;   // step 1: records the linear part was refined on (0: not refined)
   ActuatorModel linear_model;  // step 1: the linear part the fit starts from (k_p, c_p, g; no stop)
-  bool stop_free = false;      // step 2: a record shows impacts
+  bool stop_free = false;      // steps 2, 3: the stop is fitted (a record shows impacts, or the fit keeps it)
   double stop_start_m = 0.0;   // step 2: d's start (lower_stop_m, below rest: negative) [m]
   size_t impact_onsets = 0;    // step 2: the impact onsets it is the median of (0: the data sheet's)
   int starts_tried = 0;        // step 3: stop positions tried (more than one where the records reject a fit)
