@@ -459,5 +459,37 @@ TEST(NameWhatStandsTest, TakesThePartThatStandsThenAsksItToExplainMostOfTheMisfi
   }
 }
 
+// A second stop hit once, in a held-out part (broadband study 8415): its candidate removes the whole
+// held-out excess, but the records it is fitted to do not show it (fit gain within Akaike's penalty,
+// d_upper without a standard error). It is said, not named; k3, which also gains nothing on them but
+// removes less of the held-out excess than it leaves, is not; nor is an effect the fit records show.
+TEST(UnseenInFitRecordsTest, SaysWhatOnlyTheHeldOutRecordsShow) {
+  auto fit = [](Effect e, FitParameter parameter, double fit_gain, double heldout_chi2) {
+    CandidateFit c;
+    c.effects = {e};
+    c.label = internal::Label(c.effects);
+    c.fitted = true;
+    c.effect_parameters = {parameter};
+    c.fit_gain = fit_gain;
+    c.figures.heldout_chi2 = heldout_chi2;
+    c.heldout_gain = 1.7e6 - heldout_chi2;
+    return c;
+  };
+  FitFigures before;
+  before.heldout_chi2 = 1.7e6;
+  const double expected = 6144;
+  const CandidateFit stop = fit(Effect::kSecondStop, {.name = "d_upper", .value = 1.2e-3, .standard_error = std::nan("")},
+                                1e-4, 6085);
+  const CandidateFit k3 = fit(Effect::kCubicStiffness, {.name = "k3", .value = -8e5, .standard_error = 6e5}, 1.9, 1.56e6);
+  const CandidateFit shown = fit(Effect::kContactDamping, {.name = "c_s", .value = 40, .standard_error = 2}, 2.1, 6000);
+  const std::string said = internal::UnseenInFitRecords({k3, stop}, before, expected, 10);
+  EXPECT_EQ(said.rfind("second_stop would remove 1.694e+06 of the held-out chi-square's excess and leave none", 0), 0u)
+      << said;
+  EXPECT_NE(said.find("within Akaike's penalty 2; d_upper not identifiable from them): it is not named"),
+            std::string::npos) << said;
+  EXPECT_EQ(internal::UnseenInFitRecords({k3}, before, expected, 10), "");
+  EXPECT_EQ(internal::UnseenInFitRecords({shown, k3}, before, expected, 10), "");
+}
+
 }  // namespace
 }  // namespace strokelab

@@ -552,6 +552,11 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     d.chosen = select();
     answer();
   }
+  if (d.chosen < 0 && d.unexplained && d.unexplained->parts == "held-out")
+    if (const std::string unseen = internal::UnseenInFitRecords(d.candidates, d.fit_before, d.unexplained->dof,
+                                                                options.min_heldout_gain);
+        !unseen.empty())
+      d.unexplained->description += "; " + unseen;
   internal::LabelDecisions(d.chosen, partial, best_partial, &d.candidates);
 
   if (d.chosen >= 0) {

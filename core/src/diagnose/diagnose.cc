@@ -594,7 +594,13 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     partial = partial.empty() ? why : partial + "; " + why;
     if (best_partial.empty()) best_partial = d.candidates[stand_in].effects;
   }
+  const bool heldout_misfit = d.unexplained.has_value();  // on the held-out records' harmonics
   if (!d.unexplained) d.unexplained = std::move(ring);
+  if (d.chosen < 0 && heldout_misfit && !refit)
+    if (const std::string unseen = internal::UnseenInFitRecords(d.candidates, d.fit_before, d.unexplained->expected_chi2,
+                                                                options.min_heldout_gain);
+        !unseen.empty())
+      partial = partial.empty() ? unseen : partial + "; " + unseen;
   Conclude(campaign, analyses, context, refit, chosen_parameters, partial, best_partial, options, &d);
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;

@@ -385,6 +385,32 @@ std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& bef
          ": it is not named";
 }
 
+std::string UnseenInFitRecords(const std::vector<CandidateFit>& candidates, const FitFigures& before,
+                               double expected_chi2, double min_heldout_gain) {
+  const auto penalty = [](const CandidateFit& c) {  // against the base, as GainShortfall's
+    return kAkaikePerParameter * std::max(1.0, static_cast<double>(c.effect_parameters.size()));
+  };
+  int best = -1;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const CandidateFit& c = candidates[i];
+    if (c.fitted && c.heldout_gain > min_heldout_gain && !(c.fit_gain > penalty(c)) &&
+        (best < 0 || c.figures.heldout_chi2 < candidates[best].figures.heldout_chi2))
+      best = static_cast<int>(i);
+  }
+  if (best < 0) return "";
+  const CandidateFit& c = candidates[best];
+  const double removed = before.heldout_chi2 - c.figures.heldout_chi2, left = c.figures.heldout_chi2 - expected_chi2;
+  if (removed < left) return "";
+  std::string unidentified;
+  for (const FitParameter& p : c.effect_parameters)
+    if (!std::isfinite(p.standard_error)) unidentified += (unidentified.empty() ? "; " : ", ") + p.name;
+  if (!unidentified.empty()) unidentified += " not identifiable from them";
+  return c.label + " would remove " + Format(removed) + " of the held-out chi-square's excess and leave " +
+         (left > 0 ? Format(left) : std::string("none")) + ", but the records it is fitted to do not show it (their " +
+         "chi-square falls by " + Format(c.fit_gain) + " residual variances, within Akaike's penalty " +
+         Format(penalty(c)) + unidentified + "): it is not named; records that show it where they are fitted would tell";
+}
+
 std::vector<Effect> SignificantUnderMisfit(const CandidateFit& c, double misfit_to_noise, std::string* why) {
   CandidateFit scaled = c;
   const double ratio = std::isfinite(misfit_to_noise) ? std::max(1.0, misfit_to_noise) : 1.0;
