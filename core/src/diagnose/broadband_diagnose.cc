@@ -15,8 +15,8 @@
 #include "strokelab/base/errors.h"
 #include "strokelab/base/nan.h"
 #include "strokelab/signal/signal.h"
+#include "strokelab/diagnose/broadband_evaluation.h"
 #include "strokelab/diagnose/effect_curves.h"
-#include "strokelab/engines/variational_flow.h"
 #include "strokelab/identify/broadband_campaign.h"
 #include "strokelab/identify/frf_fit.h"
 
@@ -25,6 +25,9 @@ namespace {
 
 using internal::BroadbandFitResult;
 using internal::BroadbandRecordFit;
+using internal::BroadbandSplit;
+using internal::EvaluateHeldOut;
+using internal::EvaluateOnParts;
 using internal::EffectContext;
 using internal::ExtendedProblem;
 using internal::FormatFigure;
@@ -45,17 +48,6 @@ Recording Part(const Recording& record, size_t first, size_t end, const char* wh
   return part;
 }
 
-// The parts with the pointers the fits take.
-struct BroadbandSplit : BroadbandParts {
-  std::vector<const Recording*> fit_pointers, heldout_pointers;
-  std::vector<internal::BroadbandFitOptions::NoiseLevel> noise;  // the records', with their sizes
-  explicit BroadbandSplit(BroadbandParts parts) : BroadbandParts(std::move(parts)) {
-    for (const Recording& r : fit) fit_pointers.push_back(&r);
-    for (const Recording& r : heldout) heldout_pointers.push_back(&r);
-    for (size_t r = 0; r < names.size(); ++r) noise.push_back({noise_rms[r], fit[r].size() + heldout[r].size()});
-  }
-  BroadbandSplit(const BroadbandSplit&) = delete;  // the pointers point into this object
-};
 
 // Takes c_emf out of `problem`'s free parameters (held at its base's value) where `fitted`, a fit of
 // `problem`, could not identify it; whether it did. BuildProblem frees c_emf where the base model's stop
@@ -78,58 +70,8 @@ bool TouchesContacts(const std::vector<Effect>& effects) {
   });
 }
 
-// `model` on `parts` (split's fit or held-out parts) with only their segments' starts, offsets and hum
-// fitted, from `warm`'s (a fit of the same parts; may be null).
-BroadbandFitResult Evaluate(const ActuatorModel& model, const BroadbandSplit& split, bool heldout, ResponseKind kind,
-                            bool series, double max_seconds, const BroadbandFitResult* warm) {
-  ExtendedProblem held;
-  held.base = model;
-  internal::BroadbandFitOptions options;
-  options.keep_series = series;
-  options.max_seconds = std::max(1.0, max_seconds);
-  options.warm_start = warm;
-  options.noise = split.noise;
-  return internal::FitBroadband(heldout ? split.heldout_pointers : split.fit_pointers, kind, held, options);
-}
 
-// The held-out parts' warm start at `model`: the motion continued from the fit parts. A record's held-out
-// part starts where its fit part ends (or, held out first, where the record's end would continue into
-// its start: a multisine's period is its record), so its segments start from the states `model` reaches
-// there, flowed by the record's own voltage from the start that `fit` (a fit of the fit parts at `model`)
-// found for the fit part's last segment; the offsets are the fit parts' (the hum, whose phase runs on,
-// starts at zero). Held-out starts fitted afresh could settle, through impacts, in a valley of their own.
-BroadbandFitResult HeldOutWarmStart(const ActuatorModel& model, const BroadbandSplit& split,
-                                    const BroadbandFitResult& fit) {
-  const double segment_s = internal::BroadbandFitOptions{}.segment_s;
-  BroadbandFitResult warm;
-  size_t fit_segments = 0;
-  for (size_t r = 0; r < split.fit.size(); ++r) {
-    const Recording& part = split.fit[r];
-    const Recording& heldout = split.heldout[r];
-    const double fs = part.sample_rate_hz;
-    const std::vector<size_t> fit_firsts = internal::SegmentFirsts(part.size(), fs, segment_s);
-    fit_segments += fit_firsts.size();
-    State state = fit.segment_starts.at(fit_segments - 1);
-    double t_s = static_cast<double>(fit_firsts.back()) / fs;
-    std::vector<double> voltage = part.voltage_v;
-    voltage.insert(voltage.end(), heldout.voltage_v.begin(), heldout.voltage_v.end());
-    const SampledDrive drive{fs, voltage};
-    for (size_t first : internal::SegmentFirsts(heldout.size(), fs, segment_s)) {
-      const double next_s = static_cast<double>(part.size() + first) / fs;
-      try {
-        state = Flow(model, drive, state, t_s, next_s, {}).end;
-      } catch (const std::exception&) {
-        state = State{};  // the held-out fit starts this segment from rest
-      }
-      t_s = next_s;
-      warm.segment_starts.push_back(state);
-    }
-    std::vector<double> nuisance(fit.nuisance.at(r).size(), 0.0);
-    nuisance[0] = fit.nuisance[r][0];
-    warm.nuisance.push_back(nuisance);
-  }
-  return warm;
-}
+
 
 // sqrt(sum of squared residuals / sum of (response - offset)^2) over the parts.
 double Nrmse(std::span<const Recording* const> parts, const std::vector<BroadbandRecordFit>& fits) {
@@ -380,10 +322,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   if (!d.base.result.fit.converged) d.warnings.push_back("the base fit did not converge: " + d.base.result.fit.report);
   progress(2, "the base model on every part");
   const BroadbandFitResult base_motion =
-      Evaluate(base_model, split, false, kind, true, seconds_left(), &d.base.result);
-  const BroadbandFitResult base_warm = HeldOutWarmStart(base_model, split, d.base.result);
-  const BroadbandFitResult base_heldout =
-      Evaluate(base_model, split, true, kind, true, seconds_left(), &base_warm);
+      EvaluateOnParts(base_model, split, false, kind, true, seconds_left(), &d.base.result);
+  const BroadbandFitResult base_heldout = EvaluateHeldOut(base_model, split, kind, true, seconds_left(), d.base.result);
   // The base's figures are its evaluation's: weighted by the records' noise levels, as the candidates'.
   d.fit_before = Figures(split, base_motion, base_heldout);
   d.before = Matches(split, base_motion.records, base_heldout);
@@ -424,7 +364,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       const ExtendedProblem trial = internal::BuildProblem(start, options.fit.model, effects, context, v);
       const std::vector<double> theta(trial.parameters.size(), 1.0);
       const double chi2 =
-          Evaluate(trial.Decode(theta.data()), split, false, kind, false, seconds_left(), warm).fit.chi2;
+          EvaluateOnParts(trial.Decode(theta.data()), split, false, kind, false, seconds_left(), warm).fit.chi2;
       if (chi2 < best) best = chi2, variant = v;
     }
     ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, variant);
@@ -467,9 +407,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
         r = internal::FitBroadband(split.fit_pointers, kind, problem, fit_options);
       }
       progress(stage, name, "the held-out parts at the fitted model");
-      const BroadbandFitResult heldout_warm = HeldOutWarmStart(r.fit.model, split, r);
-      const BroadbandFitResult heldout =
-          Evaluate(r.fit.model, split, true, kind, false, seconds_left(), &heldout_warm);
+      const BroadbandFitResult heldout = EvaluateHeldOut(r.fit.model, split, kind, false, seconds_left(), r);
       c.figures = Figures(split, r, heldout);
     } catch (const std::exception& e) {
       c.note = std::string("fit failed: ") + e.what();
@@ -511,8 +449,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   auto heldout_of = [&](int chosen) {
     if (chosen < 0) return base_heldout;
     const CandidateFit& c = d.candidates[chosen];
-    const BroadbandFitResult warm = HeldOutWarmStart(c.model, split, fits.at(c.label));
-    return Evaluate(c.model, split, true, kind, true, seconds_left(), &warm);
+    return EvaluateHeldOut(c.model, split, kind, true, seconds_left(), fits.at(c.label));
   };
   BroadbandFitResult chosen_heldout;
   std::string partial;
@@ -526,7 +463,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       // A named model must explain its own fit parts too (broadband_diagnose.h step 6): its evaluation
       // there, with the series the open-world test reads.
       const CandidateFit& c = d.candidates[d.chosen];
-      const BroadbandFitResult fit = Evaluate(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
+      const BroadbandFitResult fit =
+          EvaluateOnParts(c.model, split, false, kind, true, seconds_left(), &fits.at(c.label));
       d.unexplained = FindUnexplained(split, chosen_heldout, &fit, c.model, kind);
     }
     if (!d.unexplained) return std::nullopt;

@@ -25,7 +25,8 @@
 //      at the median of the base model's displacement at the onsets of the records' impacts where it is
 //      positive (up to an impact the model follows the records, so it stands at the stop there). A candidate's held-out chi-square is its evaluation on the held-out
 //      parts (their starts, offsets and hum fitted, the model held), from the motion continued from the
-//      fit parts: the state the model reaches at the end of each record's fit part.
+//      fit parts (the state the model reaches at the end of each record's fit part) and from a fresh
+//      start, the lower of the two; the base model's likewise.
 //   5. Choice: as diagnose.h step 5, the same rules and numbers (diagnose/selection.h), the look-ahead
 //      where broadband_fit.h's test of the fit parts rejects the chosen model, and the coil's round:
 //      where step 6 finds the misfit unexplained and coil_inductance was not a candidate, steps 5 and
