@@ -35,10 +35,11 @@ model driven by the measured voltage, in segments whose start states are unknown
 from paper Eq. 3 fitted to the quietest record's FRF, then to the time series of the records without
 impacts; the stop's d and k_s are fitted where a record shows impacts, d from where the impacts set in.
 Where none does, the stop is fitted only if the records reject the fit without it, and kept only if it
-lowers the chi-square by more than Akaike's penalty for its two parameters. A fit that still ends away from the optimum (records with hard impacts) is reported as rejected by the
-records. A campaign of both kinds is fitted jointly: its stepped sines alone first, then
-every parameter refined on all records at once (the stepped records' harmonics and the broadband
-records' time series in one least-squares problem).
+lowers the chi-square by more than Akaike's penalty for its two parameters. A fit that still ends away
+from the optimum (records with hard impacts) is reported as rejected by the records. A campaign of both
+kinds is fitted jointly: its stepped sines alone first, then every parameter refined on all records at
+once (the stepped records' harmonics and the broadband records' time series in one least-squares
+problem).
 
   --data DIR               campaign directory (manifest.json or mapping.json)         (required)
   --model NAME             paper (linear suspension, one linear end stop) | linear (no stop) [paper]

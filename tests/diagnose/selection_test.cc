@@ -478,9 +478,10 @@ TEST(UnseenInFitRecordsTest, SaysWhatOnlyTheHeldOutRecordsShow) {
   FitFigures before;
   before.heldout_chi2 = 1.7e6;
   const double expected = 6144;
-  const CandidateFit stop = fit(Effect::kSecondStop, {.name = "d_upper", .value = 1.2e-3, .standard_error = std::nan("")},
-                                1e-4, 6085);
-  const CandidateFit k3 = fit(Effect::kCubicStiffness, {.name = "k3", .value = -8e5, .standard_error = 6e5}, 1.9, 1.56e6);
+  const CandidateFit stop =
+      fit(Effect::kSecondStop, {.name = "d_upper", .value = 1.2e-3, .standard_error = std::nan("")}, 1e-4, 6085);
+  const CandidateFit k3 =
+      fit(Effect::kCubicStiffness, {.name = "k3", .value = -8e5, .standard_error = 6e5}, 1.9, 1.56e6);
   const CandidateFit shown = fit(Effect::kContactDamping, {.name = "c_s", .value = 40, .standard_error = 2}, 2.1, 6000);
   const std::string said = internal::UnseenInFitRecords({k3, stop}, before, expected, 10);
   EXPECT_EQ(said.rfind("second_stop would remove 1.694e+06 of the held-out chi-square's excess and leave none", 0), 0u)

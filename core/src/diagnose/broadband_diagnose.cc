@@ -35,7 +35,6 @@ constexpr size_t kMinHeldOutSamples = 256;  // a held-out part long enough for i
 constexpr int kCandidateIterationsPerFitIteration = 4;  // a candidate's iterations per options.fit.max_iterations
 constexpr double kBeyondNoiseP = 1e-3;      // the open-world test's level (as FitBroadband's rejection)
 
-
 // Samples [first, end) of a record, as a record of its own (its time starts at 0: the model is time
 // invariant, and the part's offset and hum are its own unknowns).
 Recording Part(const Recording& record, size_t first, size_t end, const char* which) {
@@ -47,7 +46,6 @@ Recording Part(const Recording& record, size_t first, size_t end, const char* wh
   part.response.assign(record.response.begin() + static_cast<long>(first), record.response.begin() + static_cast<long>(end));
   return part;
 }
-
 
 // Takes c_emf out of `problem`'s free parameters (held at its base's value) where `fitted`, a fit of
 // `problem`, could not identify it; whether it did. BuildProblem frees c_emf where the base model's stop
@@ -69,9 +67,6 @@ bool TouchesContacts(const std::vector<Effect>& effects) {
     return e == Effect::kHertzianContact || e == Effect::kContactDamping || e == Effect::kSecondStop;
   });
 }
-
-
-
 
 // sqrt(sum of squared residuals / sum of (response - offset)^2) over the parts.
 double Nrmse(std::span<const Recording* const> parts, const std::vector<BroadbandRecordFit>& fits) {
@@ -323,7 +318,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   progress(2, "the base model on every part");
   const BroadbandFitResult base_motion =
       EvaluateOnParts(base_model, split, false, kind, true, seconds_left(), &d.base.result);
-  const BroadbandFitResult base_heldout = EvaluateHeldOut(base_model, split, kind, true, seconds_left(), d.base.result);
+  const BroadbandFitResult base_heldout =
+      EvaluateHeldOut(base_model, split, kind, true, seconds_left(), d.base.result);
   // The base's figures are its evaluation's: weighted by the records' noise levels, as the candidates'.
   d.fit_before = Figures(split, base_motion, base_heldout);
   d.before = Matches(split, base_motion.records, base_heldout);

@@ -597,8 +597,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   const bool heldout_misfit = d.unexplained.has_value();  // on the held-out records' harmonics
   if (!d.unexplained) d.unexplained = std::move(ring);
   if (d.chosen < 0 && heldout_misfit && !refit)
-    if (const std::string unseen = internal::UnseenInFitRecords(d.candidates, d.fit_before, d.unexplained->expected_chi2,
-                                                                options.min_heldout_gain);
+    if (const std::string unseen = internal::UnseenInFitRecords(d.candidates, d.fit_before,
+                                                                d.unexplained->expected_chi2, options.min_heldout_gain);
         !unseen.empty())
       partial = partial.empty() ? unseen : partial + "; " + unseen;
   Conclude(campaign, analyses, context, refit, chosen_parameters, partial, best_partial, options, &d);

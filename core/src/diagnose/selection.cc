@@ -408,7 +408,8 @@ std::string UnseenInFitRecords(const std::vector<CandidateFit>& candidates, cons
   return c.label + " would remove " + Format(removed) + " of the held-out chi-square's excess and leave " +
          (left > 0 ? Format(left) : std::string("none")) + ", but the records it is fitted to do not show it (their " +
          "chi-square falls by " + Format(c.fit_gain) + " residual variances, within Akaike's penalty " +
-         Format(penalty(c)) + unidentified + "): it is not named; records that show it where they are fitted would tell";
+         Format(penalty(c)) + unidentified +
+         "): it is not named; records that show it where they are fitted would tell";
 }
 
 std::vector<Effect> SignificantUnderMisfit(const CandidateFit& c, double misfit_to_noise, std::string* why) {
