@@ -202,10 +202,11 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
     }
   };
   // A stop no record shows an impact of must earn its two parameters: it replaces the fit without it only
-  // where it lowers the chi-square by more than Akaike's penalty, 2 per parameter (Akaike, IEEE Trans.
-  // Autom. Control 19, 1974), as an effect must in the diagnosis. A stop the motion does not reach lowers
-  // it by nothing, and which start such a fit kept was down to the last bits (clipping, broadband study
-  // 8414: d kept at -0.94 mm, 6 % shallow, which the motion of the held-out parts then hit).
+  // where it lowers the chi-square by more than Akaike's penalty, 2 per parameter (H. Akaike, "A new look
+  // at the statistical model identification", IEEE Trans. Autom. Control 19 (1974) 716-723), as an effect
+  // must in the diagnosis. A stop the motion does not reach lowers it by nothing, and which start such a
+  // fit kept was down to the last bits (clipping, broadband study 8414: d kept at -0.94 mm, 6 % shallow,
+  // which the motion of the held-out parts then hit).
   constexpr double kStopAkaikePenalty = 2.0 * 2;  // d and k_s
   const bool impacts_seen = out.stop_free;
   bool without_stop = !impacts_seen;  // the kept fit has no stop (the first, where no impact is seen)
@@ -244,7 +245,8 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
           "no record shows an impact, and the records reject the fit without the stop, but " +
           (stop_starts == 0 ? std::string("the fit's time ran out before a stop was fitted")
                             : "no stop fitted from " + std::to_string(stop_starts) +
-                                  " starts lowers its chi-square by more than Akaike's penalty (4)") +
+                                  " starts lowers its chi-square by more than Akaike's penalty (" +
+                                  std::to_string(static_cast<int>(kStopAkaikePenalty)) + ")") +
           ": it is left out");
     } else {
       out.warnings.push_back("no record shows an impact, but the records reject the fit without the stop: it is fitted");
