@@ -342,9 +342,11 @@ TEST(SelectEffectsTest, AnEarlierEffectThatTheLaterOnesMakeNeedlessIsDropped) {
   const int chosen = Select(fits, &candidates, kThreeSingles);
   ASSERT_GE(chosen, 0);
   EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+quadratic_damping");
-  for (const CandidateFit& c : candidates)
-    if (c.label == "dry_friction+cubic_stiffness+quadratic_damping")
+  for (const CandidateFit& c : candidates) {
+    if (c.label == "dry_friction+cubic_stiffness+quadratic_damping") {
       EXPECT_NE(c.decision.find("backward check: without dry_friction"), std::string::npos) << c.decision;
+    }
+  }
 }
 
 TEST(PartialExplanationTest, ACandidateThatLeavesMoreThanItRemovesIsNotNamedOnEitherParts) {

@@ -98,20 +98,24 @@ std::string InsignificantParameter(const CandidateFit& c) {
   return "";
 }
 
+// The Akaike penalty of the candidate's parameters beyond the `from_effect_parameters` of the model it
+// extends (at least one).
+double AkaikePenalty(const CandidateFit& c, size_t from_effect_parameters) {
+  return kAkaikePerParameter *
+         std::max(1.0, static_cast<double>(c.effect_parameters.size()) - static_cast<double>(from_effect_parameters));
+}
+
 // Why the candidate's figures do not improve on `from` beyond noise (empty: they do): the held-out
 // chi-square must drop by more than min_heldout_gain residual variances, the fit records' by more
-// than the Akaike penalty of its new parameters (beyond the `from_effect_parameters` it had; at least
-// one).
+// than the Akaike penalty of its new parameters.
 std::string GainShortfall(const CandidateFit& c, const FitFigures& from, size_t from_effect_parameters,
                           double min_heldout_gain) {
   if (!c.fitted) return "not fitted";
-  const double extra =
-      std::max(1.0, static_cast<double>(c.effect_parameters.size()) - static_cast<double>(from_effect_parameters));
   const double heldout_gain = GainOver(from, c.figures, true), fit_gain = GainOver(from, c.figures, false);
   if (!std::isfinite(heldout_gain) || heldout_gain <= min_heldout_gain)
     return "held-out gain " + Format(heldout_gain) + " <= " + Format(min_heldout_gain);
-  if (fit_gain <= kAkaikePerParameter * extra)
-    return "fit gain " + Format(fit_gain) + " <= Akaike penalty " + Format(kAkaikePerParameter * extra);
+  if (const double penalty = AkaikePenalty(c, from_effect_parameters); fit_gain <= penalty)
+    return "fit gain " + Format(fit_gain) + " <= Akaike penalty " + Format(penalty);
   return "";
 }
 
@@ -186,8 +190,7 @@ int WidestExtension(const std::vector<CandidateFit>& all, int from, const FitFig
         }))
       continue;
     const double gain = GainOver(below, c.figures, false);
-    const double penalty = kAkaikePerParameter * static_cast<double>(c.effect_parameters.size() - have_parameters);
-    if (gain > penalty && (widest < 0 || gain > widest_gain)) widest = static_cast<int>(i), widest_gain = gain;
+    if (gain > AkaikePenalty(c, have_parameters) && (widest < 0 || gain > widest_gain)) widest = static_cast<int>(i), widest_gain = gain;
   }
   return widest;
 }
@@ -387,9 +390,7 @@ std::string PartialExplanation(const CandidateFit& chosen, const FitFigures& bef
 
 std::string UnseenInFitRecords(const std::vector<CandidateFit>& candidates, const FitFigures& before,
                                double expected_chi2, double min_heldout_gain) {
-  const auto penalty = [](const CandidateFit& c) {  // against the base, as GainShortfall's
-    return kAkaikePerParameter * std::max(1.0, static_cast<double>(c.effect_parameters.size()));
-  };
+  const auto penalty = [](const CandidateFit& c) { return AkaikePenalty(c, 0); };  // against the base
   int best = -1;
   for (size_t i = 0; i < candidates.size(); ++i) {
     const CandidateFit& c = candidates[i];
