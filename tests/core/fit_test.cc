@@ -423,7 +423,9 @@ TEST(AnalyseRecord, HumBesideAHigherHarmonicIsRemovedAndSparesItsNeighbours) {
     EXPECT_FALSE(a.usable[6]);
     EXPECT_EQ(a.hum_frequency_hz, 50.0);
     for (size_t h = 0; h < truth.size(); ++h) {
-      if (a.usable[h]) EXPECT_LT(std::abs(a.harmonics[h] - truth[h]), 4 * a.harmonic_se) << "harmonic " << h + 1;
+      if (a.usable[h]) {
+        EXPECT_LT(std::abs(a.harmonics[h] - truth[h]), 4 * a.harmonic_se) << "harmonic " << h + 1;
+      }
     }
   }
 }

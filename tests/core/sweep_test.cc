@@ -256,8 +256,12 @@ TEST(SweepRowTest, ARowWhoseContinuationStopsShortIsRestarted) {
   for (size_t i = 0; i < grid.size(); ++i) {
     for (const SweepPoint& p : row.points) {
       if (std::abs(p.frequency_hz - grid[i]) > 1e-9) continue;
-      if (p.branch == Branch::kUp) EXPECT_NEAR(p.first_harmonic_force_n, up[i], 1e-6 * up[i]) << grid[i] << " Hz, up";
-      if (p.branch == Branch::kDown) EXPECT_NEAR(p.first_harmonic_force_n, down[i], 1e-6 * down[i]) << grid[i] << " Hz, down";
+      if (p.branch == Branch::kUp) {
+        EXPECT_NEAR(p.first_harmonic_force_n, up[i], 1e-6 * up[i]) << grid[i] << " Hz, up";
+      }
+      if (p.branch == Branch::kDown) {
+        EXPECT_NEAR(p.first_harmonic_force_n, down[i], 1e-6 * down[i]) << grid[i] << " Hz, down";
+      }
       if (p.branch == Branch::kUnstable) ++unstable;
     }
   }

@@ -18,6 +18,15 @@ namespace {
 using internal::SelectEffects;
 using internal::WithoutEffect;
 
+// An effect parameter as a fit reports it (its unit and note play no part in the selection).
+FitParameter Estimate(const std::string& name, double value, double standard_error) {
+  FitParameter p;
+  p.name = name;
+  p.value = value;
+  p.standard_error = standard_error;
+  return p;
+}
+
 TEST(WithoutEffectTest, PutsBackOnlyTheEffectsOwnParameters) {
   const ActuatorModel base = PaperModel();
   ActuatorModel with = base;
@@ -87,7 +96,8 @@ class ScriptedFits {
       for (Effect e : effects) {
         const bool weak = insignificant.count(key) > 0 && insignificant.at(key) == e;
         const double error = unidentified.count(key) > 0 && unidentified.at(key) == e ? std::nan("") : 0.1;
-        for (const char* name : Info(e).parameters) c.effect_parameters.push_back({name, "", weak ? 0.05 : 1.0, error});
+        for (const char* name : Info(e).parameters)
+          c.effect_parameters.push_back(Estimate(name, weak ? 0.05 : 1.0, error));
       }
       c.model = start;
       if (std::find(effects.begin(), effects.end(), Effect::kCubicStiffness) != effects.end())
@@ -396,9 +406,8 @@ TEST(SignificantUnderMisfitTest, ScalesTheStandardErrorsByTheMisfitsRatioToNoise
   c.effects = {Effect::kCubicStiffness, Effect::kContactDamping, Effect::kAmplifierSaturation};
   c.label = internal::Label(c.effects);
   c.max_drive_v = 0.5;
-  c.effect_parameters = {{.name = "k3", .value = 1.2e7, .standard_error = 1e6},
-                         {.name = "c_s", .value = 30.0, .standard_error = 1.0},
-                         {.name = "amplifier_limit_v", .value = 0.45, .standard_error = 0.002}};
+  c.effect_parameters = {Estimate("k3", 1.2e7, 1e6), Estimate("c_s", 30.0, 1.0),
+                         Estimate("amplifier_limit_v", 0.45, 0.002)};
   std::string why;
   EXPECT_EQ(internal::SignificantUnderMisfit(c, 10.0, &why),
             (std::vector<Effect>{Effect::kContactDamping, Effect::kAmplifierSaturation}));
@@ -429,8 +438,8 @@ TEST(NameWhatStandsTest, TakesThePartThatStandsThenAsksItToExplainMostOfTheMisfi
     c.heldout_gain = 500;
     return c;
   };
-  const FitParameter k3 = {.name = "k3", .value = 1.5e7, .standard_error = 1e5};
-  const FitParameter c_s = {.name = "c_s", .value = 5.0, .standard_error = 1.0};
+  const FitParameter k3 = Estimate("k3", 1.5e7, 1e5);
+  const FitParameter c_s = Estimate("c_s", 5.0, 1.0);
   FitFigures before;
   before.chi2 = before.heldout_chi2 = 10000;
   struct Case {
@@ -480,11 +489,9 @@ TEST(UnseenInFitRecordsTest, SaysWhatOnlyTheHeldOutRecordsShow) {
   FitFigures before;
   before.heldout_chi2 = 1.7e6;
   const double expected = 6144;
-  const CandidateFit stop =
-      fit(Effect::kSecondStop, {.name = "d_upper", .value = 1.2e-3, .standard_error = std::nan("")}, 1e-4, 6085);
-  const CandidateFit k3 =
-      fit(Effect::kCubicStiffness, {.name = "k3", .value = -8e5, .standard_error = 6e5}, 1.9, 1.56e6);
-  const CandidateFit shown = fit(Effect::kContactDamping, {.name = "c_s", .value = 40, .standard_error = 2}, 2.1, 6000);
+  const CandidateFit stop = fit(Effect::kSecondStop, Estimate("d_upper", 1.2e-3, std::nan("")), 1e-4, 6085);
+  const CandidateFit k3 = fit(Effect::kCubicStiffness, Estimate("k3", -8e5, 6e5), 1.9, 1.56e6);
+  const CandidateFit shown = fit(Effect::kContactDamping, Estimate("c_s", 40, 2), 2.1, 6000);
   const std::string said = internal::UnseenInFitRecords({k3, stop}, before, expected, 10);
   EXPECT_EQ(said.rfind("second_stop would remove 1.694e+06 of the held-out chi-square's excess and leave none", 0), 0u)
       << said;
