@@ -1,12 +1,18 @@
 // Timings of the simulation engines and the signal analysis on the paper's record: 10 s at
-// 51.2 kHz (paper section 3), paper model (Table 2). Run a Release build, e.g.
+// 51.2 kHz (paper section 3), paper model (Table 2); and of the variational flow on a sampled
+// record. Run a Release build, e.g.
 //   engines_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // tests/bench/compare_scipy.py times the same record against scipy's solve_ivp.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
 #include <span>
 
 #include "strokelab/engines/engine.h"
+#include "strokelab/engines/variational_flow.h"
 #include "strokelab/model/model.h"
 #include "strokelab/engines/record_summary.h"
 #include "strokelab/signal/signal.h"
@@ -52,6 +58,59 @@ BENCHMARK_CAPTURE(BM_Simulate, exact_13Hz_0.3V, Method::kExact, 13.0, 0.3)->Unit
 BENCHMARK_CAPTURE(BM_Simulate, exact_5Hz_0.6V, Method::kExact, 5.0, 0.6)->Unit(benchmark::kMillisecond);
 
 // The steady-state summary the CLI prints (last second of the record).
+// The variational flow as the broadband fit runs it: 1 s of a multisine record at 8,192 Hz (40
+// harmonics of 5 Hz, random phases, 1.2 / h V each: it hits the stop), with the columns of the start,
+// k_p, c_p, g, d, k_s and, for a clipping model, its level, at every sample. `exact`: the free flight's exact
+// map where it applies (FlowOptions::exact_free_flight); else DOP853 throughout. A level of 0: no
+// clipping (the counter clipped_share: the share of samples beyond the level).
+void BM_SampledFlow(benchmark::State& state, double limit_v, bool exact) {
+  using M = ActuatorModel;
+  const double fs = 8192.0, duration_s = 1.0;
+  std::mt19937 random(20261130);
+  std::uniform_real_distribution<double> phase(0.0, 2 * std::numbers::pi);
+  std::vector<double> phases;
+  for (int h = 1; h <= 40; ++h) phases.push_back(phase(random));
+  SampledDrive drive{fs, {}};
+  for (int k = 0; k <= static_cast<int>(duration_s * fs); ++k) {
+    double u = 0;
+    for (int h = 1; h <= 40; ++h) u += 1.2 / h * std::sin(2 * std::numbers::pi * 5.0 * h * k / fs + phases[h - 1]);
+    drive.voltage_v.push_back(u);
+  }
+  ActuatorModel model = PaperModel();
+  FlowRequest request;
+  request.monodromy = true;  // the segments' starts are unknowns too
+  request.parameters = {&M::stiffness_n_per_m, &M::damping_n_s_per_m, &M::gain_n_per_v, &M::lower_stop_m,
+                        &M::contact_stiffness};
+  if (limit_v > 0) {
+    model.amplifier_limit_v = limit_v;
+    request.parameters.push_back(&M::amplifier_limit_v);
+  }
+  request.sample_count = static_cast<int>(drive.voltage_v.size());
+  request.sample_interval_s = 1.0 / fs;
+  request.sample_sensitivities = true;
+  FlowOptions options;
+  options.exact_free_flight = exact;
+  FlowResult flow;
+  for (auto _ : state) {
+    flow = Flow(model, drive, State{}, 0.0, duration_s, request, options);
+    benchmark::DoNotOptimize(flow.sample_slopes.data());
+  }
+  state.counters["samples_per_s"] = benchmark::Counter(static_cast<double>(state.iterations() * request.sample_count),
+                                                       benchmark::Counter::kIsRate);
+  state.counters["exact_steps"] = static_cast<double>(flow.exact_steps);
+  state.counters["contacts"] = static_cast<double>(flow.contacts);
+  if (limit_v > 0)
+    state.counters["clipped_share"] =
+        static_cast<double>(std::count_if(drive.voltage_v.begin(), drive.voltage_v.end(),
+                                          [&](double u) { return std::abs(u) > limit_v; })) /
+        static_cast<double>(drive.voltage_v.size());
+}
+
+BENCHMARK_CAPTURE(BM_SampledFlow, paper_exact, 0.0, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, paper_dop853, 0.0, false)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_exact, 2.0, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_dop853, 2.0, false)->Unit(benchmark::kMillisecond);
+
 void BM_Summarize(benchmark::State& state) {
   const SineDrive drive = Drive(8.0, 0.5);
   const Record record = MakeExactEngine()->Simulate(PaperModel(), drive, SimulationOptions{});

@@ -3,6 +3,7 @@
 // (the hold's error falls as the square of the sample interval), and central differences of itself.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -114,7 +115,8 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsTheClosedForm) {
 // map takes the intervals clear of the stops, DOP853 the ones near and in contact. End state, columns,
 // and each sample's x, v, force and slopes the same to 1e-8 of their largest sizes (DOP853's 1e-11 per
 // step over 6,000 steps, and the sensitivities' looser 1e-10). A model with a smooth nonlinear term
-// (k3) or a parameter whose column is not affine (k3 at 0) takes no exact step.
+// (k3) or a parameter whose column is not affine (k3 at 0) takes no exact step. A clipped drive takes
+// the map only where it stays within the limit.
 TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
   using M = ActuatorModel;
   std::mt19937 random(20261128);
@@ -136,6 +138,12 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
   ActuatorModel coil = PaperModel();  // tau_e = 2 mH / 3 Ohm, with its back-EMF part of c_p
   coil.coil_time_constant_s = 2e-3 / 3.0;
   coil.back_emf_damping_n_s_per_m = 0.8;
+  // Clipped at 2 V (over 1 in 20 of the samples lie beyond it, asserted below): the map takes only the
+  // intervals within the limit, where the limit's column is unforced.
+  ActuatorModel clipped = PaperModel();
+  clipped.amplifier_limit_v = 2.0;
+  ActuatorModel clipped_coil = coil;
+  clipped_coil.amplifier_limit_v = 2.0;
   struct Case {
     std::string name;
     ActuatorModel model;
@@ -148,7 +156,12 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
       {"damped_two_stops", damped, {&M::stiffness_n_per_m, &M::upper_stop_m, &M::contact_damping_n_s_per_m}},
       {"hertzian", hertz, {&M::gain_n_per_v, &M::contact_stiffness}},
       {"coil_pole", coil, {&M::gain_n_per_v, &M::coil_time_constant_s, &M::back_emf_damping_n_s_per_m}},
+      {"clipped", clipped, {&M::gain_n_per_v, &M::amplifier_limit_v, &M::lower_stop_m}},
+      {"clipped_coil", clipped_coil, {&M::amplifier_limit_v, &M::coil_time_constant_s}},
   };
+  const auto beyond = std::count_if(drive.voltage_v.begin(), drive.voltage_v.end(),
+                                    [&](double u) { return std::abs(u) > clipped.amplifier_limit_v; });
+  ASSERT_GT(beyond, std::ssize(drive.voltage_v) / 20);
   FlowOptions dop853_only;
   dop853_only.exact_free_flight = false;
   for (const Case& c : cases) {

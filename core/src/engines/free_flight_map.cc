@@ -9,16 +9,18 @@ namespace strokelab::variational {
 bool FreeFlightMap::Applies(const ActuatorModel& model, const FlowRequest& request) {
   if (model.quadratic_stiffness_n_per_m2 != 0 || model.cubic_stiffness_n_per_m3 != 0 || model.friction_force_n != 0 ||
       model.quadratic_damping_n_s2_per_m2 != 0 || model.force_factor_b1_per_m != 0 ||
-      model.force_factor_b2_per_m2 != 0 || model.HasAmplifierLimit())
+      model.force_factor_b2_per_m2 != 0)
     return false;
   // The parameters whose columns outside the stops are forced by terms affine in the state and u:
-  // the linear suspension and drive, the coil's pole, and the stops' own (0 outside them).
+  // the linear suspension and drive, the coil's pole, and the stops' own (0 outside them), and the
+  // amplifier's limit (0 while it does not clip).
   static constexpr double ActuatorModel::*kAffine[] = {
       &ActuatorModel::mass_kg,           &ActuatorModel::damping_n_s_per_m,
       &ActuatorModel::stiffness_n_per_m, &ActuatorModel::gain_n_per_v,
       &ActuatorModel::lower_stop_m,      &ActuatorModel::upper_stop_m,
       &ActuatorModel::contact_stiffness, &ActuatorModel::contact_damping_n_s_per_m,
-      &ActuatorModel::coil_time_constant_s, &ActuatorModel::back_emf_damping_n_s_per_m};
+      &ActuatorModel::coil_time_constant_s, &ActuatorModel::back_emf_damping_n_s_per_m,
+      &ActuatorModel::amplifier_limit_v};
   return std::all_of(request.parameters.begin(), request.parameters.end(), [](double ActuatorModel::*p) {
     return std::find(std::begin(kAffine), std::end(kAffine), p) != std::end(kAffine);
   });
@@ -27,8 +29,12 @@ bool FreeFlightMap::Applies(const ActuatorModel& model, const FlowRequest& reque
 FreeFlightMap::FreeFlightMap(const ActuatorModel& model, const FlowRequest& request, double interval_s,
                              const std::vector<double>& scale, double voltage_scale_v) {
   // The field driven by u(t) = t over [0, 1] s: at t = 0 it is M Y + c, at t = 1 M Y + N + c.
+  // The amplifier's limit is taken away: the map serves only intervals where it does not clip, and
+  // the ramp would cross it.
   const SampledDrive unit_ramp{1.0, {0.0, 1.0}};
-  const Field field(model, Drive{SineDrive{}, &unit_ramp}, request);
+  ActuatorModel unclipped = model;
+  unclipped.amplifier_limit_v = ActuatorModel::kNoLimit;
+  const Field field(unclipped, Drive{SineDrive{}, &unit_ramp}, request);
   n_ = field.layout().size;
   const int n = n_;
   std::vector<double> y(n, 0.0), at_zero(n), at_one(n), dy(n);

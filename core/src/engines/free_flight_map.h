@@ -1,8 +1,9 @@
 // The exact map of the variational flow (variational_flow.h) over one interval of a sampled drive
-// where the mass touches no stop and the model is linear there: the paper's model and every model
-// whose terms outside the stops are affine in the state (coil pole, contact law and contact damping
-// act only inside a stop). The packed vector Y (variational_field.h: the state and its sensitivity
-// columns) then obeys
+// where the mass touches no stop, the amplifier does not clip, and the model is linear there: the
+// paper's model and every model whose terms outside the stops are affine in the state (coil pole,
+// contact law and contact damping act only inside a stop; the clipping level only where the drive
+// passes it). The packed vector Y (variational_field.h: the state and its sensitivity columns) then
+// obeys
 //
 //   Y' = M Y + N u(t) + c,   u(t) = u_k + (u_k+1 - u_k) (t - t_k) / h   (the drive's first-order hold),
 //
@@ -32,9 +33,11 @@ namespace strokelab::variational {
 
 class FreeFlightMap {
  public:
-  // Whether the field is affine in Y and u outside the stops for `model` with `request`'s columns:
-  // no smooth nonlinear term, no amplifier limit (clipping is not affine in u), and every parameter
-  // column's forcing affine (a column d/dk3 is forced by -x^3 / m_p even at k3 = 0).
+  // Whether the field is affine in Y and u outside the stops, while the amplifier does not clip, for
+  // `model` with `request`'s columns: no smooth nonlinear term, and every parameter column's forcing
+  // affine (a column d/dk3 is forced by -x^3 / m_p even at k3 = 0). Clipping is not affine in u: the
+  // caller takes the map only over intervals whose drive stays within the limit at both ends (the
+  // hold's straight line then stays within it too).
   static bool Applies(const ActuatorModel& model, const FlowRequest& request);
 
   // The map over `interval_s` for `model` and `request`'s columns (Applies must hold). `scale` holds

@@ -451,6 +451,8 @@ bool FlowIntegrator::ExactStep(double t, double boundary) {
   if (!exact_free_flight_ || mode_.Any()) return false;
   const double interval = 1.0 / drive_.sampled->sample_rate_hz, rounding = 1e-9 * interval;
   if (std::abs(boundary - t - interval) > rounding) return false;  // a clipping corner or a partial interval
+  const double limit_v = model().amplifier_limit_v;  // the map holds where the amplifier does not clip
+  if (!(std::abs(drive_.Voltage(t)) <= limit_v && std::abs(drive_.Voltage(boundary)) <= limit_v)) return false;
   auto next_sample_s = [&] { return request_.sample_start_s + next_sample_ * request_.sample_interval_s; };
   for (; next_sample_ < request_.sample_count && next_sample_s() <= t + rounding; ++next_sample_)
     RecordSample(next_sample_s(), y_.data(), K(0));
