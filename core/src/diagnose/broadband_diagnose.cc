@@ -52,10 +52,15 @@ Recording Part(const Recording& record, size_t first, size_t end, const char* wh
 // meets the records' impacts, but a stop that the base fit put in to stand in for the coil is no longer
 // touched once the coil is fitted (the broadband coil case, seed 8303: one base fit of it put a stop of
 // 43,000 +- 46,000 N/m at -0.89 mm, and with c_emf free every parameter's error was undefined, so the
-// coil was "within noise of zero"). ChargeHeldBackEmf then adds c_emf's spread to the errors.
+// coil was "within noise of zero"). An error as wide as c_emf's whole range [0, c_p] does not identify
+// it either: in the unit test's campaign of seed 8303 a fit ended with c_emf on its bound 0, +- 95 N s/m
+// against c_p = 1.2, and tau_e +- 2 times itself; which of the two the fit ended with turned on the last
+// bits of its flows. ChargeHeldBackEmf then adds c_emf's spread to the errors.
 bool HoldUnidentifiedBackEmf(const std::vector<FitParameter>& fitted, internal::ExtendedProblem* problem) {
-  const bool unidentified =
-      std::ranges::any_of(fitted, [](const FitParameter& p) { return p.name == "c_emf" && !p.identifiable; });
+  const auto c_p = std::ranges::find(fitted, std::string("c_p"), &FitParameter::name);
+  const bool unidentified = std::ranges::any_of(fitted, [&](const FitParameter& p) {
+    return p.name == "c_emf" && (!p.identifiable || (c_p != fitted.end() && !(p.standard_error < c_p->value)));
+  });
   if (unidentified)
     std::erase_if(problem->parameters, [](const internal::FreeParameter& p) { return p.name == "c_emf"; });
   return unidentified;
