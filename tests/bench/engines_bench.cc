@@ -62,8 +62,9 @@ BENCHMARK_CAPTURE(BM_Simulate, exact_5Hz_0.6V, Method::kExact, 5.0, 0.6)->Unit(b
 // harmonics of 5 Hz, random phases, 1.2 / h V each: it hits the stop), with the columns of the start,
 // k_p, c_p, g, d, k_s and, for a clipping model, its level, at every sample. `exact`: the free flight's exact
 // map where it applies (FlowOptions::exact_free_flight); else DOP853 throughout. A level of 0: no
-// clipping (the counter clipped_share: the share of samples beyond the level).
-void BM_SampledFlow(benchmark::State& state, double limit_v, bool exact) {
+// clipping (the counter clipped_share: the share of samples beyond the level). A cubic stiffness
+// k3 [N/m^3] makes the free flight nonlinear: DOP853 throughout.
+void BM_SampledFlow(benchmark::State& state, double limit_v, double k3, bool exact) {
   using M = ActuatorModel;
   const double fs = 8192.0, duration_s = 1.0;
   std::mt19937 random(20261130);
@@ -77,6 +78,7 @@ void BM_SampledFlow(benchmark::State& state, double limit_v, bool exact) {
     drive.voltage_v.push_back(u);
   }
   ActuatorModel model = PaperModel();
+  model.cubic_stiffness_n_per_m3 = k3;
   FlowRequest request;
   request.monodromy = true;  // the segments' starts are unknowns too
   request.parameters = {&M::stiffness_n_per_m, &M::damping_n_s_per_m, &M::gain_n_per_v, &M::lower_stop_m,
@@ -106,10 +108,11 @@ void BM_SampledFlow(benchmark::State& state, double limit_v, bool exact) {
         static_cast<double>(drive.voltage_v.size());
 }
 
-BENCHMARK_CAPTURE(BM_SampledFlow, paper_exact, 0.0, true)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_SampledFlow, paper_dop853, 0.0, false)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_exact, 2.0, true)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_dop853, 2.0, false)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, paper_exact, 0.0, 0.0, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, paper_dop853, 0.0, 0.0, false)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_exact, 2.0, 0.0, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_dop853, 2.0, 0.0, false)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, k3_1.5e7, 0.0, 1.5e7, true)->Unit(benchmark::kMillisecond);
 
 void BM_Summarize(benchmark::State& state) {
   const SineDrive drive = Drive(8.0, 0.5);

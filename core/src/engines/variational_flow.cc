@@ -201,6 +201,9 @@ class FlowIntegrator {
   // The requested samples at instants up to t_until within the step just taken from t (size h; over
   // u, t and h are the independent variable's and the instants are found on time's dense output).
   void Sample(double t, double h, double t_until);
+  // The requested samples inside the step just taken over time from t to t_end, and those at t_end
+  // from its end state and rate (no dense output: a sampled drive's steps end at its samples).
+  void SampleTimeStep(double t, double h, double t_end);
   // Appends the sample at ts from the packed components y (the state, and the columns when the
   // request asks for their values at the samples); `dy`, the field there when known.
   void RecordSample(double ts, const double* y, const double* dy = nullptr);
@@ -417,6 +420,19 @@ void FlowIntegrator::Sample(double t, double h, double t_until) {
     for (int i = 0; i < components; ++i) sample_y_[i] = Interpolate(i, theta);
     RecordSample(ts, sample_y_.data());
     ++next_sample_;
+  }
+}
+
+void FlowIntegrator::SampleTimeStep(double t, double h, double t_end) {
+  // Within a billionth of the interval of t_end: the step's end, where the dense output equals y_new_
+  // (its terms vanish at theta = 1 but the first, y_new_ - y_) and K(kStages) is the field (first same
+  // as last). It would cost the three stages of PrepareDense and a field evaluation per sample.
+  const double at_end = 1e-9 * request_.sample_interval_s;
+  Sample(t, h, t_end - at_end);
+  for (; next_sample_ < request_.sample_count; ++next_sample_) {
+    const double ts = request_.sample_start_s + next_sample_ * request_.sample_interval_s;
+    if (ts > t_end + at_end) return;
+    RecordSample(ts, y_new_.data(), K(dop853::kStages));
   }
 }
 
@@ -753,7 +769,7 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
       continue;
     }
     const double t_end = to_boundary ? boundary : t + h_try;
-    Sample(t, h_try, t_end);
+    SampleTimeStep(t, h_try, t_end);
     t = t_end;
     if (to_boundary) ++next_boundary;
     y_.swap(y_new_);
