@@ -190,7 +190,8 @@ int WidestExtension(const std::vector<CandidateFit>& all, int from, const FitFig
         }))
       continue;
     const double gain = GainOver(below, c.figures, false);
-    if (gain > AkaikePenalty(c, have_parameters) && (widest < 0 || gain > widest_gain)) widest = static_cast<int>(i), widest_gain = gain;
+    if (gain > AkaikePenalty(c, have_parameters) && (widest < 0 || gain > widest_gain))
+      widest = static_cast<int>(i), widest_gain = gain;
   }
   return widest;
 }

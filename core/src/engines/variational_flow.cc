@@ -208,8 +208,9 @@ class FlowIntegrator {
   // request asks for their values at the samples); `dy`, the field there when known.
   void RecordSample(double ts, const double* y, const double* dy = nullptr);
   // Steps from the sample instant t to the next one, `boundary`, by the exact free-flight map where
-  // it applies and no stop can be met in between; false where it does not (the state unchanged; the
-  // samples at t are recorded either way).
+  // it applies, the amplifier does not clip and no stop can be met in between; false where it does not
+  // (the state unchanged; the samples at t are recorded unless the interval is not a whole one within
+  // the limit, and DOP853's step records them then).
   bool ExactStep(double t, double boundary);
   double ThetaAt(double t, double h, double time_s);
   // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
