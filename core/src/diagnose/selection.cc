@@ -7,12 +7,12 @@
 #include <sstream>
 
 #include "diagnose_internal.h"
+#include "strokelab/base/chi_square.h"
 #include "strokelab/base/nan.h"
 
 namespace strokelab::internal {
 namespace {
 
-constexpr double kAkaikePerParameter = 2.0;  // AIC: 2 per parameter on the fit records
 
 std::string Format(double value, int digits = 4) {
   std::ostringstream out;
@@ -101,7 +101,7 @@ std::string InsignificantParameter(const CandidateFit& c) {
 // The Akaike penalty of the candidate's parameters beyond the `from_effect_parameters` of the model it
 // extends (at least one).
 double AkaikePenalty(const CandidateFit& c, size_t from_effect_parameters) {
-  return kAkaikePerParameter *
+  return kAkaikePenaltyPerParameter *
          std::max(1.0, static_cast<double>(c.effect_parameters.size()) - static_cast<double>(from_effect_parameters));
 }
 

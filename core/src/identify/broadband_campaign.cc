@@ -11,6 +11,7 @@
 #include <utility>
 #include <unsupported/Eigen/FFT>
 
+#include "strokelab/base/chi_square.h"
 #include "strokelab/base/errors.h"
 #include "strokelab/base/json_number.h"
 #include "strokelab/base/nan.h"
@@ -202,12 +203,11 @@ BroadbandCampaignFit FitBroadbandCampaign(const Campaign& campaign, const FitOpt
     }
   };
   // A stop no record shows an impact of must earn its two parameters: it replaces the fit without it only
-  // where it lowers the chi-square by more than Akaike's penalty, 2 per parameter (H. Akaike, "A new look
-  // at the statistical model identification", IEEE Trans. Autom. Control 19 (1974) 716-723), as an effect
-  // must in the diagnosis. A stop the motion does not reach lowers it by nothing, and which start such a
+  // where it lowers the chi-square by more than Akaike's penalty for them (chi_square.h), as an effect must
+  // in the diagnosis. A stop the motion does not reach lowers it by nothing, and which start such a
   // fit kept was down to the last bits (clipping, broadband study 8414: d kept at -0.94 mm, 6 % shallow,
   // which the motion of the held-out parts then hit).
-  constexpr double kStopAkaikePenalty = 2.0 * 2;  // d and k_s
+  constexpr double kStopAkaikePenalty = 2 * kAkaikePenaltyPerParameter;  // d and k_s
   const bool impacts_seen = out.stop_free;
   bool without_stop = !impacts_seen;  // the kept fit has no stop (the first, where no impact is seen)
   plan_starts(false);
