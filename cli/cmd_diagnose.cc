@@ -70,9 +70,10 @@ threshold_shift.csv, jump_intervals.csv, model.json and diagnosis.json.
                            campaign's range (geometric); 0: no maps                   [40]
   --map-amplitude-points N amplitudes over the campaign's range (linear); 0: no maps  [12]
   --progress               progress on stderr: a line at each stage's start (stage k of N,
-                           the time elapsed, an estimate of the time left from the stages
-                           done so far) and, inside a candidate's fit, one every 2 s at most
-                           (its solve and Ceres iteration)
+                           each candidate's fit a stage, N revised as the forward selection
+                           learns its moves; the time elapsed, an estimate of the time left
+                           from the stages done so far) and, inside a candidate's fit, one
+                           every 2 s at most (its solve and Ceres iteration)
   (and the fit's options: --harmonics, --mass-kg, --mains-hz, --max-distortion, --max-iterations,
    --fit-contact-damping, --no-refine; see strokelab fit --help)
 

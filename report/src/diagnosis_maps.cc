@@ -156,7 +156,7 @@ DiagnosisMaps SweepDiagnosisMaps(const Diagnosis& d, const DiagnoseOptions& opti
     v_lo = std::min(v_lo, r.amplitude_v), v_hi = std::max(v_hi, r.amplitude_v);
   }
   return SweepBothModels(d.base.model, d.model, f_lo, f_hi, v_lo, v_hi, d.seconds,
-                         DiagnosisProgressStages(d, options), options);
+                         d.progress_stages, options);
 }
 
 DiagnosisMaps SweepBroadbandDiagnosisMaps(const BroadbandDiagnosis& d, const Campaign& campaign,
@@ -169,7 +169,7 @@ DiagnosisMaps SweepBroadbandDiagnosisMaps(const BroadbandDiagnosis& d, const Cam
     for (double u : r.voltage_v) v_hi = std::max(v_hi, std::abs(u));
   }
   return SweepBothModels(d.base.result.fit.model, d.model, f_lo, f_hi, v_lo, v_hi, d.seconds,
-                         BroadbandDiagnosisProgressStages(options), options);
+                         d.progress_stages, options);
 }
 
 std::vector<ThresholdShift> ThresholdShifts(const SweepResult& base, const SweepResult& diagnosed) {

@@ -27,6 +27,7 @@
 #include "strokelab/identify/broadband_fit.h"
 #include "strokelab/model/model.h"
 #include "strokelab/model/model_json.h"
+#include "progress_log.h"
 
 namespace strokelab {
 namespace {
@@ -78,7 +79,11 @@ TEST_P(BroadbandDiagnoseTest, NamesTheConcealedEffect) {
   const Synthesis synthesis = MultisineCampaign(c);
   DiagnoseOptions options;
   options.map_frequency_points = options.map_amplitude_points = 0;
+  testing::ProgressLog progress;
+  options.progress = progress.Hook();
   const BroadbandDiagnosis d = DiagnoseBroadbandCampaign(synthesis.campaign, options);
+  progress.ExpectConsistent(d.progress_stages);
+  EXPECT_EQ(d.progress_stages, progress.reports.back().stage);  // no maps asked for
   std::string candidates;
   for (const CandidateFit& k : d.candidates)
     candidates += "\n  " + k.label + " held-out gain " + std::to_string(k.heldout_gain) + ": " + k.decision;

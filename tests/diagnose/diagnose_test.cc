@@ -24,6 +24,7 @@
 #include "strokelab/data/synth.h"
 #include "strokelab/model/model_json.h"
 #include "gen2_grids.h"
+#include "progress_log.h"
 #include "test_util.h"
 
 namespace strokelab {
@@ -213,9 +214,16 @@ TEST(DiagnoseStartsTest, TheCoilIsTriedWhereTheOtherEffectsLeaveTheMisfitUnexpla
   o.frequencies_hz = {5, 7, 9, 11};
   o.amplitudes_v = {0.1, 0.3, 0.5};
   o.duration_s = 0.5;
-  const Diagnosis d = DiagnoseCampaign(Synthesize(WithEffect(coil), o).campaign);
+  DiagnoseOptions options;
+  testing::ProgressLog progress;
+  options.progress = progress.Hook();
+  const Diagnosis d = DiagnoseCampaign(Synthesize(WithEffect(coil), o).campaign, options);
   SCOPED_TRACE(d.conclusion);
   EXPECT_TRUE(d.coil_round);  // so the first round left the misfit unexplained
+  // One stage per fit in either round: the first three, then at least the coil round's own fits.
+  progress.ExpectConsistent(d.progress_stages);
+  EXPECT_GE(progress.DistinctStages(), 3 + d.candidates.size());
+  EXPECT_EQ(d.progress_stages, progress.reports.back().stage + 2);  // the maps follow
   EXPECT_EQ(DiagnosisToJson(d)["coil_round"], true);
   EXPECT_THAT(d.missing_physics, ::testing::ElementsAre(Effect::kCoilInductance));
   EXPECT_NEAR(d.model.coil_time_constant_s, coil.value, 0.1 * coil.value);

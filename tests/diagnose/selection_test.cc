@@ -70,6 +70,7 @@ class ScriptedFits {
   std::map<std::string, Effect> insignificant;  // "effects<-from" -> the effect within noise of zero
   std::map<std::string, Effect> unidentified;   // "effects<-from" -> the effect not identifiable
   std::vector<std::pair<std::string, ActuatorModel>> starts;  // every fit's label and start model
+  std::vector<internal::SelectionStep> steps;                 // and its place in the progress's plan
   bool broadband = false;  // figures as the broadband diagnosis's: beyond noise past kBroadbandChi2Limit
 
   void SetNoiseTest(FitFigures* f) const {
@@ -79,7 +80,8 @@ class ScriptedFits {
 
   internal::CandidateFitter Fitter() {
     return [this](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
-                  int, const std::string&) {
+                  const internal::SelectionStep& step, const std::string&) {
+      steps.push_back(step);
       CandidateFit c;
       c.effects = effects;
       c.label = internal::Label(effects);
@@ -151,6 +153,34 @@ TEST(SelectEffectsTest, ASecondEffectThatTakesUpWhatTheFirstFitLeftIsNotNamed) {
 // An effect whose null is a limit at infinity stands on its gains alone, unless none of its parameters
 // is identifiable: a second stop the motion never reaches changes nothing the records show, and what
 // its fit gained the refit of the other parameters did (broadband study 8410).
+// The progress's plan: one stage per fit, and at each forward move every fit of that move still planned,
+// so that the time left is not read as nothing while the selection fits on (broadband coil 8435 said
+// "0.0 s left" for 200 s when the whole forward selection was one stage).
+TEST(SelectEffectsTest, EachFitIsAStageAndTheMovesFitsArePlannedAhead) {
+  ScriptedFits fits;
+  fits.chi2 = {{"cubic_stiffness<-", 500},
+               {"dry_friction<-", 900},
+               {"quadratic_stiffness<-", 950},
+               {"cubic_stiffness+dry_friction<-cubic_stiffness", 120},         // move 1, within noise
+               {"cubic_stiffness+quadratic_stiffness<-cubic_stiffness", 495},  // within noise of k3
+               {"cubic_stiffness<-cubic_stiffness+dry_friction", 500}};        // its backward check
+  std::vector<CandidateFit> candidates;
+  const int chosen =
+      Select(fits, &candidates, {Effect::kCubicStiffness, Effect::kDryFriction, Effect::kQuadraticStiffness});
+  ASSERT_GE(chosen, 0);
+  EXPECT_EQ(candidates[chosen].label, "cubic_stiffness+dry_friction");
+  // The fits: the singles 0-2; move 1's two extensions and one refit 3-5; move 2's extension 6 (not fitted).
+  ASSERT_EQ(fits.steps.size(), 7u);
+  const int move_ends[] = {3, 3, 3, 6, 6, 6, 7};  // one past the last fit of each fit's move
+  for (size_t i = 0; i < fits.steps.size(); ++i) {
+    EXPECT_EQ(fits.steps[i].index, static_cast<int>(i));
+    EXPECT_GE(fits.steps[i].planned, move_ends[i]) << "fit " << i;
+  }
+  // Before any move, the plan is the singles and one move over the others.
+  EXPECT_EQ(fits.steps[0].planned, 5);
+  EXPECT_EQ(internal::SelectionFitsPlanned(3, DiagnoseOptions{}), 5);
+}
+
 TEST(SelectEffectsTest, AnEffectWithoutAnIdentifiableParameterIsNotNamed) {
   ScriptedFits fits;
   fits.chi2 = {{"second_stop<-", 300}, {"cubic_stiffness<-", 500}};

@@ -283,12 +283,6 @@ BroadbandParts SplitBroadbandRecords(const Campaign& campaign, int heldout_every
   return parts;
 }
 
-int BroadbandDiagnosisProgressStages(const DiagnoseOptions& options) {
-  const auto library = static_cast<int>(std::count_if(EffectLibrary().begin(), EffectLibrary().end(),
-                                                      [&](const EffectInfo& info) { return internal::Requested(info, options); }));
-  return 3 + library + (options.pairs ? 1 : 0) + internal::MapStages(options);
-}
-
 BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const DiagnoseOptions& options) {
   Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();
@@ -296,8 +290,11 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
     return options.max_seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   };
   const ResponseKind kind = campaign.response;
-  int stages = 0;
+  // Progress: stage k of `stages`, planned as the base's three, the selection's fits (its plan revised
+  // as it goes: SelectionStep) and the report's maps; `reached` is the last stage reported.
+  int stages = 0, reached = 0;
   auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
+    reached = std::max(reached, stage);
     if (options.progress) options.progress({stage, stages, name, step});
   };
   BroadbandDiagnosis d;
@@ -308,7 +305,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   std::vector<const EffectInfo*> library;
   for (const EffectInfo& info : EffectLibrary())
     if (internal::Requested(info, options)) library.push_back(&info);
-  stages = BroadbandDiagnosisProgressStages(options);
+  stages = 3 + internal::SelectionFitsPlanned(library.size(), options) + internal::MapStages(options);
 
   // 2. The base fit on the fit parts, and the base model on every part.
   progress(1, "base fit on the fit parts of " + std::to_string(split.fit.size()) + " records");
@@ -343,14 +340,13 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   for (const EffectInfo* info : library)
     if (internal::Applicable(info->effect, options.fit.model, context)) singles.push_back(info->effect);
   int first_stage = 4;  // of the current round of the selection
-  const auto round_stages = [&] { return static_cast<int>(singles.size()) + (options.pairs ? 1 : 0); };
-  stages = 3 + round_stages();
   // Each candidate's best fit, by label: the warm start of the candidates fitted from it (broadband_fit.h).
   std::map<std::string, BroadbandFitResult> fits;
   auto fit_new = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
-                     int index, const std::string& name) {
+                     const internal::SelectionStep& step, const std::string& name) {
     const BroadbandFitResult* warm = from.empty() ? &d.base.result : &fits.at(internal::Label(from));
-    const int stage = first_stage + index;
+    const int stage = first_stage + step.index;
+    stages = first_stage - 1 + step.planned + internal::MapStages(options);
     progress(stage, name);
     const auto candidate_start = std::chrono::steady_clock::now();
     CandidateFit c;
@@ -435,10 +431,10 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   // Every fit so far, by its effects and start model: the coil's round fits again only what is new.
   std::map<std::string, CandidateFit> done;
   auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
-                 int index, const std::string& name) {
+                 const internal::SelectionStep& step, const std::string& name) {
     const std::string key = internal::FitKey(effects, start);
     if (const auto it = done.find(key); it != done.end()) return it->second;
-    return done[key] = fit_new(effects, start, from, index, name);
+    return done[key] = fit_new(effects, start, from, step, name);
   };
   auto select = [&] {
     d.candidates.clear();
@@ -484,9 +480,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
   // rest explains the records would only add candidates that noise can pick.
   if (d.unexplained && !options.coil_inductance && options.coil_when_unexplained && seconds_left() > 0 &&
       internal::Applicable(Effect::kCoilInductance, options.fit.model, context)) {
-    first_stage += round_stages();
+    first_stage = reached + 1;
     singles.push_back(Effect::kCoilInductance);
-    stages += round_stages();
     d.coil_round = true;
     d.chosen = select();
     answer();
@@ -532,6 +527,7 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
                              FormatFigure(options.min_heldout_gain, 4) +
                              " residual variances, and what the base model leaves on the held-out parts is noise";
   }
+  d.progress_stages = reached + internal::MapStages(options);
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;
 }

@@ -222,15 +222,10 @@ void RingingOfWorstPlaces(const Campaign& campaign, std::span<const RecordAnalys
   u->description += internal::DescribeRinging(*u, kind, internal::kRingPlaces);
 }
 
-// The stages of one round of the selection: each single, then the forward selection.
-int SelectionStages(size_t effects, const DiagnoseOptions& options) {
-  return static_cast<int>(effects) + (options.pairs ? 1 : 0);
-}
-
-// The diagnosis's progress stages with `effects` candidate effects and `rounds` rounds of the
-// selection (DiagnoseOptions::progress).
-int PlannedStages(size_t effects, const DiagnoseOptions& options, int rounds = 1) {
-  return 3 + rounds * SelectionStages(effects, options) + internal::MapStages(options);
+// The diagnosis's progress stages as planned with `effects` candidate effects (DiagnoseOptions::progress),
+// before the selection revises its plan.
+int PlannedStages(size_t effects, const DiagnoseOptions& options) {
+  return 3 + internal::SelectionFitsPlanned(effects, options) + internal::MapStages(options);
 }
 
 // Where a candidate's fit starts: a model, and the effects' scales from its orbits.
@@ -434,10 +429,13 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   const ResponseKind kind = campaign.response;
   const int orders = options.fit.harmonic_orders;
   // Progress: stage k of `stages` (diagnose.h); every effect is planned until the base fit says which apply.
+  // `reached` is the last stage reported.
   int stages = PlannedStages(std::count_if(EffectLibrary().begin(), EffectLibrary().end(),
                                            [&](const EffectInfo& info) { return internal::Requested(info, options); }),
-                             options);
+                             options),
+      reached = 0;
   auto progress = [&](int stage, const std::string& name, const std::string& step = {}) {
+    reached = std::max(reached, stage);
     if (options.progress) options.progress({stage, stages, name, step});
   };
   Diagnosis d;
@@ -480,8 +478,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   std::map<std::string, CandidateFit> done;
   int first_stage = 4;  // of the current round
   auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
-                 int index, const std::string& label) {
-    const int stage = first_stage + index;
+                 const internal::SelectionStep& step, const std::string& label) {
+    const int stage = first_stage + step.index;
+    stages = first_stage - 1 + step.planned + internal::MapStages(options);
     const std::string name = from_staged && from.empty() ? label + ", also from the staged estimates" : label;
     progress(stage, name);
     auto fit_from = [&](const CandidateStart& s) {
@@ -519,8 +518,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     staged.model = d.base.staged;
     from_staged = CandidateStart{d.base.staged, Context(staged, split.fit)};
     d.selection_rounds = 2;
-    first_stage += SelectionStages(applicable.size(), options);
-    stages = PlannedStages(applicable.size(), options, d.selection_rounds);
+    first_stage = reached + 1;
     d.chosen = select();
   }
 
@@ -549,7 +547,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
                                  &best_partial);
     if (d.chosen >= 0 || !partial.empty() || !d.unexplained || seconds_left() <= 0) return;
     if (!slopes_refit_tried) {
-      progress(stages - internal::MapStages(options), "the open-world test",
+      progress(reached, "the open-world test",
                "the base model refitted as `fit` does, before calling its misfit unexplained");
       slopes_refit = RefitBaseWithSlopes(split, kind, campaign.absolute_scale, options);
       slopes_refit_tried = true;
@@ -565,9 +563,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   // "unexplained" at 34 times the noise without it; its control (9952) took 1.7 s, 30 s with the coil.
   if (d.unexplained && !options.coil_inductance && options.coil_when_unexplained && seconds_left() > 0 &&
       internal::Applicable(Effect::kCoilInductance, options.fit.model, context)) {
-    first_stage += SelectionStages(singles.size(), options);
+    first_stage = reached + 1;
     singles.push_back(Effect::kCoilInductance);
-    stages += SelectionStages(singles.size(), options);
     d.coil_round = true;
     d.chosen = select();
     answer();
@@ -602,15 +599,9 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
         !unseen.empty())
       partial = partial.empty() ? unseen : partial + "; " + unseen;
   Conclude(campaign, analyses, context, refit, chosen_parameters, partial, best_partial, options, &d);
+  d.progress_stages = reached + internal::MapStages(options);
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return d;
-}
-
-int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options) {
-  const size_t singles = std::count_if(diagnosis.candidates.begin(), diagnosis.candidates.end(),
-                                       [](const CandidateFit& c) { return c.effects.size() == 1; });
-  if (!diagnosis.coil_round) return PlannedStages(singles, options, diagnosis.selection_rounds);
-  return PlannedStages(singles - 1, options, diagnosis.selection_rounds) + SelectionStages(singles, options);
 }
 
 CandidateFit FitCandidate(const Campaign& campaign, std::span<const Effect> effects, const DiagnoseOptions& options) {

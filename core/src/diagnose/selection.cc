@@ -217,10 +217,22 @@ double GainOver(const FitFigures& from, const FitFigures& to, bool heldout) {
   return ((heldout ? from.heldout_chi2 : from.chi2) - (heldout ? to.heldout_chi2 : to.chi2)) / variance;
 }
 
+int SelectionFitsPlanned(size_t singles, const DiagnoseOptions& options) {
+  const size_t move = options.pairs && singles > 0 ? singles - 1 : 0;
+  return static_cast<int>(singles + move);
+}
+
 int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figures, const ActuatorModel& base,
                   const DiagnoseOptions& options, const std::function<double()>& seconds_left,
-                  const CandidateFitter& fit, std::vector<CandidateFit>* candidates) {
+                  const CandidateFitter& fit_at, std::vector<CandidateFit>* candidates) {
   std::vector<CandidateFit>& all = *candidates;
+  // The progress's plan (SelectionStep): `planned` is revised at each forward move.
+  int fits = 0, planned = SelectionFitsPlanned(singles.size(), options);
+  auto fit = [&](const std::vector<Effect>& effects, const ActuatorModel& start, const std::vector<Effect>& from,
+                 const std::string& name) {
+    planned = std::max(planned, fits + 1);
+    return fit_at(effects, start, from, {fits++, planned}, name);
+  };
   for (size_t i = 0; i < singles.size(); ++i) {
     const EffectInfo& info = Info(singles[i]);
     if (seconds_left() <= 0) {
@@ -231,7 +243,7 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
       all.push_back(skipped);
       continue;
     }
-    all.push_back(fit({info.effect}, base, {}, static_cast<int>(i), "candidate " + std::string(info.id)));
+    all.push_back(fit({info.effect}, base, {}, "candidate " + std::string(info.id)));
   }
   auto by_gain = [](const CandidateFit& a, const CandidateFit& b) {
     const double ga = a.fitted ? a.heldout_gain : -kInf, gb = b.fitted ? b.heldout_gain : -kInf;
@@ -252,7 +264,6 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
   // only those that beat the base alone: beside a large first effect, a second one's single fit can
   // do worse than the base (it bends the model towards the first's misfit). Returns the model it
   // ends at (`from` when nothing beats it); `path` (may be null) gets each model it moves to.
-  const int stage = static_cast<int>(singles.size());
   auto forward = [&](int from, std::vector<int>* path) {
     int current_index = from;
     // Each move lowers the held-out chi-square beyond noise; the bound only guards against fits that
@@ -262,6 +273,11 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
       const FitFigures now = all[current_index].figures;
       const size_t now_parameters = all[current_index].effect_parameters.size();
       int best = -1;
+      // This move's plan: an extension by each effect not held, and the backward check's refits.
+      const auto extensions = std::count_if(fitted.begin(), fitted.end(), [&](Effect e) {
+        return std::find(current.begin(), current.end(), e) == current.end();
+      });
+      planned = fits + static_cast<int>((current.size() >= kMaxEffects ? 0 : extensions) + current.size() + 1);
       auto consider = [&](CandidateFit next) {
         next.note += (next.note.empty() ? "" : "; ") + std::string("held-out gain over ") + Label(current) + ": " +
                      Format(GainOver(now, next.figures, true));
@@ -277,8 +293,8 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
         if (seconds_left() <= 0) break;
         std::vector<Effect> effects = current;
         effects.push_back(e);
-        const int next = consider(fit(effects, all[current_index].model, current, stage,
-                                      "forward selection: candidate " + Label(effects)));
+        const int next =
+            consider(fit(effects, all[current_index].model, current, "forward selection: candidate " + Label(effects)));
         // An extension that beats the current model beyond noise, but with an effect whose parameter
         // is within noise of its null, has found that effect's stand-in: its significant part is refitted
         // from its solution and competes as a move of its own, the insignificant effect swapped out
@@ -295,7 +311,7 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
           else start = WithoutEffect(start, x, base);
         }
         if (kept.empty() || kept.size() == grown.size() || SameEffects(kept, current)) continue;
-        consider(fit(kept, start, grown, stage,
+        consider(fit(kept, start, grown,
                      "forward selection: candidate " + Label(kept) + ", the significant part of " + Label(grown)));
       }
       if (best < 0) break;
@@ -310,7 +326,7 @@ int SelectEffects(std::span<const Effect> singles, const FitFigures& base_figure
         const std::vector<Effect> without = Without(extended, x);
         if (seconds_left() <= 0) break;
         if (without.empty() || (!SameEffects(without, current) && FindFit(all, without) >= 0)) continue;
-        CandidateFit refit = fit(without, WithoutEffect(solution, x, base), extended, stage,
+        CandidateFit refit = fit(without, WithoutEffect(solution, x, base), extended,
                                  "backward check: " + Label(without) + " refitted from " + Label(extended) + "'s solution");
         refit.note += (refit.note.empty() ? "" : "; ") + std::string("refitted from ") + Label(extended) +
                       "'s solution without " + Info(x).id;

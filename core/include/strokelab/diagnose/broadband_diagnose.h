@@ -109,6 +109,7 @@ struct BroadbandDiagnosis {
   std::vector<std::string> warnings;
   // Whether the selection ran once more with coil_inductance (DiagnoseOptions::coil_when_unexplained).
   bool coil_round = false;
+  int progress_stages = 0;  // as Diagnosis::progress_stages
   double seconds = 0.0;
 };
 
@@ -140,11 +141,6 @@ std::pair<double, double> NearContactShares(const Recording& part, ResponseKind 
 // Throws InputError for bad options, a campaign without broadband records, or records too short to
 // hold a part out (named).
 BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
-
-// N of the progress's "stage k of N" (DiagnoseOptions::progress): the base fit, the base model on every
-// part, the signatures, one stage per candidate effect, the pairs when asked for, and the report's two
-// maps when the options ask for them (report/diagnosis_maps.h).
-int BroadbandDiagnosisProgressStages(const DiagnoseOptions& options);
 
 // kind "broadband", missing_physics (effect, parameters), model, model_note, fit_before, fit_after, heldout_dof,
 // base (BroadbandCampaignFitToJson), evidence, candidates, records (before and after), unexplained

@@ -118,10 +118,11 @@ struct DiagnoseOptions {
   int map_amplitude_points = 12;
   // Called at each stage's start and within the candidates' fits (each solve and Ceres iteration),
   // from the calling thread (may be empty). The stages, N of them: the records' analysis, the base
-  // fit, the signatures, one fit per candidate effect that applies (all seven planned until the base
-  // fit says which), the pair (when `pairs`; passed over unless two effects beat noise), the same
-  // again with coil_inductance where it runs (coil_when_unexplained), and the report's two maps
-  // (when both map point counts are not 0; reported by report/diagnosis_maps.h).
+  // fit, the signatures, one stage per fit of the selection (selection.h's SelectionStep: each effect
+  // that applies, every library effect planned until the base fit says which, then each fit of the
+  // forward selection, N revised at each of its moves), the same again with coil_inductance where it
+  // runs (coil_when_unexplained; the fits it has made already are passed over), and the report's two
+  // maps (when both map point counts are not 0; reported by report/diagnosis_maps.h).
   ProgressHook progress;
   // Nothing, or the first wrong field and why: the base fit's own (as FitOptions::IsValid names it,
   // "harmonic_orders"), then "heldout_every", "min_heldout_gain", "max_passes", "max_seconds",
@@ -335,6 +336,9 @@ struct Diagnosis {
   std::optional<Unexplained> unexplained;
   std::vector<EffectCurve> curves;       // one per characteristic of the named effects
   std::string conclusion;                // in words
+  // N of the progress's "stage k of N" once the diagnosis has run (DiagnoseOptions::progress): the
+  // stages it reached, then the report's maps when the options ask for them.
+  int progress_stages = 0;
   double seconds = 0.0;
 };
 
@@ -349,10 +353,6 @@ std::vector<bool> HeldOutRecords(std::span<const RecordAnalysis> analyses, int h
 
 // Throws InputError for bad options or campaigns (as FitCampaign).
 Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& options = {});
-
-// N of the progress's "stage k of N" for a diagnosis that has run (DiagnoseOptions::progress): the
-// report's maps are its last two stages when options ask for them.
-int DiagnosisProgressStages(const Diagnosis& diagnosis, const DiagnoseOptions& options);
 
 // One candidate of the diagnosis fitted to every record, none held out: the base fit (step 2), then
 // the base model extended by `effects` with every parameter free (step 4, the problem and start

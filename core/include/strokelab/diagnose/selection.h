@@ -26,13 +26,25 @@ std::string Label(const std::vector<Effect>& effects);
 std::string FitKey(const std::vector<Effect>& effects, const ActuatorModel& start);
 // Chi-square drop from `from` to `to` (held-out or fit records) in `to`'s residual variances.
 double GainOver(const FitFigures& from, const FitFigures& to, bool heldout);
+// Where a fit stands in the selection's plan, for the diagnosis's progress: its index among the fits the
+// selection asked for (0-based, the singles first, one after another), and how many fits the selection
+// plans as far as it knows (always more than index). It plans one forward move after the singles
+// (SelectionFitsPlanned) and revises the plan at each move, when it learns which extensions it tries.
+struct SelectionStep {
+  int index = 0;
+  int planned = 0;
+};
 // Fits the base model extended by `effects` from `start` (a fitted model's parameters as start values:
 // those of the candidate of the effects `from`, the base's when empty, maybe with an effect taken out),
-// at progress stage `stage` (0 for the first single, singles.size() for the forward selection) under
-// `name`; the candidate's figures on the same records as the base's.
+// as fit `step` of the selection's plan under `name`; the candidate's figures on the same records as
+// the base's.
 using CandidateFitter =
     std::function<CandidateFit(const std::vector<Effect>& effects, const ActuatorModel& start,
-                               const std::vector<Effect>& from, int stage, const std::string& name)>;
+                               const std::vector<Effect>& from, const SelectionStep& step, const std::string& name)>;
+// The fits planned before the selection starts, with `singles` effects: each single, and with
+// options.pairs a forward move that extends the best by each of the others (a control ends after the
+// singles; a campaign with effects missing makes more moves).
+int SelectionFitsPlanned(size_t singles, const DiagnoseOptions& options);
 // Steps 4 and 5 of diagnose.h: each of `singles` fitted from `base` (skipped once seconds_left() is
 // spent), sorted by held-out gain, then forward selection with its backward check. An extension that
 // beats the current model beyond noise but holds an effect within noise of its null has its significant
