@@ -99,6 +99,8 @@ void BM_SampledFlow(benchmark::State& state, double limit_v, double k3, bool exa
   }
   state.counters["samples_per_s"] = benchmark::Counter(static_cast<double>(state.iterations() * request.sample_count),
                                                        benchmark::Counter::kIsRate);
+  state.counters["steps"] = static_cast<double>(flow.steps);
+  state.counters["rejected"] = static_cast<double>(flow.rejected_steps);
   state.counters["exact_steps"] = static_cast<double>(flow.exact_steps);
   state.counters["contacts"] = static_cast<double>(flow.contacts);
   if (limit_v > 0)
@@ -112,6 +114,9 @@ BENCHMARK_CAPTURE(BM_SampledFlow, paper_exact, 0.0, 0.0, true)->Unit(benchmark::
 BENCHMARK_CAPTURE(BM_SampledFlow, paper_dop853, 0.0, 0.0, false)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_exact, 2.0, 0.0, true)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_SampledFlow, clipped_2V_dop853, 2.0, 0.0, false)->Unit(benchmark::kMillisecond);
+// Clipped hard: about a third of the samples beyond 1 V.
+BENCHMARK_CAPTURE(BM_SampledFlow, clipped_1V_exact, 1.0, 0.0, true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SampledFlow, clipped_1V_dop853, 1.0, 0.0, false)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_SampledFlow, k3_1.5e7, 0.0, 1.5e7, true)->Unit(benchmark::kMillisecond);
 
 void BM_Summarize(benchmark::State& state) {

@@ -110,25 +110,68 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsTheClosedForm) {
   }
 }
 
+// Two flows of the same request the same to 1e-8 of their largest sizes: each sample's x, v and force,
+// each column's x, v and force at every sample, and the end state (DOP853's 1e-11 per step over
+// thousands of steps, and the sensitivities' looser 1e-10).
+void ExpectSameFlow(const FlowResult& exact, const FlowResult& reference, const std::string& name) {
+  ASSERT_EQ(exact.samples.size(), reference.samples.size()) << name;
+  ASSERT_EQ(exact.sample_slopes.size(), reference.sample_slopes.size()) << name;
+  auto largest = [](const std::vector<double>& values, size_t first, size_t stride) {
+    double size = 0;
+    for (size_t i = first; i < values.size(); i += stride) size = std::max(size, std::abs(values[i]));
+    return size;
+  };
+  std::vector<double> x, v;
+  for (size_t n = 0; n < exact.samples.size(); ++n) {
+    x.push_back(reference.samples[n].x_m);
+    v.push_back(reference.samples[n].v_m_per_s);
+  }
+  const double x_size = largest(x, 0, 1), v_size = largest(v, 0, 1),
+               force_size = largest(reference.sample_force_n, 0, 1);
+  for (size_t n = 0; n < exact.samples.size(); ++n) {
+    EXPECT_NEAR(exact.samples[n].x_m, x[n], 1e-8 * x_size) << name << " sample " << n;
+    EXPECT_NEAR(exact.samples[n].v_m_per_s, v[n], 1e-8 * v_size) << name << " sample " << n;
+    EXPECT_NEAR(exact.sample_force_n[n], reference.sample_force_n[n], 1e-8 * force_size) << name << " sample " << n;
+  }
+  // Each column's x, v and force at every sample, against that column's largest.
+  const size_t columns = exact.columns.size(), per_sample = 3 * columns;
+  for (size_t column = 0; column < columns; ++column)
+    for (int k = 0; k < 3; ++k) {
+      const size_t first = column * 3 + k;
+      const double size = largest(reference.sample_slopes, first, per_sample);
+      double error = 0;
+      for (size_t i = first; i < exact.sample_slopes.size(); i += per_sample)
+        error = std::max(error, std::abs(exact.sample_slopes[i] - reference.sample_slopes[i]));
+      EXPECT_LE(error, 1e-8 * size) << name << " column " << column << " component " << k;
+    }
+  EXPECT_NEAR(exact.end.x_m, reference.end.x_m, 1e-8 * x_size) << name;
+  EXPECT_NEAR(exact.end.v_m_per_s, reference.end.v_m_per_s, 1e-8 * v_size) << name;
+}
+
+// 40 harmonics of 5 Hz, each of 1.2 V / h at a random phase, sampled at fs: peaks of about 4 V.
+SampledDrive Multisine(double fs, double duration_s) {
+  std::mt19937 random(20261128);
+  std::uniform_real_distribution<double> phase(0.0, 2 * std::numbers::pi);
+  std::vector<double> phases;
+  for (int h = 1; h <= 40; ++h) phases.push_back(phase(random));
+  return Sampled(fs, duration_s, [&](double t) {
+    double u = 0;
+    for (int h = 1; h <= 40; ++h) u += 1.2 / h * std::sin(2 * std::numbers::pi * 5.0 * h * t + phases[h - 1]);
+    return u;
+  });
+}
+
 // The exact free-flight map against DOP853 throughout (FlowOptions::exact_free_flight false), with
 // every sensitivity column, on models that hit their stops under a multisine sampled at 20 kHz: the
 // map takes the intervals clear of the stops, DOP853 the ones near and in contact. End state, columns,
 // and each sample's x, v, force and slopes the same to 1e-8 of their largest sizes (DOP853's 1e-11 per
 // step over 6,000 steps, and the sensitivities' looser 1e-10). A model with a smooth nonlinear term
 // (k3) or a parameter whose column is not affine (k3 at 0) takes no exact step. A clipped drive takes
-// the map only where it stays within the limit.
+// the map where its hold does not cross the limit.
 TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
   using M = ActuatorModel;
-  std::mt19937 random(20261128);
-  std::uniform_real_distribution<double> phase(0.0, 2 * std::numbers::pi);
-  std::vector<double> phases;
-  for (int h = 1; h <= 40; ++h) phases.push_back(phase(random));
   const double fs = 20000.0, duration_s = 0.3;
-  const SampledDrive drive = Sampled(fs, duration_s, [&](double t) {
-    double u = 0;
-    for (int h = 1; h <= 40; ++h) u += 1.2 / h * std::sin(2 * std::numbers::pi * 5.0 * h * t + phases[h - 1]);
-    return u;
-  });
+  const SampledDrive drive = Multisine(fs, duration_s);
   ActuatorModel damped = PaperModel();
   damped.contact_damping_n_s_per_m = 15.0;
   damped.upper_stop_m = 1.2e-3;
@@ -138,8 +181,8 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
   ActuatorModel coil = PaperModel();  // tau_e = 2 mH / 3 Ohm, with its back-EMF part of c_p
   coil.coil_time_constant_s = 2e-3 / 3.0;
   coil.back_emf_damping_n_s_per_m = 0.8;
-  // Clipped at 2 V (over 1 in 20 of the samples lie beyond it, asserted below): the map takes only the
-  // intervals within the limit, where the limit's column is unforced.
+  // Clipped at 2 V (over 1 in 20 of the samples lie beyond it, asserted below): within the limit, the
+  // limit's column is unforced; beyond it, the drive is the limit itself and forces that column.
   ActuatorModel clipped = PaperModel();
   clipped.amplifier_limit_v = 2.0;
   ActuatorModel clipped_coil = coil;
@@ -179,38 +222,7 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
     EXPECT_EQ(exact.contacts, reference.contacts) << c.name;
     EXPECT_EQ(reference.exact_steps, 0) << c.name;
     EXPECT_GT(exact.exact_steps, request.sample_count / 2) << c.name;
-    ASSERT_EQ(exact.samples.size(), reference.samples.size()) << c.name;
-    ASSERT_EQ(exact.sample_slopes.size(), reference.sample_slopes.size()) << c.name;
-    auto largest = [](const std::vector<double>& values, size_t first, size_t stride) {
-      double size = 0;
-      for (size_t i = first; i < values.size(); i += stride) size = std::max(size, std::abs(values[i]));
-      return size;
-    };
-    std::vector<double> x, v, xe, ve;
-    for (size_t n = 0; n < exact.samples.size(); ++n) {
-      x.push_back(reference.samples[n].x_m);
-      v.push_back(reference.samples[n].v_m_per_s);
-    }
-    const double x_size = largest(x, 0, 1), v_size = largest(v, 0, 1),
-                 force_size = largest(reference.sample_force_n, 0, 1);
-    for (size_t n = 0; n < exact.samples.size(); ++n) {
-      EXPECT_NEAR(exact.samples[n].x_m, x[n], 1e-8 * x_size) << c.name << " sample " << n;
-      EXPECT_NEAR(exact.samples[n].v_m_per_s, v[n], 1e-8 * v_size) << c.name << " sample " << n;
-      EXPECT_NEAR(exact.sample_force_n[n], reference.sample_force_n[n], 1e-8 * force_size) << c.name << " sample " << n;
-    }
-    // Each column's x, v and force at every sample, against that column's largest.
-    const size_t columns = exact.columns.size(), per_sample = 3 * columns;
-    for (size_t column = 0; column < columns; ++column)
-      for (int k = 0; k < 3; ++k) {
-        const size_t first = column * 3 + k;
-        const double size = largest(reference.sample_slopes, first, per_sample);
-        double error = 0;
-        for (size_t i = first; i < exact.sample_slopes.size(); i += per_sample)
-          error = std::max(error, std::abs(exact.sample_slopes[i] - reference.sample_slopes[i]));
-        EXPECT_LE(error, 1e-8 * size) << c.name << " column " << column << " component " << k;
-      }
-    EXPECT_NEAR(exact.end.x_m, reference.end.x_m, 1e-8 * x_size) << c.name;
-    EXPECT_NEAR(exact.end.v_m_per_s, reference.end.v_m_per_s, 1e-8 * v_size) << c.name;
+    ExpectSameFlow(exact, reference, c.name);
   }
   ActuatorModel k3 = PaperModel();
   k3.cubic_stiffness_n_per_m3 = 4e7;
@@ -220,6 +232,46 @@ TEST(SampledDriveFlowTest, TheExactFreeFlightMapIsDop853sFlow) {
   k3_column.parameters = {&M::cubic_stiffness_n_per_m3};
   EXPECT_EQ(Flow(PaperModel(), drive, {}, 0.0, duration_s, k3_column).exact_steps, 0);
   EXPECT_GT(Flow(PaperModel(), drive, {}, 0.0, duration_s, plain).exact_steps, 0);
+}
+
+// Clear of the stops, every interval of a clipped drive whose hold stays on one side of the limit takes
+// the exact map, the many beyond it (the limit forcing its own column there) as well as those within;
+// only those that cross it take DOP853. The flow is DOP853's throughout as in the test above.
+TEST(SampledDriveFlowTest, AClippedDrivesIntervalsBeyondTheLimitTakeTheExactMap) {
+  using M = ActuatorModel;
+  const double fs = 20000.0, duration_s = 0.3, limit_v = 1.0;
+  const SampledDrive drive = Multisine(fs, duration_s);
+  ActuatorModel clipped = Triangle::StopFree(PaperModel());
+  clipped.amplifier_limit_v = limit_v;
+  ActuatorModel clipped_coil = clipped;  // tau_e = 2 mH / 3 Ohm, with its back-EMF part of c_p
+  clipped_coil.coil_time_constant_s = 2e-3 / 3.0;
+  clipped_coil.back_emf_damping_n_s_per_m = 0.8;
+  auto side = [&](double u) { return u > limit_v ? 1 : u < -limit_v ? -1 : 0; };
+  int one_side = 0, beyond = 0;
+  for (size_t k = 0; k + 1 < drive.voltage_v.size(); ++k) {
+    const int a = side(drive.voltage_v[k]), b = side(drive.voltage_v[k + 1]);
+    one_side += a == b;
+    beyond += a == b && a != 0;
+  }
+  ASSERT_GT(beyond, std::ssize(drive.voltage_v) / 5);
+  FlowOptions dop853_only;
+  dop853_only.exact_free_flight = false;
+  for (const auto& [name, model] : {std::pair{"clipped", clipped}, std::pair{"clipped_coil", clipped_coil}}) {
+    FlowRequest request;
+    request.monodromy = true;
+    request.parameters = {&M::gain_n_per_v, &M::amplifier_limit_v, &M::damping_n_s_per_m};
+    if (model.coil_time_constant_s > 0) request.parameters.push_back(&M::coil_time_constant_s);
+    request.sample_count = static_cast<int>(duration_s * fs) + 1;
+    request.sample_start_s = 0.0;
+    request.sample_interval_s = 1.0 / fs;
+    request.sample_sensitivities = true;
+    const State start{2e-4, -0.01, 0.0};
+    const FlowResult exact = Flow(model, drive, start, 0.0, duration_s, request);
+    const FlowResult reference = Flow(model, drive, start, 0.0, duration_s, request, dop853_only);
+    EXPECT_EQ(exact.contacts, 0) << name;
+    EXPECT_EQ(exact.exact_steps, one_side) << name;
+    ExpectSameFlow(exact, reference, name);
+  }
 }
 
 struct SineCase {

@@ -208,9 +208,10 @@ class FlowIntegrator {
   // request asks for their values at the samples); `dy`, the field there when known.
   void RecordSample(double ts, const double* y, const double* dy = nullptr);
   // Steps from the sample instant t to the next one, `boundary`, by the exact free-flight map where
-  // it applies, the amplifier does not clip and no stop can be met in between; false where it does not
-  // (the state unchanged; the samples at t are recorded unless the interval is not a whole one within
-  // the limit, and DOP853's step records them then).
+  // it applies, the drive's hold does not cross the amplifier's limit (FreeFlightMap::Covers) and no
+  // stop can be met in between; false where it does not (the state unchanged; the samples at t are
+  // recorded unless the interval is not a whole one or crosses the limit, and DOP853's step records
+  // them then).
   bool ExactStep(double t, double boundary);
   double ThetaAt(double t, double h, double time_s);
   // Whether a Hertzian contact's end is integrated over u: `entry` after an entry switch, else the
@@ -468,13 +469,6 @@ bool FlowIntegrator::ExactStep(double t, double boundary) {
   if (!exact_free_flight_ || mode_.Any()) return false;
   const double interval = 1.0 / drive_.sampled->sample_rate_hz, rounding = 1e-9 * interval;
   if (std::abs(boundary - t - interval) > rounding) return false;  // a clipping corner or a partial interval
-  const double limit_v = model().amplifier_limit_v;  // the map holds where the amplifier does not clip
-  if (!(std::abs(drive_.Voltage(t)) <= limit_v && std::abs(drive_.Voltage(boundary)) <= limit_v)) return false;
-  auto next_sample_s = [&] { return request_.sample_start_s + next_sample_ * request_.sample_interval_s; };
-  for (; next_sample_ < request_.sample_count && next_sample_s() <= t + rounding; ++next_sample_)
-    RecordSample(next_sample_s(), y_.data(), K(0));
-  // A sample strictly inside the interval needs the dense output.
-  if (next_sample_ < request_.sample_count && next_sample_s() < boundary - rounding) return false;
   if (!free_map_) {
     // Each component's size: its absolute tolerance, in proportion, with x's at the length scale.
     std::vector<double> size(absolute_tolerance_.begin(), absolute_tolerance_.begin() + n_);
@@ -482,6 +476,12 @@ bool FlowIntegrator::ExactStep(double t, double boundary) {
     for (double& s : size) s *= per_tolerance;
     free_map_.emplace(model(), request_, interval, size, peak_v > 0 ? peak_v : 1.0);
   }
+  if (!free_map_->Covers(drive_.Voltage(t), drive_.Voltage(boundary))) return false;  // it crosses the limit
+  auto next_sample_s = [&] { return request_.sample_start_s + next_sample_ * request_.sample_interval_s; };
+  for (; next_sample_ < request_.sample_count && next_sample_s() <= t + rounding; ++next_sample_)
+    RecordSample(next_sample_s(), y_.data(), K(0));
+  // A sample strictly inside the interval needs the dense output.
+  if (next_sample_ < request_.sample_count && next_sample_s() < boundary - rounding) return false;
   double* dy_end = K(dop853::kStages);
   free_map_->Advance(y_.data(), drive_.Voltage(t), drive_.Voltage(boundary), y_new_.data());
   field_.Evaluate(boundary, y_new_.data(), dy_end, mode_);
