@@ -274,6 +274,38 @@ TEST(SampledDriveFlowTest, AClippedDrivesIntervalsBeyondTheLimitTakeTheExactMap)
   }
 }
 
+// The field jumps where the drive crosses the amplifier's limit (the limit's column, and a sine's
+// amplitude and frequency columns, are forced beyond it only). The flow splits each crossing into
+// instants on either side, so that no DOP853 step sees the other side at its end. Clear of the stops,
+// a clipped multisine's flow then rejects no more steps than the same flow unclipped, and a clipped
+// sine's at most one per crossing more (7 here: the first step back within the limit, as long as the
+// steps beyond it, where its columns are unforced, may be too long for their forcing there). Before the
+// split, a step ending at a crossing computed to rounding was rejected until short enough to pass:
+// 311 and 302 rejections here.
+TEST(SampledDriveFlowTest, ACrossingOfTheLimitCostsNoRejectedStep) {
+  using M = ActuatorModel;
+  const ActuatorModel unclipped = Triangle::StopFree(PaperModel());
+  ActuatorModel clipped = unclipped;
+  clipped.amplifier_limit_v = 1.0;
+  FlowOptions dop853_only;
+  dop853_only.exact_free_flight = false;
+  const double duration_s = 0.3;
+  const SampledDrive multisine = Multisine(20000.0, duration_s);
+  const SineDrive sine{2.0, 10.0, 0.3};
+  int crossings = 0;  // of the sine: 4 per period
+  for (double t = 0; t < duration_s; t += 1e-5)
+    crossings += (std::abs(sine.Voltage(t)) > 1.0) != (std::abs(sine.Voltage(t + 1e-5)) > 1.0);
+  ASSERT_EQ(crossings, 12);
+  FlowRequest request;
+  request.parameters = {&M::gain_n_per_v, &M::amplifier_limit_v};
+  auto rejected = [&](const ActuatorModel& model, const auto& drive) {
+    return Flow(model, drive, {}, 0.0, duration_s, request, dop853_only).rejected_steps;
+  };
+  EXPECT_LE(rejected(clipped, multisine), rejected(unclipped, multisine));
+  request.drive_amplitude = request.drive_frequency = true;
+  EXPECT_LE(rejected(clipped, sine), rejected(unclipped, sine) + crossings);
+}
+
 struct SineCase {
   std::string name;
   ActuatorModel model;

@@ -45,6 +45,8 @@ constexpr double kFlowMaxStepFraction = 1.0 / 20.0;
 // An entry slower than this many length scales per shortest period grazes the stop: its contact is
 // too brief for the change of variable to pay (and p' may turn at once), so it stays over t.
 constexpr double kGrazingRate = 1e-3;
+// The shortest step the flow resolves at time t, relative to t or to its largest step.
+constexpr double kTimeResolution = 1e-14;
 
 // Instants in (t0, t1) where the sine crosses the amplifier's limit: sin(w t + phi) = +-r, r = limit / V.
 std::vector<double> ClippingKinks(const ActuatorModel& model, const SineDrive& drive, double t0, double t1) {
@@ -87,6 +89,48 @@ std::vector<double> SampledDriveCorners(const ActuatorModel& model, const Sample
   }
   std::sort(corners.begin(), corners.end());
   return corners;
+}
+
+// `boundaries` (in (t0, t1], sorted, t1 last) with each one where the drive crosses the amplifier's
+// limit (the sides of the limit that the drive takes between it and its neighbours differ) split into
+// an instant on the side before and one on the side after. The field jumps across the limit (the
+// limit's column, and a sine's amplitude and frequency columns, are forced beyond it only), so a step
+// whose end stage saw the drive on the other side (the crossing computed to rounding) would be rejected
+// until it is short enough for its error estimate to pass. Each instant is taken where the drive lies
+// kMarginUlps ulps of the limit clear of it, since a sine's stages compute the drive by angle addition
+// from the step's start (its rounding differs from SineDrive::Voltage's), and within a quarter of the
+// flow's time resolution of the crossing (kTimeResolution of t or of the largest step), so that Run
+// passes the sliver between the two without a step.
+std::vector<double> SplitLimitCrossings(const ActuatorModel& model, const variational::Drive& drive, double t0,
+                                        double max_step_s, std::vector<double> boundaries) {
+  constexpr int kMarginUlps = 32;
+  const double limit_v = model.amplifier_limit_v;
+  const double margin_v = kMarginUlps * (std::nextafter(limit_v, ActuatorModel::kNoLimit) - limit_v);
+  auto beyond = [&](double t) { return std::abs(drive.Voltage(t)) > limit_v; };
+  // From the crossing t towards `toward`, by doubling strides: the first instant clear on the side.
+  auto clear_of = [&](double t, double toward, bool side_beyond) {
+    const double cap = 0.25 * kTimeResolution * std::max(std::abs(t), max_step_s), direction = toward > t ? 1 : -1;
+    double at = t;
+    for (double stride = std::abs(std::nextafter(t, toward) - t); stride <= cap; stride *= 2) {
+      const double u = std::abs(drive.Voltage(at));
+      if (side_beyond ? u > limit_v + margin_v : u < limit_v - margin_v) break;
+      at = t + direction * stride;
+    }
+    return at;
+  };
+  std::vector<double> split;
+  for (size_t i = 0; i + 1 < boundaries.size(); ++i) {
+    const double t = boundaries[i], before = i > 0 ? boundaries[i - 1] : t0, after = boundaries[i + 1];
+    const bool side_before = beyond(0.5 * (before + t)), side_after = beyond(0.5 * (t + after));
+    if (side_before == side_after) {
+      split.push_back(t);
+      continue;
+    }
+    split.push_back(clear_of(t, before, side_before));
+    split.push_back(clear_of(t, after, side_after));
+  }
+  split.push_back(boundaries.back());
+  return split;
 }
 
 // A root of g on the step's [0, 1] by the Illinois method (illinois.h), g(1) of the sign after the
@@ -718,17 +762,24 @@ FlowResult FlowIntegrator::Run(State start, double t0, double t1) {
   std::vector<double> boundaries = drive_.sampled ? SampledDriveCorners(model(), *drive_.sampled, t0, t1)
                                                  : ClippingKinks(model(), drive_.sine, t0, t1);
   boundaries.push_back(t1);
+  if (model().HasAmplifierLimit())
+    boundaries = SplitLimitCrossings(model(), drive_, t0, max_step_s_, std::move(boundaries));
   size_t next_boundary = 0;
   double t = t0;
   double h = options_.initial_step_s > 0 ? options_.initial_step_s : 0.25 * max_step_s_;
   bool rejected_last = false;
   // The shortest step t resolves: a step below it means the solution is not finite or not resolvable.
-  auto resolution = [&] { return 1e-14 * std::max(std::abs(t), max_step_s_); };
+  auto resolution = [&] { return kTimeResolution * std::max(std::abs(t), max_step_s_); };
   while (t < t1) {
     // A switch on a boundary (a stop met at a sample instant of a sampled drive) leaves t on it up to
-    // rounding: the boundary is reached, and a step to it would be one t cannot resolve.
+    // rounding, and a crossing of the amplifier's limit is two boundaries a few ulps apart: the
+    // boundary is reached, and a step to it would be one t cannot resolve. K(0) is the field there
+    // (across the limit it jumps).
     while (std::abs(boundaries[next_boundary] - t) <= resolution()) {
-      t = boundaries[next_boundary];
+      if (boundaries[next_boundary] != t) {
+        t = boundaries[next_boundary];
+        field_.Evaluate(t, y_.data(), K(0), mode_);
+      }
       if (++next_boundary == boundaries.size()) break;
     }
     if (t >= t1) break;
