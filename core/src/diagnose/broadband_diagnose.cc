@@ -365,6 +365,10 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       if (chi2 < best) best = chi2, variant = v;
     }
     ExtendedProblem problem = internal::BuildProblem(start, options.fit.model, effects, context, variant);
+    // A coil added to a model without one is fitted from every start of its tau_e (effects.cc,
+    // kCoilStarts), the best fit kept: the start whose model fits best can stall (8435).
+    const bool every_start = std::find(effects.begin(), effects.end(), Effect::kCoilInductance) != effects.end() &&
+                             !start.HasCoilPole();
     internal::BroadbandFitOptions fit_options;
     // An effect that changes the impacts (a second stop) moves every segment's start through them: such a
     // fit took 101-200 iterations to converge where the stepped refinement takes tens (a second stop's
@@ -397,6 +401,14 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
             split.fit_pointers, kind, internal::BuildProblem(linear_start, options.fit.model, effects, context, variant),
             fresh);
         if (other.fit.chi2 < r.fit.chi2) r = std::move(other);
+      }
+      for (int v = 0; every_start && v < variants; ++v) {
+        if (v == variant || seconds_left() <= 0) continue;
+        progress(stage, name, "fitting the fit parts from start value " + std::to_string(v + 1));
+        ExtendedProblem other_problem = internal::BuildProblem(start, options.fit.model, effects, context, v);
+        fit_options.max_seconds = std::max(1.0, std::min(options.fit.max_refinement_seconds, seconds_left()));
+        BroadbandFitResult other = internal::FitBroadband(split.fit_pointers, kind, other_problem, fit_options);
+        if (other.fit.chi2 < r.fit.chi2) r = std::move(other), problem = std::move(other_problem);
       }
       if (HoldUnidentifiedBackEmf(r.fit.parameters, &problem)) {
         progress(stage, name, "fitting the fit parts again with c_emf held (the records do not identify it)");

@@ -80,6 +80,14 @@ constexpr double kContactRange = 1000.0;
 // campaign's scale (largest stroke, largest drive): the best of them (by chi-square) starts the fit.
 constexpr double kStopStarts[] = {0.95, 0.85, 0.75, 0.65};
 constexpr double kClipStarts[] = {0.95, 0.85, 0.75, 0.6};
+// The coil's tau_e added to a model without one starts at omega tau_e = 0.1 or 1, omega the highest
+// drive frequency's. The stepped diagnosis takes the start whose model fits best, as for the starts
+// above; the broadband diagnosis fits a coil from both and keeps the better fit (broadband_diagnose.cc):
+// on broadband coil 8435 (tau_e 6.67e-4 s, omega tau_e = 0.84 at 200 Hz) the first start's model
+// fitted better at the start, but its fit stalled with c_emf on its bound (chi-square 72,193 over
+// 18,377 degrees of freedom after 200 iterations, tau_e 5.8e-4 s), and the second's converged to the
+// noise (17,993, tau_e 6.655e-4 s).
+constexpr double kCoilStarts[] = {0.1, 1.0};
 
 // The contact stiffness k_s from `start`, within kContactRange and at most `resolved` [N/m] as a
 // linear stop's stiffness (a Hertzian one's at the typical penetration p: k_s,H p^(1/2)).
@@ -108,6 +116,7 @@ int StartVariants(std::span<const Effect> effects, const EffectContext& context)
     if (e == Effect::kSecondStop && !std::isfinite(context.upper_impact_onset_m))
       variants = std::max<int>(variants, std::size(kStopStarts));
     if (e == Effect::kAmplifierSaturation) variants = std::max<int>(variants, std::size(kClipStarts));
+    if (e == Effect::kCoilInductance) variants = std::max<int>(variants, std::size(kCoilStarts));
   }
   return variants;
 }
@@ -206,8 +215,8 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         break;
       }
       case Effect::kCoilInductance: {
-        // tau_e = L / R from a tenth of the one that lags the drive by 1 rad at the highest drive
-        // frequency, on that scale; no longer than the one that lags by 1 rad at the lowest, and no
+        // tau_e = L / R from one of kCoilStarts, on the scale of omega tau_e = 0.1 at the highest drive
+        // frequency (a lag of 0.1 rad); no longer than the one that lags by 1 rad at the lowest, and no
         // shorter than the one that lags by 0.01 rad at the highest (its pole 100 times above the
         // drive frequencies) nor than the model's bound (model.h). Below that floor the explicit
         // flow's steps follow tau_e and a fit costs ~100 s on 24 records where the others take 1 s (a
@@ -220,7 +229,8 @@ ExtendedProblem BuildProblem(const ActuatorModel& start, FitModelKind kind, std:
         const double floor = std::max(1.01 / (2.0 * std::numbers::pi * ModelBounds::kMaxCoilPoleRatio * natural_hz),
                                       0.1 * scale);
         const double ceiling = 1.0 / (2.0 * std::numbers::pi * context.min_frequency_hz);
-        const double t0 = std::max(start.HasCoilPole() ? start.coil_time_constant_s : scale, floor);
+        const double from_scale = 10.0 * kCoilStarts[variant % std::size(kCoilStarts)] * scale;
+        const double t0 = std::max(start.HasCoilPole() ? start.coil_time_constant_s : from_scale, floor);
         p.push_back(LinearParameter("tau_e", "s", &ActuatorModel::coil_time_constant_s, t0, scale, (floor - t0) / scale,
                                     (std::max(ceiling, t0) - t0) / scale));
         // The back-EMF's part of c_p, c_emf, only where the model's stop meets the records' impacts.
