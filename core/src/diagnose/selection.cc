@@ -13,7 +13,6 @@
 namespace strokelab::internal {
 namespace {
 
-
 std::string Format(double value, int digits = 4) {
   std::ostringstream out;
   out.precision(digits);
