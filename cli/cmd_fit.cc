@@ -64,7 +64,7 @@ std::string Fixed(double value, int precision) {
   return buffer;
 }
 
-// The parameter table: value, standard error ("-" for a fixed one), unit, and the note, marked where
+// The parameter table: value, standard error ("-" for a fixed one or one without), unit, and the note, marked where
 // the parameter is fixed or not identifiable.
 void PrintParameters(const std::vector<FitParameter>& parameters, std::ostream& out) {
   char line[256];
@@ -75,7 +75,8 @@ void PrintParameters(const std::vector<FitParameter>& parameters, std::ostream& 
     if (p.fixed) note = "fixed: " + note;
     if (!p.identifiable) note = "NOT IDENTIFIABLE: " + note;
     std::snprintf(line, sizeof line, "%-10s %14s %12s %9s  %s\n", p.name.c_str(), General(p.value, 8).c_str(),
-                  p.fixed ? "-" : General(p.standard_error, 3).c_str(), p.unit.c_str(), note.c_str());
+                  p.fixed || std::isnan(p.standard_error) ? "-" : General(p.standard_error, 3).c_str(), p.unit.c_str(),
+                  note.c_str());
     out << line;
   }
 }

@@ -708,6 +708,35 @@ TEST(FitCampaign, AWideStopBracketStartsTheRefinementAtItsBestPoint) {
   EXPECT_TRUE(Recovers(r, "d", truth.lower_stop_m));
 }
 
+// A stop no record's orbit reaches leaves d and k_s out of the Jacobian's rank: they are reported
+// without an error and not identifiable (they were reported with errors of 0, as was every other
+// parameter), and k_p, c_p and g keep the errors of the problem that holds the stop.
+TEST(FitCampaign, AStopNoOrbitReachesIsNotIdentifiedAndTheOthersKeepTheirErrors) {
+  SynthOptions o;
+  o.frequencies_hz = {5, 6, 7, 8, 9, 11};
+  o.amplitudes_v = {0.05, 0.1, 0.15};  // below the stop at every frequency
+  o.noise_rms_v = 0.0005;
+  o.offset_v = 0.01;
+  o.hum_v = 0.0005;
+  o.seed = 1109;
+  const ActuatorModel truth = PaperModel();
+  const FitResult r = FitCampaign(Synthesize(truth, o).campaign);
+  for (const RecordFit& f : r.records) ASSERT_EQ(f.model_contacts_per_period, 0.0) << f.name;
+  EXPECT_FALSE(r.refinement.converged);
+  EXPECT_EQ(r.refinement.unidentified, (std::vector<std::string>{"d", "k_s"})) << r.refinement.report;
+  EXPECT_THAT(r.refinement.report, HasSubstr("not identifiable from these records: d, k_s"));
+  for (const char* name : {"d", "k_s"}) {
+    const FitParameter* p = r.Find(name);
+    ASSERT_NE(p, nullptr) << name;
+    EXPECT_FALSE(p->identifiable) << name;
+    EXPECT_TRUE(std::isnan(p->standard_error)) << name << " +- " << p->standard_error;
+    EXPECT_THAT(p->note, HasSubstr("not identifiable from these records")) << name;
+  }
+  EXPECT_TRUE(Recovers(r, "k_p", truth.stiffness_n_per_m));
+  EXPECT_TRUE(Recovers(r, "c_p", truth.damping_n_s_per_m));
+  EXPECT_TRUE(Recovers(r, "g", truth.gain_n_per_v));
+}
+
 TEST(FitCampaign, RejectsAnEmptyCampaign) {
   try {
     FitCampaign(Campaign{});

@@ -49,6 +49,8 @@ double StopDistanceStart(std::span<const RecordAnalysis> analyses, ResponseKind 
 
 enum ParameterIndex { kStiffness = 0, kDamping = 1, kGain = 2, kStop = 3, kContactStiffness = 4, kContactDamping = 5 };
 inline constexpr int kMaxParameters = 6;
+// Their names where the model is absolute (the refinement's reports and RefinementSummary::unidentified).
+inline constexpr std::array<const char*, kMaxParameters> kParameterNames = {"k_p", "c_p", "g", "d", "k_s", "c_s"};
 
 // theta_i = 1 + ln(p_i / p0_i) for the positive magnitudes p = (k_p, c_p, |g|, |d|, k_s, c_s), p0 the
 // staged estimates: theta starts at 1 (so that Ceres' relative difference step is kNumericStep).
@@ -84,10 +86,11 @@ struct ParameterLayout {
 // The layout around the staged model `start` (its stop side; c_s fitted when asked).
 ParameterLayout MakeLayout(const ActuatorModel& start, bool fit_contact_damping);
 
-// The reported parameters from theta and its covariance (delta method: se(p) = |p| se(ln p)).
+// The reported parameters from theta and its covariance (delta method: se(p) = |p| se(ln p)). Those
+// the covariance gives no error (NaN) are reported not identifiable, with `why_no_error` as their note.
 std::vector<FitParameter> ReportParameters(const ParameterLayout& layout, const std::vector<double>& theta,
                                            const Eigen::MatrixXd& covariance, FitModelKind kind, ResponseKind response,
-                                           bool absolute_scale);
+                                           bool absolute_scale, const std::string& why_no_error);
 
 // FitResult::identifiability: what the model kind, response and scale let the fit identify, in words.
 std::string Identifiability(FitModelKind kind, ResponseKind response, bool absolute_scale, bool stop);

@@ -63,10 +63,11 @@ ParameterLayout MakeLayout(const ActuatorModel& start, bool fit_contact_damping)
 
 std::vector<FitParameter> ReportParameters(const ParameterLayout& layout, const std::vector<double>& theta,
                                            const Eigen::MatrixXd& covariance, FitModelKind kind, ResponseKind response,
-                                           bool absolute_scale) {
+                                           bool absolute_scale, const std::string& why_no_error) {
   const ActuatorModel m = layout.Decode(theta.data());
   const double mass = m.mass_kg;
-  auto log_se = [&](int i) { return std::sqrt(std::max(0.0, covariance(i, i))); };
+  // NaN where the covariance has none (a parameter the records do not identify).
+  auto log_se = [&](int i) { return std::isnan(covariance(i, i)) ? kNaN : std::sqrt(std::max(0.0, covariance(i, i))); };
   const double k = m.stiffness_n_per_m, c = m.damping_n_s_per_m, g = m.gain_n_per_v;
   const std::string given_mass = "given m_p = " + Format(mass) + " kg (data sheet)";
   const std::string scaled = "scaled by the response's unknown sensitivity (absolute_scale false)";
@@ -121,6 +122,9 @@ std::vector<FitParameter> ReportParameters(const ParameterLayout& layout, const 
     if (layout.stop) out.push_back(NotIdentifiable(Parameter("d", "m", d, std::abs(d) * log_se(kStop)), scaled));
   }
   out.push_back(Fixed("m_p", "kg", mass, "data sheet (paper section 4); not identifiable, held fixed"));
+  for (FitParameter& p : out)
+    if (!p.fixed && p.identifiable && std::isnan(p.standard_error))
+      p = NotIdentifiable(p, why_no_error + (p.note.empty() ? "" : " (" + p.note + ")"));
   return out;
 }
 

@@ -26,6 +26,7 @@
 #include "strokelab/identify/fit.h"
 #include "strokelab/identify/fit_orbit.h"
 #include "strokelab/identify/secant_covariance.h"
+#include "strokelab/identify/sparse_covariance.h"
 
 namespace strokelab {
 namespace fit_internal {
@@ -117,10 +118,11 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
                       const std::vector<size_t>& used, const FitOptions& options, FitResult* result) {
   using fit_internal::Complex, fit_internal::Format, fit_internal::kBranchSwitchRatio, fit_internal::kContactRange,
       fit_internal::kContactStiffness, fit_internal::kCorrectionTolerance,
-      fit_internal::kMaxCorrectionPasses, fit_internal::kMaxParameters, fit_internal::kNaN,
+      fit_internal::kMaxCorrectionPasses, fit_internal::kNaN, fit_internal::kParameterNames,
       fit_internal::kParameterRange, fit_internal::MakeCost, fit_internal::MakeLayout, fit_internal::ParameterLayout,
       fit_internal::RecordTarget, fit_internal::ReportParameters;
-  using internal::AfterSuccessfulStep, internal::BestMatchingOrbit, internal::MismatchSquared, internal::ModelOrbit,
+  using internal::AfterSuccessfulStep, internal::BestMatchingOrbit, internal::ErrorsFromJacobian,
+      internal::ParameterErrors, internal::MismatchSquared, internal::ModelOrbit,
       internal::OrbitSearch, internal::PowerOf, internal::SamplingCorrection, internal::SolveOrbit;
   Validate(options);
   const auto clock_start = std::chrono::steady_clock::now();
@@ -311,8 +313,21 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       const Eigen::VectorXd inverse_squares = sigma.array().square().inverse();
       covariance = summary.residual_variance * svd.matrixV() * inverse_squares.asDiagonal() * svd.matrixV().transpose();
     } else {
+      // Which parameters the records leave undetermined (a stop no orbit reaches: d and k_s), and
+      // the others' errors with those held: a rank-deficient covariance is no error of 0.
       solved = false;
-      summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (parameters not all identifiable)";
+      const ParameterErrors errors = ErrorsFromJacobian(j, summary.residual_variance);
+      covariance = errors.covariance;
+      std::string names;
+      for (int i = 0; i < p; ++i)
+        if (!errors.identifiable[i]) {
+          summary.unidentified.push_back(kParameterNames[i]);
+          names += (names.empty() ? "" : ", ") + std::string(kParameterNames[i]);
+        }
+      summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (" +
+                        (names.empty() ? std::string("parameters not all identifiable")
+                                       : "not identifiable from these records: " + names) +
+                        ")";
     }
   }
   if (covariance.allFinite()) {
@@ -350,16 +365,18 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   summary.converged = solved && covariance.allFinite();
 
   result->model = layout.Decode(theta.data());
-  constexpr std::array<const char*, kMaxParameters> kNames = {"k_p", "c_p", "g", "d", "k_s", "c_s"};
   for (int i = 0; i < p; ++i) {
     const double range = std::log(i >= kContactStiffness ? kContactRange : kParameterRange);
     if (std::abs(theta[i] - 1.0) > 0.999 * range) {
       summary.ended_on_bound = true;
-      result->warnings.push_back(std::string(kNames[i]) + " ended on its bound (a factor " + Format(std::exp(range)) +
-                                 " from the staged estimate): the model does not fit these records");
+      result->warnings.push_back(std::string(kParameterNames[i]) + " ended on its bound (a factor " +
+                                 Format(std::exp(range)) + " from the staged estimate): the model does not fit these records");
     }
   }
-  result->parameters = ReportParameters(layout, theta, covariance, result->model_kind, kind, result->absolute_scale);
+  result->parameters =
+      ReportParameters(layout, theta, covariance, result->model_kind, kind, result->absolute_scale,
+                       evaluates ? "not identifiable from these records"
+                                 : "no error: a record has no steady state at the end");
 
   // Every record at the fitted model, from its (updated) anchor, as its sampling sees it.
   for (size_t k = 0; k < used.size(); ++k) all[used[k]].anchor = targets[k].anchor;

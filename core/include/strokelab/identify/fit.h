@@ -255,6 +255,10 @@ struct RefinementSummary {
   // reported, where the chi-square rose more slowly along it than J said (secant_covariance.h); 1: as J.
   std::vector<double> secant_ratios;
   bool ended_on_bound = false;     // a parameter ended on its bound: the model does not fit the records
+  // Where the Jacobian is rank deficient: the parameters ("k_p", "c_p", "g", "d", "k_s", "c_s") that take
+  // part in its null space (a stop no orbit reaches: d, k_s). They are reported without an error, the
+  // others with the errors of the problem that holds them.
+  std::vector<std::string> unidentified;
   double seconds = 0.0;
   std::string report;  // Ceres' brief report; why not converged
 };
