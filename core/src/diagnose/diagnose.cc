@@ -133,6 +133,12 @@ EffectContext Context(const FitResult& base, std::span<const RecordAnalysis> ana
     }
   }
   c.contacts = !penetrations.empty() || !base.contact.records.empty();
+  // A stop whose d or k_s the base fit could not identify (no orbit reaches it, though records far below
+  // resonance count as not clear of it: gen2's coil campaign 10019) is held by every candidate, as the
+  // broadband diagnosis holds it: freeing it, and the back-EMF's c_emf with it, left the coil's fit rank
+  // deficient, NOT converged, with every base parameter's error undefined.
+  c.stop_identified = std::ranges::none_of(base.refinement.unidentified,
+                                           [](const std::string& name) { return name == "d" || name == "k_s"; });
   if (!penetrations.empty()) {
     c.max_penetration_m = *std::max_element(penetrations.begin(), penetrations.end());
     std::nth_element(penetrations.begin(), penetrations.begin() + penetrations.size() / 2, penetrations.end());
