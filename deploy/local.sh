@@ -104,7 +104,8 @@ configure_clang() {  # DIR CMAKE_ARGS...
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1}
 # tests/sanitizers/tsan.supp: the uninstrumented cpp-httplib library's function-local statics.
-export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1:suppressions=$PWD/tests/sanitizers/tsan.supp}
+TSAN_SUPPRESSIONS=$PWD/tests/sanitizers/tsan.supp
+export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1:suppressions=$TSAN_SUPPRESSIONS}
 
 # ASan + UBSan, with libFuzzer's coverage instrumentation so that the same build holds the fuzz
 # harnesses (one clang build instead of two; the instrumentation costs the tests little): every test

@@ -370,7 +370,8 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     if (std::abs(theta[i] - 1.0) > 0.999 * range) {
       summary.ended_on_bound = true;
       result->warnings.push_back(std::string(kParameterNames[i]) + " ended on its bound (a factor " +
-                                 Format(std::exp(range)) + " from the staged estimate): the model does not fit these records");
+                                 Format(std::exp(range)) +
+                                 " from the staged estimate): the model does not fit these records");
     }
   }
   result->parameters =
