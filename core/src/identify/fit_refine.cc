@@ -117,7 +117,7 @@ ceres::CostFunction* MakeCost(int parameters, const ParameterLayout* layout, Rec
 void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kind, const ActuatorModel& start,
                       const std::vector<size_t>& used, const FitOptions& options, FitResult* result) {
   using fit_internal::Complex, fit_internal::Format, fit_internal::kBranchSwitchRatio, fit_internal::kContactRange,
-      fit_internal::kContactStiffness, fit_internal::kCorrectionTolerance,
+      fit_internal::kContactStiffness, fit_internal::kCorrectionTolerance, fit_internal::kStop,
       fit_internal::kMaxCorrectionPasses, fit_internal::kNaN, fit_internal::kParameterNames,
       fit_internal::kParameterRange, fit_internal::MakeCost, fit_internal::MakeLayout, fit_internal::ParameterLayout,
       fit_internal::RecordTarget, fit_internal::ReportParameters;
@@ -296,6 +296,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   // computation here, on a Jacobian known to be whole: J = U S V^T, (J^T J)^-1 = V S^-2 V^T, rank
   // deficient when a squared singular value ratio falls below Ceres' min_reciprocal_condition_number.
   Eigen::MatrixXd covariance = Eigen::MatrixXd::Constant(p, p, kNaN);
+  bool stop_held = false;  // the stop's parameters are undetermined, the others have their errors
   ceres::CRSMatrix crs;
   const bool evaluates = problem.Evaluate(ceres::Problem::EvaluateOptions(), nullptr, nullptr, nullptr, &crs);
   ThrowIfCancelled();
@@ -315,19 +316,35 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     } else {
       // Which parameters the records leave undetermined (a stop no orbit reaches: d and k_s), and
       // the others' errors with those held: a rank-deficient covariance is no error of 0.
-      solved = false;
       const ParameterErrors errors = ErrorsFromJacobian(j, summary.residual_variance);
       covariance = errors.covariance;
       std::string names;
+      bool stop_only = true;  // only the stop's parameters (d, k_s, c_s) are undetermined
       for (int i = 0; i < p; ++i)
         if (!errors.identifiable[i]) {
           summary.unidentified.push_back(kParameterNames[i]);
           names += (names.empty() ? "" : ", ") + std::string(kParameterNames[i]);
+          stop_only = stop_only && i >= kStop;
         }
-      summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (" +
-                        (names.empty() ? std::string("parameters not all identifiable")
-                                       : "not identifiable from these records: " + names) +
-                        ")";
+      bool others_have_errors = true;
+      for (int i = 0; i < p; ++i)
+        if (errors.identifiable[i]) others_have_errors = others_have_errors && std::isfinite(covariance(i, i));
+      // A stop the records do not determine leaves the linear fit whole: the fit converges on the
+      // others, as the broadband base fit leaves out a stop that earns nothing, and says what it left.
+      stop_held = stop_only && !names.empty() && others_have_errors;
+      if (stop_held) {
+        const std::string why = "the stop's parameters (" + names +
+                                ") are not identifiable from these records (no record's orbit depends on them): they"
+                                " keep their staged values, which are not estimates";
+        summary.report += "\n" + why;
+        result->warnings.push_back(why);
+      } else {
+        solved = false;
+        summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (" +
+                          (names.empty() ? std::string("parameters not all identifiable")
+                                         : "not identifiable from these records: " + names) +
+                          ")";
+      }
     }
   }
   if (covariance.allFinite()) {
@@ -362,7 +379,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     covariance = checked.covariance;
     summary.secant_ratios = checked.ratios;
   }
-  summary.converged = solved && covariance.allFinite();
+  summary.converged = solved && (covariance.allFinite() || stop_held);
 
   result->model = layout.Decode(theta.data());
   for (int i = 0; i < p; ++i) {

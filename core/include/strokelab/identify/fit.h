@@ -242,7 +242,8 @@ struct FitParameter {
 
 struct RefinementSummary {
   bool ran = false;           // false when options.refine is false
-  bool converged = false;     // Ceres converged and the covariance exists
+  // Ceres converged and the covariance exists, or exists for all but a stop no orbit depends on (below)
+  bool converged = false;
   int iterations = 0;         // Ceres iterations over all passes
   int correction_passes = 0;  // solves with refreshed sampling corrections
   size_t branch_switches = 0; // records moved to a better-matching coexisting orbit between passes
@@ -257,7 +258,8 @@ struct RefinementSummary {
   bool ended_on_bound = false;     // a parameter ended on its bound: the model does not fit the records
   // Where the Jacobian is rank deficient: the parameters ("k_p", "c_p", "g", "d", "k_s", "c_s") that take
   // part in its null space (a stop no orbit reaches: d, k_s). They are reported without an error, the
-  // others with the errors of the problem that holds them.
+  // others with the errors of the problem that holds them. Where only the stop's are (d, k_s, c_s), the
+  // fit converges on the others and those keep their staged values (a warning says so).
   std::vector<std::string> unidentified;
   double seconds = 0.0;
   std::string report;  // Ceres' brief report; why not converged
