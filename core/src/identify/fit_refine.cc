@@ -117,10 +117,10 @@ ceres::CostFunction* MakeCost(int parameters, const ParameterLayout* layout, Rec
 void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kind, const ActuatorModel& start,
                       const std::vector<size_t>& used, const FitOptions& options, FitResult* result) {
   using fit_internal::Complex, fit_internal::Format, fit_internal::kBranchSwitchRatio, fit_internal::kContactRange,
-      fit_internal::kContactStiffness, fit_internal::kCorrectionTolerance, fit_internal::kStop,
+      fit_internal::kContactStiffness, fit_internal::kCorrectionTolerance,
       fit_internal::kMaxCorrectionPasses, fit_internal::kNaN, fit_internal::kParameterNames,
-      fit_internal::kParameterRange, fit_internal::MakeCost, fit_internal::MakeLayout, fit_internal::ParameterLayout,
-      fit_internal::RecordTarget, fit_internal::ReportParameters;
+      fit_internal::kParameterRange, fit_internal::kStop, fit_internal::MakeCost, fit_internal::MakeLayout,
+      fit_internal::ParameterLayout, fit_internal::RecordTarget, fit_internal::ReportParameters;
   using internal::AfterSuccessfulStep, internal::BestMatchingOrbit, internal::ErrorsFromJacobian,
       internal::ParameterErrors, internal::MismatchSquared, internal::ModelOrbit,
       internal::OrbitSearch, internal::PowerOf, internal::SamplingCorrection, internal::SolveOrbit;
