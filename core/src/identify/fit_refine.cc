@@ -319,16 +319,17 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       const ParameterErrors errors = ErrorsFromJacobian(j, summary.residual_variance);
       covariance = errors.covariance;
       std::string names;
-      bool stop_only = true;  // only the stop's parameters (d, k_s, c_s) are undetermined
-      for (int i = 0; i < p; ++i)
-        if (!errors.identifiable[i]) {
-          summary.unidentified.push_back(kParameterNames[i]);
-          names += (names.empty() ? "" : ", ") + std::string(kParameterNames[i]);
-          stop_only = stop_only && i >= kStop;
+      bool stop_only = true;           // only the stop's parameters (d, k_s, c_s) are undetermined
+      bool others_have_errors = true;  // and every other parameter has its error
+      for (int i = 0; i < p; ++i) {
+        if (errors.identifiable[i]) {
+          others_have_errors = others_have_errors && std::isfinite(covariance(i, i));
+          continue;
         }
-      bool others_have_errors = true;
-      for (int i = 0; i < p; ++i)
-        if (errors.identifiable[i]) others_have_errors = others_have_errors && std::isfinite(covariance(i, i));
+        summary.unidentified.push_back(kParameterNames[i]);
+        names += (names.empty() ? "" : ", ") + std::string(kParameterNames[i]);
+        stop_only = stop_only && i >= kStop;
+      }
       // A stop the records do not determine leaves the linear fit whole: the fit converges on the
       // others, as the broadband base fit leaves out a stop that earns nothing, and says what it left.
       stop_held = stop_only && !names.empty() && others_have_errors;
