@@ -673,6 +673,48 @@ TEST(FitCampaign, AccelerationWithUnknownSensitivityGivesRatios) {
   EXPECT_THAT(r.identifiability, HasSubstr("d/g"));
 }
 
+// ---- Records that sample every period alike ---------------------------------------------------------
+
+// A record analysed over `periods` drive periods at f [Hz] on a 51.2 kHz grid.
+RecordAnalysis AnalysedOver(double f, double periods) {
+  RecordAnalysis a;
+  a.sample_rate_hz = 51200.0;
+  a.drive.frequency_hz = f;
+  const auto samples = static_cast<size_t>(std::llround(periods * a.sample_rate_hz / f));
+  a.window = SampleWindow{0, samples, periods};
+  return a;
+}
+
+// Where the window's periods start between two samples (fit_orbit.h SamplesEveryPeriodAlike).
+TEST(SamplesEveryPeriodAlike, OnlyWherePeriodsStartWithinHalfASampleOfOneAnother) {
+  using internal::SamplesEveryPeriodAlike;
+  EXPECT_TRUE(SamplesEveryPeriodAlike(AnalysedOver(5.0, 5)));        // 10,240 samples a period
+  EXPECT_TRUE(SamplesEveryPeriodAlike(AnalysedOver(4.9999998, 5)));  // as estimated: 0.002 samples apart in all
+  EXPECT_TRUE(SamplesEveryPeriodAlike(AnalysedOver(8.0, 8)));
+  EXPECT_TRUE(SamplesEveryPeriodAlike(AnalysedOver(7.0, 1)));        // one period: its impacts sampled once
+  EXPECT_FALSE(SamplesEveryPeriodAlike(AnalysedOver(6.0, 6)));       // 8,533 1/3: three positions
+  EXPECT_FALSE(SamplesEveryPeriodAlike(AnalysedOver(5.0371, 5)));    // 10,164.58: spread over the sample
+  EXPECT_FALSE(SamplesEveryPeriodAlike(AnalysedOver(51200.0 / 10240.5, 4)));  // two positions half a sample apart
+}
+
+// Impacts at 8 Hz on a 51.2 kHz grid (6,400 samples a period) are sampled alike in every period; at 6,
+// 7 and 8.0917 Hz they are not. The fit says so once, naming 8 Hz alone.
+TEST(FitCampaign, WarnsWhereImpactsAreSampledAlikeInEveryPeriod) {
+  SynthOptions o;
+  o.frequencies_hz = {6, 7, 8, 8.0917};
+  o.amplitudes_v = {0.1, 0.5};  // clear of the stop, then impacts at every frequency
+  o.settle_s = 5.0;
+  o.noise_rms_v = 0.0005;
+  o.seed = 5801;
+  const FitResult r = FitCampaign(Synthesize(PaperModel(), o).campaign);
+  ASSERT_TRUE(r.refinement.converged) << r.refinement.report;
+  for (const RecordFit& f : r.records)
+    EXPECT_EQ(f.model_contacts_per_period > 0.0, f.amplitude_v > 0.3) << f.name;
+  ASSERT_EQ(r.warnings.size(), 1u) << ::testing::PrintToString(r.warnings);
+  EXPECT_THAT(r.warnings[0], HasSubstr("records at 8 Hz touch the stop with a drive period of a whole number of "
+                                       "samples at 51200 Hz"));
+}
+
 // ---- Bad input ---------------------------------------------------------------------------------------
 
 // A wide |d| bracket: the campaign's 6 x 4 grid with every fourth record held out (as the diagnosis

@@ -94,6 +94,12 @@ double OrbitMeanDisplacement(const ActuatorModel& model, const SineDrive& drive,
 std::vector<double> OrbitOnRecordGrid(const ActuatorModel& model, const RecordAnalysis& a, const ModelOrbit& orbit,
                                       ResponseKind kind);
 
+// Whether every drive period of the record's window starts at one position between two samples
+// (fs / f a whole number: 5 and 8 Hz at 51.2 kHz), so that every period samples an impact's kinks at
+// the same place. The chi-square then moves unevenly where a kink crosses a sample, and the paper
+// fit's standard errors understate (fit.cc warns; README, the paper fit's errors).
+bool SamplesEveryPeriodAlike(const RecordAnalysis& record);
+
 // What the record's sampling and least-squares fit make of the model's response, less the orbit's
 // continuous-time harmonics (fit_orbit.cc), and the variance that the sampling adds to the record's
 // harmonics where the response jumps. Zero for orbits of period other than 1.
