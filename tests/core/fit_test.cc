@@ -782,6 +782,20 @@ TEST(FitCampaign, AStopNoOrbitReachesIsNotIdentifiedAndTheOthersKeepTheirErrors)
   EXPECT_TRUE(Recovers(r, "k_p", truth.stiffness_n_per_m));
   EXPECT_TRUE(Recovers(r, "c_p", truth.damping_n_s_per_m));
   EXPECT_TRUE(Recovers(r, "g", truth.gain_n_per_v));
+  // The bound the records set on |d|: the fitted orbits' largest excursion, which below the stop is the
+  // linear model's largest amplitude, g V / |k_p - m_p w^2 + j c_p w| (paper Eq. 1 without the stop),
+  // to the sampling of its crest (1 - cos(pi f / fs) < 1e-6 at 11 Hz and 51.2 kHz).
+  double amplitude_m = 0.0;
+  for (const RecordFit& f : r.records) {
+    if (!f.used_refinement) continue;
+    const double w = kTwoPi * f.frequency_hz;
+    const std::complex<double> dynamic_stiffness(r.model.stiffness_n_per_m - r.model.mass_kg * w * w,
+                                                 r.model.damping_n_s_per_m * w);
+    amplitude_m = std::max(amplitude_m, r.model.gain_n_per_v * f.amplitude_v / std::abs(dynamic_stiffness));
+  }
+  EXPECT_REL_NEAR(r.refinement.largest_excursion_m, amplitude_m, 1e-5);
+  EXPECT_LT(r.refinement.largest_excursion_m, -truth.lower_stop_m);
+  EXPECT_THAT(r.warnings, Contains(HasSubstr(" m toward the stop, so |d| is above that")));
 }
 
 TEST(FitCampaign, RejectsAnEmptyCampaign) {

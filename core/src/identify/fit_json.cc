@@ -84,6 +84,7 @@ nlohmann::json FitResultToJson(const FitResult& r) {
                      {"parameters", f.parameters},
                      {"residual_variance", JsonNumber(f.residual_variance)},
                      {"secant_ratios", f.secant_ratios},
+                     {"largest_excursion_m", JsonNumber(f.largest_excursion_m)},
                      {"seconds", JsonNumber(f.seconds)},
                      {"report", f.report}};
   json records = json::array();

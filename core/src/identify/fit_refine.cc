@@ -297,6 +297,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
   // deficient when a squared singular value ratio falls below Ceres' min_reciprocal_condition_number.
   Eigen::MatrixXd covariance = Eigen::MatrixXd::Constant(p, p, kNaN);
   bool stop_held = false;  // the stop's parameters are undetermined, the others have their errors
+  std::string held_stop_warning;
   ceres::CRSMatrix crs;
   const bool evaluates = problem.Evaluate(ceres::Problem::EvaluateOptions(), nullptr, nullptr, nullptr, &crs);
   ThrowIfCancelled();
@@ -338,7 +339,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
                                 ") are not identifiable from these records (no record's orbit depends on them): they"
                                 " keep their staged values, which are not estimates";
         summary.report += "\n" + why;
-        result->warnings.push_back(why);
+        held_stop_warning = why;  // with the bound the orbits set on |d|, below
       } else {
         solved = false;
         summary.report += "\nNOT CONVERGED: the Jacobian is rank deficient (" +
@@ -445,9 +446,25 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
     f.model_period = orbit->anchor.period;
     f.model_contacts_per_period = orbit->contacts_per_period;
     f.model_harmonics = std::move(model_harmonics);
+    if (stop_held && f.used_refinement) {
+      // How far toward the held stop the record's fitted orbit goes, sampled on its own grid.
+      for (double x : internal::OrbitOnRecordGrid(result->model, a, *orbit, ResponseKind::kDisplacement)) {
+        const double toward_stop = result->model.HasLowerStop() ? -x : x;
+        summary.largest_excursion_m = std::isnan(summary.largest_excursion_m)
+                                          ? toward_stop
+                                          : std::max(summary.largest_excursion_m, toward_stop);
+      }
+    }
     mismatch += mismatch_i;
     mismatch_initial += f.nrmse_initial * f.nrmse_initial * power_i;
     power += power_i;
+  }
+  if (stop_held) {
+    // Any stop beyond the orbits leaves them as they are: the records bound |d| from below only.
+    if (summary.largest_excursion_m > 0.0)
+      held_stop_warning += "; the fitted orbits reach " + Format(summary.largest_excursion_m) +
+                           " m toward the stop, so |d| is above that";
+    result->warnings.push_back(held_stop_warning);
   }
   result->nrmse = std::sqrt(mismatch / power);
   result->nrmse_initial = std::sqrt(mismatch_initial / power);

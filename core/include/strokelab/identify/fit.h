@@ -43,6 +43,7 @@
 
 #include <complex>
 #include <cstddef>
+#include <limits>
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <span>
@@ -261,6 +262,9 @@ struct RefinementSummary {
   // others with the errors of the problem that holds them. Where only the stop's are (d, k_s, c_s), the
   // fit converges on the others and those keep their staged values (a warning says so).
   std::vector<std::string> unidentified;
+  // Where the stop is held so: the fitted orbits' largest displacement toward it over the refined
+  // records, on their sample grids [m]. Any |d| above it leaves those orbits as they are. NaN otherwise.
+  double largest_excursion_m = std::numeric_limits<double>::quiet_NaN();
   double seconds = 0.0;
   std::string report;  // Ceres' brief report; why not converged
 };
