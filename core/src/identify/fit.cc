@@ -73,7 +73,7 @@ namespace {
 // standard errors understate, and at which drive frequencies; nothing where none does. Measured with
 // tests/core/paper_fit_zscore_study.py (seeds 4081-4120, 51.2 kHz): the z-scores' RMS 1.40 with
 // records at 5 and 8 Hz (10,240 and 6,400 samples a period), 1.04 with those two moved to 5.0371 and
-// 8.0917 Hz, 0.91 with every frequency off a whole number of samples.
+// 8.0917 Hz, 0.98 with every frequency off a whole number of samples.
 std::optional<std::string> AlikePeriodsWarning(std::span<const RecordAnalysis> analyses, const FitResult& result) {
   std::vector<double> frequencies_hz;
   double sample_rate_hz = 0.0;
