@@ -259,12 +259,8 @@ namespace {
 // Where the window's drive periods start between two samples: S = fs / f samples per period, period k
 // starts at frac(k S) of a sample. Positions closer than kSamePosition are one (a drive frequency
 // estimated 1e-8 off a whole fs / f leaves them together).
-struct StartPositions {
-  size_t distinct = 1;
-  bool even = true;  // evenly spaced over the sample interval
-};
-StartPositions PeriodStartPositions(const RecordAnalysis& a) {
-  constexpr double kSamePosition = 1e-3;  // [samples]
+// frac(k S) for every period k of the window, sorted [samples].
+std::vector<double> SortedStartPositions(const RecordAnalysis& a) {
   const double samples_per_period = a.sample_rate_hz / a.drive.frequency_hz;
   const auto periods = std::max<long>(1, std::lround(static_cast<double>(a.window.size()) / samples_per_period));
   std::vector<double> positions;
@@ -273,6 +269,16 @@ StartPositions PeriodStartPositions(const RecordAnalysis& a) {
     positions.push_back(start - std::floor(start));
   }
   std::sort(positions.begin(), positions.end());
+  return positions;
+}
+
+struct StartPositions {
+  size_t distinct = 1;
+  bool even = true;  // evenly spaced over the sample interval
+};
+StartPositions PeriodStartPositions(const RecordAnalysis& a) {
+  constexpr double kSamePosition = 1e-3;  // [samples]
+  const std::vector<double> positions = SortedStartPositions(a);
   std::vector<double> distinct{positions.front()};
   for (const double x : positions)
     if (x - distinct.back() > kSamePosition) distinct.push_back(x);
@@ -301,15 +307,7 @@ double JitterSpan(const RecordAnalysis& a) {
 // the sample interval, above half of it (a drive frequency estimated 4e-8 off 5 Hz moves them 0.002 of
 // a sample over a 1 s window: still alike).
 bool SamplesEveryPeriodAlike(const RecordAnalysis& record) {
-  const double samples_per_period = record.sample_rate_hz / record.drive.frequency_hz;
-  const auto periods =
-      std::max<long>(1, std::lround(static_cast<double>(record.window.size()) / samples_per_period));
-  std::vector<double> positions;
-  for (long k = 0; k < periods; ++k) {
-    const double start = static_cast<double>(k) * samples_per_period;
-    positions.push_back(start - std::floor(start));
-  }
-  std::sort(positions.begin(), positions.end());
+  const std::vector<double> positions = SortedStartPositions(record);
   double largest_gap = positions.front() + 1.0 - positions.back();
   for (size_t k = 1; k < positions.size(); ++k) largest_gap = std::max(largest_gap, positions[k] - positions[k - 1]);
   return largest_gap > 0.5;

@@ -450,9 +450,7 @@ void RefineParameters(std::span<const RecordAnalysis> analyses, ResponseKind kin
       // How far toward the held stop the record's fitted orbit goes, sampled on its own grid.
       for (double x : internal::OrbitOnRecordGrid(result->model, a, *orbit, ResponseKind::kDisplacement)) {
         const double toward_stop = result->model.HasLowerStop() ? -x : x;
-        summary.largest_excursion_m = std::isnan(summary.largest_excursion_m)
-                                          ? toward_stop
-                                          : std::max(summary.largest_excursion_m, toward_stop);
+        summary.largest_excursion_m = std::fmax(summary.largest_excursion_m, toward_stop);  // NaN until the first
       }
     }
     mismatch += mismatch_i;
