@@ -140,6 +140,17 @@ SHAPED = {
     10008: ({"hertzian_contact": 1.5e7, "dry_friction": 0.002}, None, LOOSE),
     10009: ({"quadratic_stiffness": 7e3, "quadratic_damping": 0.3, "hertzian_contact": 1.5e7}, None, HUM60),
     10010: ({"position_damping": 1e6}, None, []),
+    # Fixed at stop 59 (0.41.0) before any was run, and run once: nothing was tuned on them.
+    10027: ({"force_factor": -3e4, "hertzian_contact": 1.5e7}, "acceleration", []),
+    10028: ({"quadratic_stiffness": 7e3, "dry_friction": 0.002, "hertzian_contact": 1.5e7}, None, []),
+    10029: ({"coil_inductance": 2e-3, "quadratic_damping": 0.3}, None, []),
+    10030: ({"second_stop": 1.45e-3, "force_factor": -3e4}, None, []),
+    10031: ({"amplifier_saturation": 0.45, "quadratic_stiffness": 7e3}, "velocity", []),
+    10032: ({"contact_damping": 40.0, "hertzian_contact": 1.5e7}, None, []),
+    10033: ({"stop_mount": 3000.0, "force_factor": -3e4}, None, []),
+    10034: ({"cubic_stiffness": 1.5e7, "quadratic_damping": 0.3}, "displacement", LONG),
+    10035: ({"dry_friction": 0.002, "contact_damping": 40.0}, None, NOISY),
+    10036: ({"position_damping": 3e5, "dry_friction": 0.002}, None, LOOSE),
 }
 CASES.update({seed: (list(values), response) for seed, (values, response, _) in SHAPED.items()})
 
