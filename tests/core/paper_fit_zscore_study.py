@@ -73,7 +73,7 @@ def main():
     with tempfile.TemporaryDirectory() as work:
         for seed in seeds:
             data = os.path.join(work, f"c{seed}")
-            synthesise(args.strokelab[0], seed, data, args.frequencies_hz, args.generator)
+            synthesise(args.strokelab[0], seed, data, args.frequencies_hz, args.generator, jobs=2)
             line = f"{seed}:"
             for b in args.strokelab:
                 z = z_scores(b, data)

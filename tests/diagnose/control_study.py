@@ -44,15 +44,15 @@ def campaign_options(seed):
 GEN2 = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tools", "gen2", "synth_campaign.py")
 
 
-def synthesise(strokelab, seed, data, frequencies_hz=FREQUENCIES_HZ, generator="synth"):
+def synthesise(strokelab, seed, data, frequencies_hz=FREQUENCIES_HZ, generator="synth", jobs=1):
     """One control campaign into `data`, by `strokelab synth` or by the second generator (tools/gen2:
-    scipy's integrator, its own event handling and its own draws from the seed)."""
+    scipy's integrator, its own event handling and its own draws from the seed; `jobs` processes)."""
     o = campaign_options(seed)
     # The offset as --offset-v=V: gen2's argparse reads a negative number in exponent form (-9e-05) as an option.
     common = ["--out", data, "--frequencies-hz", frequencies_hz, "--amplitudes-v", AMPLITUDES_V, "--settle-s", "5",
               "--noise-rms", str(o["noise_rms"]), "--hum-v", str(o["hum"]), "--hum-hz", str(o["hum_hz"]),
               f"--offset-v={o['offset']}", "--perturb", "k_p=0.1,c_p=0.1,g=0.1,d=0.1,k_s=0.1", "--seed", str(seed)]
-    command = ([sys.executable, GEN2] + common + ["--jobs", "1"] if generator == "gen2"
+    command = ([sys.executable, GEN2] + common + ["--jobs", str(jobs)] if generator == "gen2"
                else [strokelab, "synth"] + common + ["--threads", "1"])
     subprocess.run(command, check=True, capture_output=True)
 
