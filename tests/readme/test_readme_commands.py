@@ -48,6 +48,8 @@ SKIPPED = [
                                              "fit_zscore_study_few runs 4 of its campaigns)"),
     (r"tests/core/paper_fit_zscore_study\.py", "a study of two binaries, run by hand (ctest "
                                               "paper_fit_zscore_study_few runs 2 of its campaigns)"),
+    (r"tests/diagnose/control_study\.py", "a ~10-minute study of 100 campaigns, run by hand (ctest "
+                                         "control_study_few runs 2 of them)"),
 ]
 # Commands that need something the test environment may lack: (pattern, path that must exist).
 NEEDS = [(r"\.\./shared/data/campaign-a", SOURCE.parent / "shared/data/campaign-a")]
