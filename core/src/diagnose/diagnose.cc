@@ -69,6 +69,8 @@ std::vector<RecordMatch> MatchAll(const ActuatorModel& model, std::span<const Re
       m.residuals += 2;
     }
     m.model_period = p->orbit.anchor.period;
+    m.model_start = p->orbit.anchor.start;
+    m.variance = p->variance;
     try {
       m.model_mean_x_m = internal::OrbitMeanDisplacement(
           model, SineDrive{a.drive.amplitude_v, a.drive.frequency_hz, 0.0}, p->orbit.anchor);
@@ -535,14 +537,25 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
   std::optional<FitResult> slopes_refit;  // RefitBaseWithSlopes, once it was needed
   bool slopes_refit_tried = false;
   const FitResult* refit = nullptr;       // slopes_refit, where the answer stands on it
+  // The open-world test of `model` (the base extended by `effects`) on its matches in d.after, its
+  // parameters' error counted record by record. Counting it only lowers the chi-square, so where the
+  // plain one passes without it, so does the test, and the slopes are not computed.
+  auto test_after = [&](const ActuatorModel& model, const std::vector<Effect>& effects) {
+    const ExtendedProblem problem = internal::BuildProblem(model, options.fit.model, effects, context, 0);
+    chosen_parameters = problem.parameters.size();
+    std::optional<internal::HeldOutLeverage> leverage;
+    if (!internal::HeldOutWithinNoise(d.after)) {
+      std::vector<double ActuatorModel::*> fields;
+      for (const internal::FreeParameter& p : problem.parameters) fields.push_back(p.field);
+      leverage = internal::MeasureHeldOutLeverage(model, fields, d.after, analyses, kind, orders);
+    }
+    d.unexplained = internal::FindUnexplained(d.after, analyses, chosen_parameters, leverage ? &*leverage : nullptr);
+  };
   auto judge = [&](int index) -> std::optional<internal::Misfit> {  // the open-world test of candidates[index]
     d.chosen = index;
-    chosen_parameters =
-        internal::BuildProblem(d.chosen >= 0 ? d.candidates[d.chosen].model : d.base.model, options.fit.model,
-                               d.chosen >= 0 ? d.candidates[d.chosen].effects : std::vector<Effect>{}, context, 0)
-            .parameters.size();
-    d.after = d.chosen >= 0 ? MatchAll(d.candidates[d.chosen].model, analyses, split.heldout, kind, orders) : d.before;
-    d.unexplained = internal::FindUnexplained(d.after, analyses, chosen_parameters);
+    const ActuatorModel& model = d.chosen >= 0 ? d.candidates[d.chosen].model : d.base.model;
+    d.after = d.chosen >= 0 ? MatchAll(model, analyses, split.heldout, kind, orders) : d.before;
+    test_after(model, d.chosen >= 0 ? d.candidates[d.chosen].effects : std::vector<Effect>{});
     if (!d.unexplained) return std::nullopt;
     return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->expected_chi2, true};
   };
@@ -561,7 +574,7 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     if (!slopes_refit) return;
     refit = &*slopes_refit;
     d.after = MatchAll(refit->model, analyses, split.heldout, kind, orders);
-    d.unexplained = internal::FindUnexplained(d.after, analyses, chosen_parameters);
+    test_after(refit->model, {});
   };
   answer();
   // The coil's inductance, where the library without it leaves the misfit unexplained: the selection

@@ -57,7 +57,7 @@ std::string Describe(const Unexplained& u) {
   std::ostringstream out;
   out << "the diagnosed model misses the held-out records by " << FormatFigure(u.misfit_to_noise)
       << " times the noise (chi-square " << FormatFigure(u.heldout_chi2, 4) << " against " << FormatFigure(u.expected_chi2, 4)
-      << " from noise alone, p = " << FormatFigure(u.p_value, 2) << ")";
+      << " from noise and the fitted parameters' own error, p = " << FormatFigure(u.p_value, 2) << ")";
   if (u.places.empty()) {
     out << ", spread over the records with none beyond noise on its own";
     return out.str();
@@ -97,18 +97,26 @@ std::string Describe(const Unexplained& u) {
   return out.str();
 }
 
-// The held-out chi-square of `matches` against noise alone (Unexplained's figures, no places); false
-// when there is nothing held out to test.
-bool HeldOutFigures(const std::vector<RecordMatch>& matches, size_t parameters, Unexplained* u) {
+// The parameters' error's mean share of a residual's variance over the records, 1 + P / M (M: the fit
+// records' residuals).
+double MeanInflation(const std::vector<RecordMatch>& matches, size_t parameters) {
   double fit_residuals = 0;
+  for (const RecordMatch& m : matches)
+    if (!m.heldout && std::isfinite(m.chi2)) fit_residuals += m.residuals;
+  return 1.0 + static_cast<double>(parameters) / std::max(1.0, fit_residuals);
+}
+
+// The held-out chi-square of `matches` against noise alone (Unexplained's figures, no places), the
+// parameters' error counted record by record where `leverage` is given, else by its mean; false when
+// there is nothing held out to test.
+bool HeldOutFigures(const std::vector<RecordMatch>& matches, size_t parameters, const HeldOutLeverage* leverage,
+                    Unexplained* u) {
   std::vector<double> harmonic_sum, harmonic_count;
   for (const RecordMatch& m : matches) {
     if (!std::isfinite(m.chi2)) continue;
     if (m.heldout) {
       u->heldout_chi2 += m.chi2;
       u->heldout_residuals += m.residuals;
-    } else {
-      fit_residuals += m.residuals;
     }
     harmonic_sum.resize(std::max(harmonic_sum.size(), m.harmonic_chi2.size()), 0.0);
     harmonic_count.resize(harmonic_sum.size(), 0.0);
@@ -119,11 +127,19 @@ bool HeldOutFigures(const std::vector<RecordMatch>& matches, size_t parameters, 
   bool orbit_missing = false;
   for (const RecordMatch& m : matches) orbit_missing |= m.heldout && !std::isfinite(m.chi2);
   if (u->heldout_residuals == 0 && !orbit_missing) return false;
-  const double inflation = 1.0 + static_cast<double>(parameters) / std::max(1.0, fit_residuals);
   const double k = std::max(1, u->heldout_residuals);
-  u->expected_chi2 = inflation * k;
-  u->threshold_chi2 = inflation * ChiSquareQuantile(kUnexplainedP, k);
-  u->p_value = orbit_missing ? 0.0 : ChiSquareUpperTail(u->heldout_chi2 / inflation, k);
+  if (leverage) {
+    // The test is on leverage->chi2 ~ chi-square(R); the plain chi-square crosses it where it exceeds
+    // the quantile by what the parameters' error explains of these residuals.
+    u->expected_chi2 = std::max(leverage->expected_chi2, k);
+    u->threshold_chi2 = ChiSquareQuantile(kUnexplainedP, k) + (u->heldout_chi2 - leverage->chi2);
+    u->p_value = orbit_missing ? 0.0 : ChiSquareUpperTail(leverage->chi2, k);
+  } else {
+    const double inflation = MeanInflation(matches, parameters);
+    u->expected_chi2 = inflation * k;
+    u->threshold_chi2 = inflation * ChiSquareQuantile(kUnexplainedP, k);
+    u->p_value = orbit_missing ? 0.0 : ChiSquareUpperTail(u->heldout_chi2 / inflation, k);
+  }
   u->misfit_to_noise = std::sqrt(u->heldout_chi2 / u->expected_chi2);
   for (size_t h = 0; h < harmonic_sum.size(); ++h)
     u->harmonic_chi2_per_residual.push_back(harmonic_count[h] > 0 ? harmonic_sum[h] / harmonic_count[h] : kUndefined);
@@ -149,16 +165,31 @@ Unexplained::Place PlaceOf(const RecordMatch& m, const RecordAnalysis* a) {
 
 }  // namespace
 
+bool HeldOutWithinNoise(const std::vector<RecordMatch>& matches) {
+  double chi2 = 0;
+  int residuals = 0;
+  for (const RecordMatch& m : matches) {
+    if (!m.heldout) continue;
+    if (!std::isfinite(m.chi2)) return false;  // no orbit: beyond any noise
+    chi2 += m.chi2, residuals += m.residuals;
+  }
+  return residuals == 0 || ChiSquareUpperTail(chi2, residuals) >= kUnexplainedP;
+}
+
 std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& matches,
-                                           std::span<const RecordAnalysis> analyses, size_t parameters) {
+                                           std::span<const RecordAnalysis> analyses, size_t parameters,
+                                           const HeldOutLeverage* leverage) {
   Unexplained u;
-  if (!HeldOutFigures(matches, parameters, &u) || u.p_value >= kUnexplainedP) return std::nullopt;
-  const double inflation = u.expected_chi2 / std::max(1, u.heldout_residuals);
+  if (!HeldOutFigures(matches, parameters, leverage, &u) || u.p_value >= kUnexplainedP) return std::nullopt;
+  const double inflation = MeanInflation(matches, parameters);
   const double per_record_p = kUnexplainedP / static_cast<double>(std::max<size_t>(1, matches.size()));
   for (size_t i = 0; i < matches.size(); ++i) {
     const RecordMatch& m = matches[i];
     if (m.residuals == 0 || !std::isfinite(m.chi2)) continue;
-    if (ChiSquareUpperTail(m.chi2 / inflation, m.residuals) >= per_record_p) continue;
+    // A held-out record's own test counts the parameters' error there; a fit record's, their mean.
+    const bool own = leverage && i < leverage->record_chi2.size() && std::isfinite(leverage->record_chi2[i]);
+    const double judged = own ? leverage->record_chi2[i] : m.chi2 / inflation;
+    if (ChiSquareUpperTail(judged, m.residuals) >= per_record_p) continue;
     u.places.push_back(PlaceOf(m, i < analyses.size() ? &analyses[i] : nullptr));
   }
   std::sort(u.places.begin(), u.places.end(),
@@ -189,7 +220,7 @@ std::optional<Unexplained> FindRingAboveHarmonics(std::span<const Recording> rec
   std::erase_if(places, [](const Unexplained::Place& p) { return !std::isfinite(p.ring_frequency_hz); });
   std::sort(places.begin(), places.end(), [](const auto& a, const auto& b) { return a.ring_to_noise > b.ring_to_noise; });
   Unexplained u;
-  if (!HeldOutFigures(matches, parameters, &u)) u.misfit_to_noise = kUndefined;
+  if (!HeldOutFigures(matches, parameters, nullptr, &u)) u.misfit_to_noise = kUndefined;
   const size_t rings = places.size();
   u.places = std::move(places);
   if (u.places.size() > kMaxPlaces) u.places.resize(kMaxPlaces);
@@ -200,7 +231,7 @@ std::optional<Unexplained> FindRingAboveHarmonics(std::span<const Recording> rec
   if (u.p_value >= kUnexplainedP)
     out << "the model matches the fitted harmonics of the held-out records within noise (chi-square "
         << FormatFigure(u.heldout_chi2, 4) << " against " << FormatFigure(u.expected_chi2, 4)
-        << " from noise alone), but ";
+        << " from noise and the fitted parameters' own error), but ";
   out << "above harmonic " << orders << " the residual rings after the impacts in " << rings << " of the "
       << impacting << " records with impacts";
   u.description = out.str();

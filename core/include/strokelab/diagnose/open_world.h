@@ -2,6 +2,8 @@
 // held-out records is noise, and if not, where it is. Public for its tests; DiagnoseCampaign runs it.
 #pragma once
 
+#include <Eigen/Dense>
+
 #include <optional>
 #include <span>
 #include <string>
@@ -18,11 +20,49 @@ namespace strokelab::internal {
 // perturbed parameters) is measured by tests/diagnose/control_study.py and must stay below 1 in 20.
 inline constexpr double kUnexplainedP = 1e-3;
 
+// The held-out chi-square with the model's own parameter error counted (diagnose.h, Unexplained):
+// with r the held-out residuals whitened by their noise, J the whitened slopes of each record's model
+// harmonics in the model's free parameters (fit_orbit.h OrbitHarmonicSlopes), C = L L^T = (J_f^T J_f)^-1
+// over the fit records (weighted as fits weigh them, by the noise alone) and U = J_h L,
+//   chi2 = r^T (I + U U^T)^-1 r = r^T r - b^T (I + U^T U)^-1 b,   b = U^T r   (Woodbury),
+// which is chi-square(R) for a correct model. Directions of the parameters that the fit records do not
+// determine (eigenvalues of the scaled J_f^T J_f below 1e-12 of the largest) are left out: nothing
+// bounds their error, and the test then judges as before.
+struct HeldOutLeverage {
+  double chi2 = 0.0;           // over the held-out records, the parameters' error counted
+  double expected_chi2 = 0.0;  // the plain held-out chi-square's mean for a correct model: R + trace(U^T U)
+  std::vector<double> record_chi2;  // each record's own (matches' order; NaN for fit records)
+};
+// One record as the statistic sees it: its whitened residuals and the whitened slopes of its model
+// harmonics in the free parameters (rows alike; no columns where the slopes could not be had).
+struct RecordLinearisation {
+  Eigen::VectorXd residuals;
+  Eigen::MatrixXd slopes;
+  bool heldout = false;
+};
+// The statistic from the records' linearisations: the fit records' slopes make C, the held-out ones'
+// are judged (record_chi2 in `records`' order).
+HeldOutLeverage LeverageOf(std::span<const RecordLinearisation> records);
+// The same for `model`'s matches: each record's slopes from its matched orbit. `fields`: the free
+// parameters of `model`'s fit (BuildProblem's). Empty when no record's slopes can
+// be had (every orbit fails) or nothing is held out.
+std::optional<HeldOutLeverage> MeasureHeldOutLeverage(const ActuatorModel& model,
+                                                      const std::vector<double ActuatorModel::*>& fields,
+                                                      const std::vector<RecordMatch>& matches,
+                                                      std::span<const RecordAnalysis> analyses, ResponseKind kind,
+                                                      int orders);
+
+// Whether the held-out records' plain chi-square, nothing counted for the parameters' error, passes
+// the test already (then it passes with that error counted too: counting it only lowers the statistic).
+bool HeldOutWithinNoise(const std::vector<RecordMatch>& matches);
+
 // `matches`: a model on every record (RecordMatch::heldout marks the held-out ones); `analyses` the
-// same records in the same order (their impacts); `parameters` the number the model fitted. Empty
-// when the held-out chi-square is within noise at kUnexplainedP.
+// same records in the same order (their impacts); `parameters` the number the model fitted; `leverage`
+// (may be null: the mean inflation 1 + P / M instead) its parameters' error at each record. Empty when
+// the held-out chi-square is within noise at kUnexplainedP.
 std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& matches,
-                                           std::span<const RecordAnalysis> analyses, size_t parameters);
+                                           std::span<const RecordAnalysis> analyses, size_t parameters,
+                                           const HeldOutLeverage* leverage = nullptr);
 
 // The force `model` lacks over (x, v) (MissingForceSurface), from every record's measured and model
 // harmonics in `matches` (response channel `kind`); missing_force.cc.
