@@ -44,8 +44,8 @@ struct RecordLinearisation {
 // are judged (record_chi2 in `records`' order).
 HeldOutLeverage LeverageOf(std::span<const RecordLinearisation> records);
 // The same for `model`'s matches: each record's slopes from its matched orbit. `fields`: the free
-// parameters of `model`'s fit (BuildProblem's). Empty when no record's slopes can
-// be had (every orbit fails) or nothing is held out.
+// parameters of `model`'s fit (BuildProblem's). Empty when nothing is held out or `fields` is empty; a
+// record whose slopes cannot be had (no periodic orbit, an engine's failure) is judged on noise alone.
 std::optional<HeldOutLeverage> MeasureHeldOutLeverage(const ActuatorModel& model,
                                                       const std::vector<double ActuatorModel::*>& fields,
                                                       const std::vector<RecordMatch>& matches,
