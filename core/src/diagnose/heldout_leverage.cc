@@ -9,13 +9,10 @@
 #include "diagnose_internal.h"
 #include "strokelab/base/parallel_for.h"
 #include "strokelab/identify/fit_orbit.h"
+#include "strokelab/identify/sparse_covariance.h"
 
 namespace strokelab::internal {
 namespace {
-
-// Eigenvalues of the scaled information matrix below this fraction of the largest: directions the
-// fit records do not determine (their error is unbounded, so they are left out).
-constexpr double kUndeterminedEigenvalue = 1e-12;
 
 // b^T (I + U^T U)^-1 b: what the parameters' error explains of a residual r with b = U^T r.
 double ExplainedByParameters(const Eigen::MatrixXd& utu, const Eigen::VectorXd& b) {
@@ -59,24 +56,28 @@ RecordLinearisation Linearise(const ActuatorModel& model, const std::vector<doub
 }  // namespace
 
 HeldOutLeverage LeverageOf(std::span<const RecordLinearisation> records) {
-  Eigen::Index p = 0;
+  Eigen::Index p = 0, fit_rows = 0;
   for (const RecordLinearisation& r : records) p = std::max(p, r.slopes.cols());
-  Eigen::MatrixXd information = Eigen::MatrixXd::Zero(p, p);
   for (const RecordLinearisation& r : records)
-    if (!r.heldout && r.slopes.cols() == p) information.noalias() += r.slopes.transpose() * r.slopes;
-  // C = L L^T from the information scaled to unit diagonal (the fields' units differ by up to 1e12).
-  Eigen::VectorXd scale(p);
-  for (Eigen::Index j = 0; j < p; ++j) scale[j] = information(j, j) > 0 ? 1.0 / std::sqrt(information(j, j)) : 0.0;
-  Eigen::MatrixXd root(p, 0);  // L
-  if (p > 0) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scale.asDiagonal() * information * scale.asDiagonal());
-    const double largest = eigen.eigenvalues().maxCoeff();
-    std::vector<Eigen::Index> kept;
-    for (Eigen::Index k = 0; k < p; ++k)
-      if (eigen.eigenvalues()[k] > kUndeterminedEigenvalue * largest) kept.push_back(k);
-    root.resize(p, static_cast<Eigen::Index>(kept.size()));
-    for (Eigen::Index c = 0; c < root.cols(); ++c)
-      root.col(c) = scale.asDiagonal() * eigen.eigenvectors().col(kept[c]) / std::sqrt(eigen.eigenvalues()[kept[c]]);
+    if (!r.heldout && r.slopes.cols() == p) fit_rows += r.slopes.rows();
+  // C = (J_f^T J_f)^-1 over the parameters the fit records identify, by the fits' own rule
+  // (sparse_covariance.h ErrorsFromJacobian), and L its Cholesky factor.
+  Eigen::MatrixXd jf(fit_rows, p);
+  for (Eigen::Index row = 0; const RecordLinearisation& r : records)
+    if (!r.heldout && r.slopes.cols() == p) jf.middleRows(row, r.slopes.rows()) = r.slopes, row += r.slopes.rows();
+  std::vector<Eigen::Index> identified;
+  Eigen::MatrixXd root(0, 0);  // L, over `identified`
+  if (p > 0 && fit_rows > 0) {
+    const ParameterErrors errors = ErrorsFromJacobian(jf, 1.0);
+    for (Eigen::Index j = 0; j < p; ++j)
+      if (errors.identifiable[j]) identified.push_back(j);
+    const auto n = static_cast<Eigen::Index>(identified.size());
+    Eigen::MatrixXd c(n, n);
+    for (Eigen::Index a = 0; a < n; ++a)
+      for (Eigen::Index b = 0; b < n; ++b) c(a, b) = errors.covariance(identified[a], identified[b]);
+    const Eigen::LLT<Eigen::MatrixXd> llt(c);
+    if (n > 0 && llt.info() == Eigen::Success) root = llt.matrixL();
+    else identified.clear();
   }
   const Eigen::Index q = root.cols();
 
@@ -92,7 +93,7 @@ HeldOutLeverage LeverageOf(std::span<const RecordLinearisation> records) {
     out.expected_chi2 += static_cast<double>(r.residuals.size());
     out.record_chi2[i] = chi2;
     if (r.slopes.cols() != p || q == 0) continue;
-    const Eigen::MatrixXd u = r.slopes * root;
+    const Eigen::MatrixXd u = r.slopes(Eigen::all, identified) * root;
     const Eigen::MatrixXd utu = u.transpose() * u;
     const Eigen::VectorXd b = u.transpose() * r.residuals;
     out.record_chi2[i] -= ExplainedByParameters(utu, b);

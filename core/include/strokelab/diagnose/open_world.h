@@ -25,9 +25,9 @@ inline constexpr double kUnexplainedP = 1e-3;
 // harmonics in the model's free parameters (fit_orbit.h OrbitHarmonicSlopes), C = L L^T = (J_f^T J_f)^-1
 // over the fit records (weighted as fits weigh them, by the noise alone) and U = J_h L,
 //   chi2 = r^T (I + U U^T)^-1 r = r^T r - b^T (I + U^T U)^-1 b,   b = U^T r   (Woodbury),
-// which is chi-square(R) for a correct model. Directions of the parameters that the fit records do not
-// determine (eigenvalues of the scaled J_f^T J_f below 1e-12 of the largest) are left out: nothing
-// bounds their error, and the test then judges as before.
+// which is chi-square(R) for a correct model. Parameters the fit records do not identify (the fits'
+// rule, sparse_covariance.h ErrorsFromJacobian) are left out: nothing bounds their error, and the test
+// judges their part of the residuals as noise.
 struct HeldOutLeverage {
   double chi2 = 0.0;           // over the held-out records, the parameters' error counted
   double expected_chi2 = 0.0;  // the plain held-out chi-square's mean for a correct model: R + trace(U^T U)
