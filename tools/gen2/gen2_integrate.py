@@ -20,8 +20,11 @@ class Dynamics:
     def __init__(self, model, amplitude_v, omega_rad_s, phase_rad=0.0):
         self.m = model["m_p"]
         self.k_p, self.k2, self.k3 = model["k_p"], model["k2"], model["k3"]
-        self.g = model["g"]
-        self.c_emf = model["c_emf"]
+        # Coil heating (gain_compression): the record's drive warms the coil, whose resistance grows by
+        # 1 + alpha_g A^2 (the power it takes); the current per volt and the back-EMF's damping fall by it.
+        compression = 1.0 / (1.0 + model["alpha_g"] * amplitude_v ** 2)
+        self.g = model["g"] * compression
+        self.c_emf = model["c_emf"] * compression
         self.c_mech = model["c_p"] - model["c_emf"]   # the back-EMF part moves into the coupling
         self.c2, self.c_x2 = model["c2"], model["c_x2"]
         self.b1, self.b2 = model["b1"], model["b2"]
@@ -32,7 +35,9 @@ class Dynamics:
         self.limit = model["amplifier_limit_v"]
         self.amplitude, self.omega, self.phase = amplitude_v, omega_rad_s, phase_rad
         self.coil = model["L"] > 0
-        self.tau = model["L"] / model["R"] if self.coil else 0.0
+        self.tau = model["L"] / model["R"] * compression if self.coil else 0.0
+        self.creep = model["k_m"] > 0
+        self.k_m, self.tau_m = model["k_m"], model["tau_m"]
         self.mount = model["f_mount"] > 0
         if self.mount:
             self.m_b = model["m_mount"]
@@ -45,10 +50,11 @@ class Dynamics:
         self.has_lower = math.isfinite(self.d) and self.k_s + self.c_s > 0
         self.has_upper = math.isfinite(self.d_upper) and self.k_s + self.c_s > 0
         self.clips = math.isfinite(self.limit) and self.limit < amplitude_v
-        # State: x, v [, F_e (coil force Bl0 i, N)] [, y, w (stop flexure)].
+        # State: x, v [, F_e (coil force Bl0 i, N)] [, y, w (stop flexure)] [, F_m (creep force, N)].
         self.i_fe = 2 if self.coil else None
         self.i_y = (3 if self.coil else 2) if self.mount else None
-        self.size = 2 + self.coil + 2 * self.mount
+        self.i_m = 2 + self.coil + 2 * self.mount if self.creep else None
+        self.size = 2 + self.coil + 2 * self.mount + self.creep
         self.length_m = abs(self.d) if math.isfinite(self.d) and self.d != 0 else 1e-3
         w_p = math.sqrt(self.k_p / self.m) if self.k_p > 0 else omega_rad_s
         scale = [self.length_m, self.length_m * max(w_p, omega_rad_s)]
@@ -57,6 +63,8 @@ class Dynamics:
         if self.mount:
             w_b = 2 * math.pi * model["f_mount"]
             scale += [self.length_m * 1e-3, self.length_m * 1e-3 * w_b]
+        if self.creep:
+            scale.append(self.k_m * self.length_m)
         self.scale = np.array(scale)
 
     # --- pieces of the right-hand side (scalars or arrays) ---
@@ -123,6 +131,8 @@ class Dynamics:
         if self.friction:
             tanh = math.tanh if isinstance(v, float) else np.tanh
             suspension = suspension + self.friction * tanh(v / self.v_s)
+        if self.creep:
+            suspension = suspension + s[self.i_m]
         force = coil_force - suspension
         lower = 0.0
         if lower_on:
@@ -139,6 +149,11 @@ class Dynamics:
                 out += [w, (-self.k_b * y - self.c_b * w - lower) / self.m_b]
             else:
                 out += [0.0 * s[0], 0.0 * s[0]]
+        if self.creep:
+            # Suspension creep (suspension_creep): a Maxwell element, spring k_m in series with a dashpot
+            # k_m tau_m, beside the suspension (the standard linear solid; R. S. Lakes, "Viscoelastic
+            # Materials", Cambridge University Press 2009, Sec. 2.3): F_m' = k_m v - F_m / tau_m.
+            out.append(self.k_m * v - s[self.i_m] / self.tau_m)
         return out
 
     def blocked_force(self, t, s, mode):

@@ -37,6 +37,10 @@ GEN2_PARAMETERS = [
     ("f_mount", "stop_mount_frequency_hz", "Hz", 0.0, "lower stop on a flexure: its frequency (0: rigid)"),
     ("m_mount", "stop_mount_mass_kg", "kg", 0.01, "mass of the lower stop's flexure"),
     ("zeta_mount", "stop_mount_damping_ratio", "1", 0.02, "damping ratio of the lower stop's flexure"),
+    ("k_m", "creep_stiffness_n_per_m", "N/m", 0.0, "suspension creep: Maxwell element's spring (0: none)"),
+    ("tau_m", "creep_time_s", "s", 5e-3, "suspension creep: Maxwell element's relaxation time"),
+    ("alpha_g", "gain_compression_per_v2", "1/V^2", 0.0, "coil heating: R grows by 1 + alpha_g A^2"),
+    ("a_s", "sensor_quadratic_per_v", "1/V", 0.0, "response sensor's quadratic term: y + a_s y^2"),
 ]
 PARAMETERS = LIBRARY_PARAMETERS + GEN2_PARAMETERS
 _BY_NAME = {}
@@ -59,11 +63,14 @@ EFFECTS = {
     "coil_inductance": "L",
     "stop_mount": "f_mount",
     "position_damping": "c_x2",
+    "suspension_creep": "k_m",
+    "gain_compression": "alpha_g",
+    "sensor_quadratic": "a_s",
 }
 LIBRARY_EFFECTS = ["cubic_stiffness", "quadratic_stiffness", "hertzian_contact", "contact_damping",
                    "second_stop", "dry_friction", "amplifier_saturation"]
 NEW_EFFECTS = ["force_factor", "quadratic_damping", "coil_inductance"]
-UNLISTED_EFFECTS = ["stop_mount", "position_damping"]
+UNLISTED_EFFECTS = ["stop_mount", "position_damping", "suspension_creep", "gain_compression", "sensor_quadratic"]
 
 
 class ModelError(ValueError):
@@ -171,7 +178,8 @@ def validate(model):
     def need(ok, key, what):
         if not ok:
             raise ModelError(f"{key}: {what}, got {model[key]!r}")
-    for key in ("m_p", "c_p", "k_p", "g", "k_s", "c_s", "friction_n", "c2", "L", "R", "c_emf", "f_mount"):
+    for key in ("m_p", "c_p", "k_p", "g", "k_s", "c_s", "friction_n", "c2", "L", "R", "c_emf", "f_mount", "k_m",
+                "alpha_g"):
         need(math.isfinite(model[key]) and model[key] >= 0, key, "must be a finite number >= 0")
     need(model["m_p"] > 0, "m_p", "must be > 0")
     need(model["friction_velocity"] > 0 and math.isfinite(model["friction_velocity"]), "friction_velocity", "must be > 0")
@@ -183,7 +191,8 @@ def validate(model):
     if model["f_mount"] > 0:
         need(model["m_mount"] > 0, "m_mount", "must be > 0 when the stop has a flexure")
         need(0 <= model["zeta_mount"] < 1, "zeta_mount", "must be in [0, 1) (an underdamped flexure)")
-    for key in ("k2", "k3", "b1", "b2", "c_x2"):
+    need(model["tau_m"] > 0 and math.isfinite(model["tau_m"]), "tau_m", "must be > 0")
+    for key in ("k2", "k3", "b1", "b2", "c_x2", "a_s"):
         need(math.isfinite(model[key]), key, "must be finite")
 
 

@@ -7,8 +7,9 @@ after 5 s from rest, 0.5 mV noise, 10 mV offset, 0.5 mV hum, k_p, c_p, g, d and 
 diagnosis tests use (SHAPED's cases: their own sizes, and campaign arguments in place of these). Every
 --strokelab binary diagnoses every campaign (side by side), and each verdict is scored:
 - right: exactly the library effects concealed are named, each parameter within 25 % of the truth,
-  and nothing is left unexplained (for a case with an effect in no library, a stop on a flexure or
-  damping that grows with x^2: the library effects named, or fewer, and "unexplained" set);
+  and nothing is left unexplained (for a case with an effect in no library, a stop on a flexure,
+  damping that grows with x^2, suspension creep, the coil's heating or a sensor's quadratic term: the
+  library effects named, or fewer, and "unexplained" set);
 - honest: not right, but "unexplained" is set and every effect named is one concealed;
 - wrong: an effect named that was not concealed, or a parameter beyond 25 %, or nothing left
   unexplained while an effect concealed is not named.
@@ -51,7 +52,8 @@ SIZES = {"cubic_stiffness": ("cubic_stiffness", "k3", 1.5e7), "quadratic_stiffne
          "amplifier_saturation": ("amplifier_saturation", "amplifier_limit_v", 0.45),
          "quadratic_damping": ("quadratic_damping", "c2", 0.3), "force_factor": ("force_factor", "b2", -3e4),
          "coil_inductance": ("coil_inductance", "tau_e", 2e-3), "stop_mount": (None, None, 3000.0),
-         "position_damping": (None, None, 2e5)}
+         "position_damping": (None, None, 2e5), "suspension_creep": (None, None, 30.0),
+         "gain_compression": (None, None, 0.4), "sensor_quadratic": (None, None, 0.5)}
 K3W = {"cubic_stiffness": 5e6, "quadratic_damping": 0.15}  # the weaker pair of case 9929
 # seed -> (effects, response channel or None)
 CASES = {
@@ -151,6 +153,19 @@ SHAPED = {
     10034: ({"cubic_stiffness": 1.5e7, "quadratic_damping": 0.3}, "displacement", LONG),
     10035: ({"dry_friction": 0.002, "contact_damping": 40.0}, None, NOISY),
     10036: ({"position_damping": 3e5, "dry_friction": 0.002}, None, LOOSE),
+    # Three more effects in no library (stop 60): suspension creep (a Maxwell element, k_m in N/m), the
+    # coil's heating (alpha_g in 1/V^2) and a sensor's quadratic term (a_s in 1/V), each 40-220 noise
+    # standard errors in some harmonic (effect_size.py). Fixed before any was run, and run once.
+    10037: ({"suspension_creep": 30.0}, None, []),
+    10038: ({"gain_compression": 0.4}, None, []),
+    10039: ({"sensor_quadratic": 0.5}, None, []),
+    10040: ({"suspension_creep": 30.0, "cubic_stiffness": 1.5e7}, None, []),
+    10041: ({"gain_compression": 0.4, "hertzian_contact": 1.5e7}, None, []),
+    10042: ({"sensor_quadratic": 0.5, "quadratic_damping": 0.3}, None, []),
+    10043: ({"suspension_creep": 30.0}, "acceleration", []),
+    10044: ({"gain_compression": 0.4, "force_factor": -3e4}, None, []),
+    10045: ({"sensor_quadratic": 0.5, "dry_friction": 0.002}, None, []),
+    10046: ({"suspension_creep": 30.0, "gain_compression": 0.4}, None, []),
 }
 CASES.update({seed: (list(values), response) for seed, (values, response, _) in SHAPED.items()})
 

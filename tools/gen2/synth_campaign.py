@@ -166,7 +166,9 @@ def simulate_record(job):
     t_kept = np.arange(kept) / fs
     voltage = dyn.raw_drive(t_sim) + args.voltage_noise_rms * rng.standard_normal(kept)
     response = RESPONSES[args.response][2]
-    volts = (true_sensitivity * sim[response] + args.offset_v
+    sensed = true_sensitivity * sim[response]
+    sensed = sensed + model["a_s"] * sensed ** 2  # the sensor's own quadratic term (sensor_quadratic)
+    volts = (sensed + args.offset_v
              + args.hum_v * np.sin(2 * math.pi * args.hum_hz * t_kept + hum_phase)
              + args.noise_rms * rng.standard_normal(kept))
     truth = {"file": f"rec_{k + 1:03d}.csv", "frequency_hz": frequency_hz, "amplitude_v": amplitude_v,
@@ -174,7 +176,7 @@ def simulate_record(job):
              "seconds": round(seconds, 3)}
     if args.random_drive_phase:
         truth["drive_phase_rad"] = drive_phase
-    clean = (t_kept, dyn.raw_drive(t_sim), true_sensitivity * sim[response])
+    clean = (t_kept, dyn.raw_drive(t_sim), sensed)
     return k, t_kept, voltage, volts, truth, clean
 
 

@@ -129,6 +129,34 @@ class FastTest(unittest.TestCase):
             json.loads(result.stdout)
 
 
+class UnlistedEffectsTest(unittest.TestCase):
+    """The effects in no library that are linear in the motion, against their closed forms (README.md)."""
+
+    def test_creep_heating_and_sensor_against_the_linear_response(self):
+        k_m, tau_m, alpha_g, a_s = 30.0, 5e-3, 0.4, 0.5
+        with tempfile.TemporaryDirectory(prefix="gen2_unlisted_") as work:  # 8 and 12.8 Hz: whole samples a period
+            out = os.path.join(work, "c")
+            generate(out, ["--model", "linear", "--response", "displacement", "--frequencies-hz", "8,12.8",
+                           "--amplitudes-v", "0.1,0.5", "--settle-s", "2", "--duration-s", "0.5",
+                           "--effect", f"suspension_creep={k_m}", "--effect", f"gain_compression={alpha_g}",
+                           "--effect", f"sensor_quadratic={a_s}"])
+            with open(os.path.join(out, "truth.json")) as f:
+                model = json.load(f)["model"]
+            m, c_p, k_p, g = (model[k] for k in ("mass_kg", "damping_n_s_per_m", "stiffness_n_per_m", "gain_n_per_v"))
+            c_emf = model["back_emf_damping_n_s_per_m"]
+            for entry, _, data, sensitivity, fs in read_campaign(out):
+                w, amplitude = 2 * math.pi * entry["drive_frequency_hz"], entry["drive_amplitude_v"]
+                compression = 1 / (1 + alpha_g * amplitude ** 2)
+                creep = k_m * 1j * w * tau_m / (1 + 1j * w * tau_m)  # the Maxwell element's complex stiffness
+                dynamic = k_p - m * w * w + 1j * w * (c_p - c_emf + c_emf * compression) + creep
+                # The drive's complex amplitude from its own column; y = s x + a_s (s x)^2 puts a_s y1^2 / 2 at 2 w.
+                drive = harmonics(data[:, 1], entry["drive_frequency_hz"], fs, 1)[0]
+                y1 = sensitivity * g * compression / dynamic * drive
+                h = harmonics(data[:, 2], entry["drive_frequency_hz"], fs, 2)
+                self.assertLess(abs(h[0] - y1) / abs(y1), 1e-7, entry)
+                self.assertLess(abs(h[1] - a_s * y1 * y1 / 2) / abs(a_s * y1 * y1 / 2), 1e-6, entry)
+
+
 COMMON = ["--frequencies-hz", "6,8,13", "--amplitudes-v", "0.1,0.3,0.5", "--settle-s", "5", "--duration-s", "1"]
 
 
