@@ -117,5 +117,27 @@ TEST(UnexplainedTest, AHeldOutRecordWithoutAModelOrbitIsFlagged) {
   EXPECT_EQ(u->p_value, 0.0);
 }
 
+// A model that misses, against the base on the same 24 records: a record may be worse by up to
+// 2 z^2, z the normal's upper 1e-3 / 24 quantile (31.0), and no more. The worst such record is said.
+TEST(WorseThanTheBaseTest, ARecordWorseThanTheBaseBeyondNoiseIsSaid) {
+  std::vector<RecordMatch> base, model;
+  for (int i = 0; i < 24; ++i) base.push_back(Match(5 + i * 0.25, i % 4 == 3, 2.0));
+  model = base;
+  const double z = NormalUpperQuantile(1e-3 / 24);
+  const double allowed = internal::kWorseThanTheBaseVariance * z * z;
+  EXPECT_NEAR(allowed, 31.0, 0.1);
+  model[3].chi2 += allowed - 0.5;
+  EXPECT_EQ(internal::WorseThanTheBase(base, model), "");
+  model[3].chi2 += 1.0;
+  model[7].chi2 += allowed + 60;
+  model[9].chi2 = std::numeric_limits<double>::quiet_NaN();  // no orbit: the open-world test's to judge
+  EXPECT_EQ(internal::WorseThanTheBase(base, model),
+            "misses rec_67 (6.75 Hz, 0.5 V) by a chi-square 91 above the base model's (48 -> 139), beyond the 31 "
+            "noise allows a model that explains what the base misses: it stands in for part of what no library "
+            "effect explains, and is not named");
+  model[7].chi2 = base[7].chi2 - 500;  // better elsewhere does not buy a loss here
+  EXPECT_NE(internal::WorseThanTheBase(base, model).find("rec_57"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace strokelab

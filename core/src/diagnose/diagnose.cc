@@ -557,7 +557,8 @@ Diagnosis DiagnoseCampaign(const Campaign& campaign, const DiagnoseOptions& opti
     d.after = d.chosen >= 0 ? MatchAll(model, analyses, split.heldout, kind, orders) : d.before;
     test_after(model, d.chosen >= 0 ? d.candidates[d.chosen].effects : std::vector<Effect>{});
     if (!d.unexplained) return std::nullopt;
-    return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->expected_chi2, true};
+    return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->expected_chi2, true,
+                            index >= 0 ? internal::WorseThanTheBase(d.before, d.after) : ""};
   };
   auto answer = [&] {
     refit = nullptr;

@@ -471,6 +471,30 @@ int BestWithoutStopEffects(const std::vector<CandidateFit>& candidates, int stan
   return BestPart(candidates, kept, min_heldout_gain);
 }
 
+std::vector<Effect> EachRemovesWhatIsLeft(const std::vector<CandidateFit>& candidates, int chosen,
+                                          const std::vector<Effect>& effects, const Misfit& misfit, std::string* why) {
+  const auto chi2 = [&](const CandidateFit& c) { return misfit.heldout ? c.figures.heldout_chi2 : c.figures.chi2; };
+  const CandidateFit& c = candidates[chosen];
+  const double left = chi2(c) - misfit.expected_chi2;
+  std::vector<Effect> kept;
+  std::string reasons;
+  for (Effect e : effects) {
+    const int without = c.effects.size() > 1 ? FindFit(candidates, Without(c.effects, e)) : -1;
+    const double removed = without >= 0 ? chi2(candidates[without]) - chi2(c) : left;
+    if (removed >= left) {
+      kept.push_back(e);
+      continue;
+    }
+    reasons += std::string(reasons.empty() ? "" : "; ") + Info(e).id + " removes only " + Format(removed) +
+               " of it beside " + candidates[without].label;
+  }
+  if (!reasons.empty())
+    *why += (why->empty() ? "" : "; ") + c.label + " leaves " + Format(left) + " of the " +
+            (misfit.heldout ? "held-out chi-square's" : "fit records' chi-square's") + " excess, and " + reasons +
+            ": not named";
+  return kept;
+}
+
 int NameWhatStands(const std::vector<CandidateFit>& candidates, int chosen, const FitFigures& before,
                    double min_heldout_gain, const std::function<std::optional<Misfit>(int)>& test,
                    std::string* partial, std::vector<Effect>* best_partial) {
@@ -479,14 +503,17 @@ int NameWhatStands(const std::vector<CandidateFit>& candidates, int chosen, cons
   std::optional<Misfit> misfit = test(chosen);
   while (chosen >= 0 && misfit) {
     const CandidateFit& c = candidates[chosen];
-    const std::vector<Effect> kept = SignificantUnderMisfit(c, misfit->to_noise, partial);
+    std::vector<Effect> kept = SignificantUnderMisfit(c, misfit->to_noise, partial);
+    if (kept.size() == c.effects.size()) kept = EachRemovesWhatIsLeft(candidates, chosen, kept, *misfit, partial);
     if (kept.size() == c.effects.size()) break;
     if (best_partial->empty()) *best_partial = c.effects;
     chosen = BestPart(candidates, kept, min_heldout_gain);
     misfit = test(chosen);
   }
   if (chosen < 0 || !misfit) return chosen;
-  const std::string why = PartialExplanation(candidates[chosen], before, misfit->expected_chi2, misfit->heldout);
+  const std::string why = misfit->worse_than_base.empty()
+                              ? PartialExplanation(candidates[chosen], before, misfit->expected_chi2, misfit->heldout)
+                              : candidates[chosen].label + " " + misfit->worse_than_base;
   if (why.empty()) return chosen;
   *partial = partial->empty() ? why : *partial + "; " + why;
   if (best_partial->empty()) *best_partial = candidates[chosen].effects;

@@ -199,6 +199,27 @@ std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& match
   return u;
 }
 
+std::string WorseThanTheBase(const std::vector<RecordMatch>& base, const std::vector<RecordMatch>& model) {
+  const double records = static_cast<double>(std::max<size_t>(1, model.size()));
+  const double z = NormalUpperQuantile(kUnexplainedP / records);
+  const double allowed = kWorseThanTheBaseVariance * z * z;
+  const RecordMatch* worst = nullptr;
+  double worst_rise = allowed, before = 0.0;
+  for (size_t i = 0; i < model.size() && i < base.size(); ++i) {
+    const RecordMatch& m = model[i];
+    if (m.residuals == 0 || base[i].residuals == 0 || !std::isfinite(m.chi2) || !std::isfinite(base[i].chi2)) continue;
+    if (m.chi2 - base[i].chi2 > worst_rise) worst = &m, worst_rise = m.chi2 - base[i].chi2, before = base[i].chi2;
+  }
+  if (!worst) return "";
+  std::ostringstream out;
+  out << "misses " << worst->name << " (" << FormatFigure(worst->frequency_hz) << " Hz, "
+      << FormatFigure(worst->amplitude_v) << " V) by a chi-square " << FormatFigure(worst_rise) << " above the base "
+      << "model's (" << FormatFigure(before) << " -> " << FormatFigure(worst->chi2) << "), beyond the "
+      << FormatFigure(allowed) << " noise allows a model that explains what the base misses: it stands in for part "
+      << "of what no library effect explains, and is not named";
+  return out.str();
+}
+
 std::optional<Unexplained> FindRingAboveHarmonics(std::span<const Recording> records,
                                                   std::span<const RecordAnalysis> analyses,
                                                   const std::vector<RecordMatch>& matches, const ActuatorModel& model,

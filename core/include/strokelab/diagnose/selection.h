@@ -91,12 +91,22 @@ struct Misfit {
   double to_noise = 1.0;       // the misfit's RMS over noise's
   double expected_chi2 = 0.0;  // the chi-square noise alone gives (PartialExplanation's)
   bool heldout = true;         // false: the fit records' (PartialExplanation's)
+  std::string worse_than_base;  // open_world.h WorseThanTheBase's why (empty: none, or not asked)
 };
+// The effects of candidates[chosen] (among `effects`) that each remove at least as much of the excess
+// over `misfit`'s expected chi-square as the model leaves: the chi-square of the best fit without the
+// effect, less the model's, is at least the model's less the expected (PartialExplanation's rule for a
+// model, asked of each of its effects). An effect that removes less may be fitted to part of what no
+// library effect explains (gen2 10037, suspension creep in no library: a force factor and dry friction
+// named, the friction removing 437 of an excess of 1,264 it left), so it is left out, with why appended
+// to `why`. An effect whose model without it was never fitted is kept.
+std::vector<Effect> EachRemovesWhatIsLeft(const std::vector<CandidateFit>& candidates, int chosen,
+                                          const std::vector<Effect>& effects, const Misfit& misfit, std::string* why);
 // The open world's naming (diagnose.h step 6): `test(index)` runs the open-world test of
 // candidates[index] (-1: the base) and returns its misfit where it is beyond noise. While the chosen
 // model's misfit leaves one of its effects insignificant (SignificantUnderMisfit), its BestPart of the
-// effects that stand answers instead; then a model that removes less of the excess than it leaves
-// (PartialExplanation) is not named. Returns the index named (-1: none; the last test run was of it),
+// effects that stand answers instead; then a model that misses some record worse than the base
+// (Misfit::worse_than_base), or removes less of the excess than it leaves (PartialExplanation), is not named. Returns the index named (-1: none; the last test run was of it),
 // with why the others were not in `partial` and the first of them in `best_partial` (LabelDecisions').
 int NameWhatStands(const std::vector<CandidateFit>& candidates, int chosen, const FitFigures& before,
                    double min_heldout_gain, const std::function<std::optional<Misfit>(int)>& test,
