@@ -166,6 +166,18 @@ SHAPED = {
     10044: ({"gain_compression": 0.4, "force_factor": -3e4}, None, []),
     10045: ({"sensor_quadratic": 0.5, "dry_friction": 0.002}, None, []),
     10046: ({"suspension_creep": 30.0, "gain_compression": 0.4}, None, []),
+    # Fixed after 0.44.0's rules were built on 10037 and 10040 (and checked on 9969 and 10033), before
+    # any of these was run: other sizes, channels and partners.
+    10047: ({"suspension_creep": 60.0}, None, []),
+    10048: ({"suspension_creep": 30.0, "quadratic_damping": 0.3}, None, []),
+    10049: ({"suspension_creep": 30.0, "force_factor": -3e4}, None, []),
+    10050: ({"suspension_creep": 30.0}, "velocity", []),
+    10051: ({"gain_compression": 0.2}, None, []),
+    10052: ({"gain_compression": 0.4, "cubic_stiffness": 1.5e7}, None, []),
+    10053: ({"sensor_quadratic": 0.5, "cubic_stiffness": 1.5e7}, None, []),
+    10054: ({"sensor_quadratic": 0.2}, "acceleration", []),
+    10055: ({"position_damping": 3e5, "suspension_creep": 30.0}, None, []),
+    10056: ({"suspension_creep": 30.0, "hertzian_contact": 1.5e7}, None, []),
 }
 CASES.update({seed: (list(values), response) for seed, (values, response, _) in SHAPED.items()})
 
