@@ -105,9 +105,11 @@ std::vector<Effect> EachRemovesWhatIsLeft(const std::vector<CandidateFit>& candi
 // The open world's naming (diagnose.h step 6): `test(index)` runs the open-world test of
 // candidates[index] (-1: the base) and returns its misfit where it is beyond noise. While the chosen
 // model's misfit leaves one of its effects insignificant (SignificantUnderMisfit), its BestPart of the
-// effects that stand answers instead; then a model that misses some record worse than the base
-// (Misfit::worse_than_base), or removes less of the excess than it leaves (PartialExplanation), is not named. Returns the index named (-1: none; the last test run was of it),
-// with why the others were not in `partial` and the first of them in `best_partial` (LabelDecisions').
+// effects that stand answers instead, and so does the part of a model whose effects do not each remove
+// what it leaves (EachRemovesWhatIsLeft); then a model that misses some record worse than the base
+// (Misfit::worse_than_base), or removes less of the excess than it leaves (PartialExplanation), is not
+// named. Returns the index named (-1: none; the last test run was of it), with why the others were not
+// in `partial` and the first of them in `best_partial` (LabelDecisions').
 int NameWhatStands(const std::vector<CandidateFit>& candidates, int chosen, const FitFigures& before,
                    double min_heldout_gain, const std::function<std::optional<Misfit>(int)>& test,
                    std::string* partial, std::vector<Effect>* best_partial);
