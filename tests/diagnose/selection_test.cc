@@ -485,8 +485,8 @@ TEST(NameWhatStandsTest, TakesThePartThatStandsThenAsksItToExplainMostOfTheMisfi
     std::vector<int> tested;
     auto test = [&](int index) -> std::optional<internal::Misfit> {
       tested.push_back(index);
-      if (index == 1) return internal::Misfit{10.0, 100.0, true};
-      if (index == 0 && !x.k3_within_noise) return internal::Misfit{5.0, 100.0, true};  // k3: 30 scaled errors
+      if (index == 1) return internal::Misfit{10.0, 100.0, true, ""};
+      if (index == 0 && !x.k3_within_noise) return internal::Misfit{5.0, 100.0, true, ""};  // k3: 30 scaled errors
       return std::nullopt;
     };
     std::string partial;
@@ -522,26 +522,26 @@ TEST(EachRemovesWhatIsLeftTest, AnEffectThatRemovesLessThanTheModelLeavesIsLeftO
                                          fit({ff, fc, k3}, 1370)};
   for (bool heldout : {true, false}) {
     std::string why;
-    EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 2, all[2].effects, internal::Misfit{3.4, 120, heldout}, &why),
+    EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 2, all[2].effects, internal::Misfit{3.4, 120, heldout, ""}, &why),
               std::vector<Effect>{ff});
     EXPECT_EQ(why, std::string("force_factor+dry_friction leaves 1264 of the ") +
                        (heldout ? "held-out chi-square's" : "fit records' chi-square's") +
                        " excess, and dry_friction removes only 437 of it beside force_factor: not named");
   }
   std::string why;
-  EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 2, all[2].effects, internal::Misfit{1.5, 1200, true}, &why),
+  EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 2, all[2].effects, internal::Misfit{1.5, 1200, true, ""}, &why),
             all[2].effects);  // leaves 184: each removes more
   EXPECT_EQ(why, "");
-  EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 0, all[0].effects, internal::Misfit{3.4, 120, true}, &why),
+  EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 0, all[0].effects, internal::Misfit{3.4, 120, true, ""}, &why),
             all[0].effects);
   // The triple: without k3 (the pair) 14 more, without friction or the force factor never fitted.
-  EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 4, all[4].effects, internal::Misfit{3.4, 120, true}, &why),
+  EXPECT_EQ(internal::EachRemovesWhatIsLeft(all, 4, all[4].effects, internal::Misfit{3.4, 120, true, ""}, &why),
             (std::vector<Effect>{ff, fc}));
   // In the naming: the pair misses, both parameters stand, and the force factor alone answers.
   std::vector<int> tested;
   auto test = [&](int index) -> std::optional<internal::Misfit> {
     tested.push_back(index);
-    return internal::Misfit{3.4, 120, true};
+    return internal::Misfit{3.4, 120, true, ""};
   };
   std::string partial;
   std::vector<Effect> best_partial;

@@ -477,7 +477,8 @@ BroadbandDiagnosis DiagnoseBroadbandCampaign(const Campaign& campaign, const Dia
       d.unexplained = FindUnexplained(split, chosen_heldout, &fit, c.model, kind);
     }
     if (!d.unexplained) return std::nullopt;
-    return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->dof, d.unexplained->parts == "held-out"};
+    return internal::Misfit{d.unexplained->misfit_to_noise, d.unexplained->dof, d.unexplained->parts == "held-out",
+                            ""};  // WorseThanTheBase is not asked of broadband parts
   };
   auto answer = [&] {
     d.chosen =
