@@ -97,6 +97,12 @@ std::string Describe(const Unexplained& u) {
   return out.str();
 }
 
+// One record's test size: the open-world test's kUnexplainedP shared over the records (Bonferroni), so
+// that a campaign's noise alone marks any record with at most that probability.
+double PerRecordTestSize(size_t records) {
+  return kUnexplainedP / static_cast<double>(std::max<size_t>(1, records));
+}
+
 // The parameters' error's mean share of a residual's variance over the records, 1 + P / M (M: the fit
 // records' residuals).
 double MeanInflation(const std::vector<RecordMatch>& matches, size_t parameters) {
@@ -182,7 +188,7 @@ std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& match
   Unexplained u;
   if (!HeldOutFigures(matches, parameters, leverage, &u) || u.p_value >= kUnexplainedP) return std::nullopt;
   const double inflation = MeanInflation(matches, parameters);
-  const double per_record_p = kUnexplainedP / static_cast<double>(std::max<size_t>(1, matches.size()));
+  const double per_record_p = PerRecordTestSize(matches.size());
   for (size_t i = 0; i < matches.size(); ++i) {
     const RecordMatch& m = matches[i];
     if (m.residuals == 0 || !std::isfinite(m.chi2)) continue;
@@ -200,8 +206,7 @@ std::optional<Unexplained> FindUnexplained(const std::vector<RecordMatch>& match
 }
 
 std::string WorseThanTheBase(const std::vector<RecordMatch>& base, const std::vector<RecordMatch>& model) {
-  const double records = static_cast<double>(std::max<size_t>(1, model.size()));
-  const double z = NormalUpperQuantile(kUnexplainedP / records);
+  const double z = NormalUpperQuantile(PerRecordTestSize(model.size()));
   const double allowed = kWorseThanTheBaseVariance * z * z;
   const RecordMatch* worst = nullptr;
   double worst_rise = allowed, before = 0.0;
