@@ -1,4 +1,5 @@
-"""Time integration of one stepped-sine record for the second generator (scipy solve_ivp).
+"""Time integration of one record for the second generator (scipy solve_ivp): a stepped sine, or a
+continuous multisine (MultisineDrive).
 
 The model's right-hand side is smooth inside each mode (which stops push, whether the amplifier
 clips); the switches between modes are located as events, the integration stops there and restarts
@@ -14,10 +15,41 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 
-class Dynamics:
-    """The equations of motion of one record: model (gen2_model dict) and drive A sin(w t + phase)."""
+class MultisineDrive:
+    """A multisine as a rig's generator makes it: sum_k a sin(2 pi f_k t + phi_k), continuous in t (the
+    recording samples it; strokelab joins the samples by straight lines, so its drive differs from this
+    one by the hold's error, as a real rig's does). Lines f_k = k / period_s in [low_hz, high_hz] (odd k
+    only on the odd grid), equal amplitudes a = level sqrt(2 / lines) for an rms of level_v_rms, phases
+    uniform in [0, 2 pi) from rng (Schoukens, Pintelon and Rolain, "Mastering System Identification in
+    100 Exercises", 2012, Sec. 2.2: the random-phase multisine)."""
 
-    def __init__(self, model, amplitude_v, omega_rad_s, phase_rad=0.0):
+    def __init__(self, level_v_rms, low_hz, high_hz, period_s, odd, rng):
+        first = max(1, math.ceil(low_hz * period_s - 1e-9))
+        ks = [k for k in range(first, math.floor(high_hz * period_s + 1e-9) + 1) if not odd or k % 2 == 1]
+        if not ks:
+            raise ValueError(f"no multisine line in [{low_hz}, {high_hz}] Hz for a period of {period_s} s")
+        self.omegas = 2 * math.pi * np.array(ks, dtype=float) / period_s
+        self.phases = rng.uniform(0.0, 2 * math.pi, len(ks))
+        self.amplitude = level_v_rms * math.sqrt(2.0 / len(ks))
+        self.level_v_rms = level_v_rms
+        self.highest_rad_s = float(self.omegas[-1])
+
+    def __call__(self, t):
+        if isinstance(t, float):
+            return float(self.amplitude * np.sum(np.sin(self.omegas * t + self.phases)))
+        t = np.asarray(t, dtype=float)
+        return self.amplitude * np.sin(np.multiply.outer(t, self.omegas) + self.phases).sum(axis=-1)
+
+
+class Dynamics:
+    """The equations of motion of one record: model (gen2_model dict) and drive A sin(w t + phase), or
+    `multisine` (a MultisineDrive; amplitude_v and omega_rad_s are then not used)."""
+
+    def __init__(self, model, amplitude_v, omega_rad_s, phase_rad=0.0, multisine=None):
+        self.multisine = multisine
+        if multisine is not None:
+            # The coil's heating follows the drive's power: a sine of the same rms has amplitude sqrt(2) rms.
+            amplitude_v, omega_rad_s = math.sqrt(2.0) * multisine.level_v_rms, multisine.highest_rad_s
         self.m = model["m_p"]
         self.k_p, self.k2, self.k3 = model["k_p"], model["k2"], model["k3"]
         # Coil heating (gain_compression): the record's drive warms the coil, whose resistance grows by
@@ -49,7 +81,9 @@ class Dynamics:
         self.segment_start_s = 0.0
         self.has_lower = math.isfinite(self.d) and self.k_s + self.c_s > 0
         self.has_upper = math.isfinite(self.d_upper) and self.k_s + self.c_s > 0
-        self.clips = math.isfinite(self.limit) and self.limit < amplitude_v
+        # (A multisine's peak is at most the sum of its lines' amplitudes.)
+        peak_v = amplitude_v if multisine is None else multisine.amplitude * len(multisine.omegas)
+        self.clips = math.isfinite(self.limit) and self.limit < peak_v
         # State: x, v [, F_e (coil force Bl0 i, N)] [, y, w (stop flexure)] [, F_m (creep force, N)].
         self.i_fe = 2 if self.coil else None
         self.i_y = (3 if self.coil else 2) if self.mount else None
@@ -69,6 +103,8 @@ class Dynamics:
 
     # --- pieces of the right-hand side (scalars or arrays) ---
     def raw_drive(self, t):
+        if self.multisine is not None:
+            return self.multisine(t)
         sin = math.sin if isinstance(t, float) else np.sin
         return self.amplitude * sin(self.omega * t + self.phase)
 

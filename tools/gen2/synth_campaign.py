@@ -1,8 +1,9 @@
 #!/usr/bin/python3
-"""Second, independent generator of stepped-sine campaigns (issue 13): see README.md.
+"""Second, independent generator of stepped-sine and multisine campaigns (issues 13, 14): see README.md.
 
     synth_campaign.py --out DIR [--model paper|FILE] [--set KEY=VALUE]... [--effect NAME=VALUE]...
                       [--frequencies-hz 6,7,8] [--amplitudes-v 0.1,0.3] [--duration-s 1] [--settle-s 10]
+                      [--excitation multisine --levels-v-rms 0.1,0.3 --band-hz 2:200 --grid odd|full]
                       [--sample-rate-hz 51200] [--response force] [--noise-rms V] [--offset-v V]
                       [--hum-v V] [--perturb k_p=0.1,c_p=0.1] [--seed N] [--jobs N]
 
@@ -74,6 +75,11 @@ def parse_args(argv):
                    help="add an effect: " + ", ".join(gen2_model.EFFECTS))
     p.add_argument("--frequencies-hz", default="6,7,8,9,11,13")
     p.add_argument("--amplitudes-v", default="0.1,0.3,0.4,0.5")
+    p.add_argument("--excitation", default="stepped-sine", choices=["stepped-sine", "multisine"],
+                   help="multisine: one broadband record per --levels-v-rms, its period the kept length")
+    p.add_argument("--levels-v-rms", default="0.05,0.15,0.3", help="multisine: drive levels [V rms]")
+    p.add_argument("--band-hz", default="2:200", help="multisine: LOW:HIGH [Hz]")
+    p.add_argument("--grid", default="odd", choices=["odd", "full"], help="multisine: odd lines only, or all")
     p.add_argument("--duration-s", type=float, default=1.0, help="kept length of each record")
     p.add_argument("--settle-s", type=float, default=10.0, help="simulated from rest before the kept part")
     p.add_argument("--sample-rate-hz", type=float, default=51200.0)
@@ -99,12 +105,18 @@ def parse_args(argv):
     a = p.parse_args(argv)
     a.frequencies_hz = number_list(a.frequencies_hz, "frequencies-hz")
     a.amplitudes_v = number_list(a.amplitudes_v, "amplitudes-v")
+    a.levels_v_rms = number_list(a.levels_v_rms, "levels-v-rms")
+    band = a.band_hz.split(":")
+    a.band_hz = number_list(",".join(band), "band-hz") if len(band) == 2 else []
     a.perturb = parse_perturb(a.perturb)
     nyquist = a.sample_rate_hz / 2
     checks = [
         (a.sample_rate_hz > 0 and math.isfinite(a.sample_rate_hz), "--sample-rate-hz must be > 0"),
         (all(0 < f < nyquist for f in a.frequencies_hz), f"--frequencies-hz must lie in (0, {nyquist})"),
         (all(v >= 0 and math.isfinite(v) for v in a.amplitudes_v), "--amplitudes-v must be >= 0"),
+        (all(v > 0 and math.isfinite(v) for v in a.levels_v_rms), "--levels-v-rms must be > 0"),
+        (len(a.band_hz) == 2 and 0 < a.band_hz[0] < a.band_hz[1] < nyquist,
+         f"--band-hz must be LOW:HIGH with 0 < LOW < HIGH < {nyquist}"),
         (a.duration_s > 0 and round(a.duration_s * a.sample_rate_hz) >= 2, "--duration-s must hold 2 samples"),
         (a.settle_s >= 0, "--settle-s must be >= 0"),
         (min(a.noise_rms, a.voltage_noise_rms, a.hum_v) >= 0, "noise and hum must be >= 0"),
@@ -159,7 +171,13 @@ def simulate_record(job):
     total = round((args.settle_s + args.duration_s) * fs)
     kept = min(total, round(args.duration_s * fs))
     t_sim = np.arange(total - kept, total) / fs
-    dyn = gen2_integrate.Dynamics(model, amplitude_v, 2 * math.pi * frequency_hz, drive_phase)
+    multisine = None
+    if args.excitation == "multisine":  # drawn after the stepped sine's numbers, which stay as they were
+        multisine = gen2_integrate.MultisineDrive(amplitude_v, args.band_hz[0], args.band_hz[1], args.duration_s,
+                                                  args.grid == "odd", rng)
+        dyn = gen2_integrate.Dynamics(model, 0.0, 0.0, multisine=multisine)
+    else:
+        dyn = gen2_integrate.Dynamics(model, amplitude_v, 2 * math.pi * frequency_hz, drive_phase)
     start = time.perf_counter()
     sim = gen2_integrate.simulate(dyn, total / fs, t_sim, method=args.method, rtol=args.rtol)
     seconds = time.perf_counter() - start
@@ -176,6 +194,9 @@ def simulate_record(job):
              "seconds": round(seconds, 3)}
     if args.random_drive_phase:
         truth["drive_phase_rad"] = drive_phase
+    if multisine is not None:
+        truth.update(frequency_hz=None, amplitude_v=None, level_v_rms=amplitude_v, lines=len(multisine.omegas),
+                     line_phases_rad=multisine.phases.tolist())
     clean = (t_kept, dyn.raw_drive(t_sim), sensed)
     return k, t_kept, voltage, volts, truth, clean
 
@@ -202,8 +223,10 @@ def main(argv=None):
         nominal, model, effects, perturbations, written, true_sensitivity = build_model(args)
     except gen2_model.ModelError as e:
         raise SystemExit(f"error: {e}") from None
-    jobs = [(k, f, a, model, args, written, true_sensitivity)
-            for k, (a, f) in enumerate((a, f) for a in args.amplitudes_v for f in args.frequencies_hz)]
+    # A multisine record is given its level where a stepped sine's is given its amplitude.
+    steps = ([(a, f) for a in args.amplitudes_v for f in args.frequencies_hz] if args.excitation == "stepped-sine"
+             else [(level, None) for level in args.levels_v_rms])
+    jobs = [(k, f, a, model, args, written, true_sensitivity) for k, (a, f) in enumerate(steps)]
     os.makedirs(args.out, exist_ok=True)
     if args.clean_out:
         os.makedirs(args.clean_out, exist_ok=True)
@@ -228,7 +251,8 @@ def main(argv=None):
             "voltage": {"column": "voltage_V", "unit": "V", "note": "drive voltage measured before the power amplifier"},
             args.response: dict({"column": column, "unit": "V", key: written}, **({"nominal": True} if args.nominal else {})),
         },
-        "records": [{"file": r["file"], "drive_frequency_hz": r["frequency_hz"], "drive_amplitude_v": r["amplitude_v"]}
+        "records": [{"file": r["file"], "excitation": "broadband"} if args.excitation == "multisine" else
+                    {"file": r["file"], "drive_frequency_hz": r["frequency_hz"], "drive_amplitude_v": r["amplitude_v"]}
                     for r in records],
     }
     for directory in [args.out] + ([args.clean_out] if args.clean_out else []):
@@ -258,6 +282,8 @@ def main(argv=None):
         "perturb_seed": args.seed if args.perturb_seed is None else args.perturb_seed,
         "settle_s": args.settle_s,
         "duration_s": args.duration_s,
+        "excitation": args.excitation,
+        **({"band_hz": args.band_hz, "grid": args.grid} if args.excitation == "multisine" else {}),
         "sample_rate_hz": args.sample_rate_hz,
         "wall_seconds": round(time.perf_counter() - start, 3),
         "records": records,

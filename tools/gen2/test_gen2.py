@@ -157,6 +157,40 @@ class UnlistedEffectsTest(unittest.TestCase):
                 self.assertLess(abs(h[1] - a_s * y1 * y1 / 2) / abs(a_s * y1 * y1 / 2), 1e-6, entry)
 
 
+class MultisineTest(unittest.TestCase):
+    """The multisine drive (gen2_integrate.MultisineDrive) on the linear model, against its closed form."""
+
+    def test_each_line_is_the_linear_response_and_the_level_is_the_rms(self):
+        level, low, high, period = 0.3, 2.0, 200.0, 0.5
+        with tempfile.TemporaryDirectory(prefix="gen2_multisine_") as work:
+            out = os.path.join(work, "c")
+            generate(out, ["--model", "linear", "--response", "displacement", "--excitation", "multisine",
+                           "--levels-v-rms", str(level), "--band-hz", f"{low}:{high}", "--duration-s", str(period),
+                           "--settle-s", "3", "--sample-rate-hz", "8192"])
+            with open(os.path.join(out, "truth.json")) as f:
+                truth = json.load(f)
+            model = truth["model"]
+            m, c_p, k_p, g = (model[k] for k in ("mass_kg", "damping_n_s_per_m", "stiffness_n_per_m", "gain_n_per_v"))
+            [(entry, _, data, sensitivity, fs)] = read_campaign(out)
+            self.assertEqual(entry, {"file": "rec_001.csv", "excitation": "broadband"})
+            voltage, response = data[:, 1], data[:, 2]
+            n = len(voltage)
+            self.assertEqual(n, round(period * fs))
+            # Lines at k / period in 2 .. 200 Hz, odd k: 1 .. 99 for 0.5 s (2, 6, .. 198 Hz).
+            lines = [k for k in range(1, round(high * period) + 1) if k % 2 == 1 and k / period >= low]
+            self.assertEqual(truth["records"][0]["lines"], len(lines))
+            self.assertAlmostEqual(math.sqrt(np.mean(voltage ** 2)), level, delta=1e-12)
+            u, y = np.fft.rfft(voltage) / n, np.fft.rfft(response) / n
+            even = [k for k in range(1, round(high * period)) if k % 2 == 0]
+            self.assertLess(np.max(np.abs(u[even])), 1e-12)  # the odd grid leaves the even lines empty
+            worst = 0.0
+            for k in lines:
+                w = 2 * math.pi * k / period
+                x = g / (k_p - m * w * w + 1j * w * c_p) * u[k]  # x = g u / (k_p - m w^2 + j w c_p)
+                worst = max(worst, abs(y[k] - sensitivity * x) / abs(sensitivity * x))
+            self.assertLess(worst, 1e-6)
+
+
 COMMON = ["--frequencies-hz", "6,8,13", "--amplitudes-v", "0.1,0.3,0.5", "--settle-s", "5", "--duration-s", "1"]
 
 
