@@ -25,7 +25,8 @@ swap and the backward check's new fits of 0.31.0 were built on 9966 and 9967 of 
 combinations fixed before) were run once after, both versions side by side. The cases of other sizes
 and campaign shapes (SHAPED, 9981-10010) were run at 0.31.0: the misfit-scaled significance of 0.32.0 was
 built on 9998, and 10001-10010 (fixed after 9998 was looked at) were run once after, both versions side by
-side. Campaigns are kept under --out (generated once, then reused).
+side. 10057-10081 are multisine campaigns (broadband, 8,192 Hz; fixed before any was run, and run once at
+0.44.0). Campaigns are kept under --out (generated once, then reused).
 
   tools/gen2/multi_effect_study.py --strokelab build/release/strokelab --out /tmp/multi
   tools/gen2/multi_effect_study.py --strokelab OLD --strokelab NEW --cases 9941-9950
