@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "strokelab/base/errors.h"
+#include "strokelab/model/dynamics.h"
 
 namespace strokelab {
 namespace {
@@ -132,6 +133,47 @@ TEST(ModelTest, OverrideErrorsNameTheKey) {
   EXPECT_THROW(ApplyOverride(&m, "k_p=nan"), InputError);
   EXPECT_THROW(ApplyOverride(&m, "k_p"), InputError);
   EXPECT_THROW(PresetModel("papr"), InputError);
+}
+
+// The smoothed friction's derivatives (dynamics.cc, which computes tanh(v / v_s) once for the force, its
+// slope and its parameter derivatives) against central differences of BlockedForce, at F_c = 0 too,
+// where a fit starting without friction still needs d f / d F_c = -tanh(v / v_s).
+TEST(DynamicsTest, FrictionDerivativesAreTheForcesDifferences) {
+  using M = ActuatorModel;
+  for (const double friction_n : {0.0, 0.01}) {
+    ActuatorModel m = PaperModel();
+    m.friction_force_n = friction_n;
+    m.friction_velocity_m_per_s = 2e-3;
+    for (const double v : {-3e-3, 5e-4, 4e-3}) {
+      SCOPED_TRACE("F_c " + std::to_string(friction_n) + " N, v " + std::to_string(v) + " m/s");
+      const State y{1e-4, v};
+      const ForceJacobian j = BlockedForceJacobian(m, 0.2, y, {});
+      auto force_with = [&](double M::*field, double value) {
+        ActuatorModel changed = m;
+        changed.*field = value;
+        return BlockedForce(changed, 0.2, y, {});
+      };
+      // f is linear in F_c: the difference is exact to rounding.
+      const double h_f = 1e-3;
+      const double df_dfriction = BlockedForceParameterDerivative(m, &M::friction_force_n, 0.2, y, {}, j);
+      EXPECT_NEAR(df_dfriction,
+                  (force_with(&M::friction_force_n, friction_n + h_f) -
+                   force_with(&M::friction_force_n, friction_n - h_f)) / (2 * h_f),
+                  1e-12);
+      EXPECT_NEAR(df_dfriction, -std::tanh(v / 2e-3), 1e-15);
+      // v_s and v: truncation (h^2 / 6 times a third derivative ~ F_c v / v_s^4) far below the bounds,
+      // rounding (1e-16 N over 1e-8) too.
+      const double h_s = 1e-8, h_v = 1e-8, bound = 1e-6 * std::max(1.0, friction_n / 2e-3);
+      EXPECT_NEAR(BlockedForceParameterDerivative(m, &M::friction_velocity_m_per_s, 0.2, y, {}, j),
+                  (force_with(&M::friction_velocity_m_per_s, 2e-3 + h_s) -
+                   force_with(&M::friction_velocity_m_per_s, 2e-3 - h_s)) / (2 * h_s),
+                  bound);
+      const double dv =
+          (BlockedForce(m, 0.2, State{1e-4, v + h_v}, {}) - BlockedForce(m, 0.2, State{1e-4, v - h_v}, {})) / (2 * h_v);
+      EXPECT_NEAR(j.d_dv_n_s_per_m, dv, bound);
+      EXPECT_EQ(j.force_n, BlockedForce(m, 0.2, y, {}));
+    }
+  }
 }
 
 }  // namespace

@@ -105,7 +105,7 @@ double Field::EvaluateWith(double t_s, double cos_wt, double sin_wt, const doubl
         // x'' = f / m_p: the mass enters through 1 / m_p (d/dm_p = -f / m_p^2), the rest through f.
         acceleration += p == &ActuatorModel::mass_kg
                             ? -force_n * m * m
-                            : BlockedForceParameterDerivative(model_, p, voltage_v, state, mode) * m;
+                            : BlockedForceParameterDerivative(model_, p, voltage_v, state, mode, j) * m;
         if constexpr (kCoilPole) coil_rate += CoilForceRateParameterDerivative(model_, p, voltage_v, state);
       }
       dy[i + 1] = acceleration;

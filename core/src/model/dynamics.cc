@@ -114,7 +114,15 @@ double ClippedVoltagePerLimit(const ActuatorModel& m, double drive_voltage_v) {
 }
 }  // namespace
 
-double BlockedForce(const ActuatorModel& m, double drive_voltage_v, const State& y, ContactMode mode) {
+namespace {
+// tanh(v / v_s) where F_c != 0, else 0 (ForceJacobian::friction_shape).
+double FrictionShape(const ActuatorModel& m, double v) {
+  return m.friction_force_n != 0 ? std::tanh(v / m.friction_velocity_m_per_s) : 0.0;
+}
+
+// BlockedForce with the friction's shape given.
+double BlockedForceWith(const ActuatorModel& m, double drive_voltage_v, const State& y, ContactMode mode,
+                        double friction_shape) {
   const double x = y.x_m, v = y.v_m_per_s;
   const double phi = ForceFactorShape(m, x);
   double force;
@@ -129,19 +137,25 @@ double BlockedForce(const ActuatorModel& m, double drive_voltage_v, const State&
   }
   if (m.quadratic_stiffness_n_per_m2 != 0) force -= m.quadratic_stiffness_n_per_m2 * x * x;
   if (m.cubic_stiffness_n_per_m3 != 0) force -= m.cubic_stiffness_n_per_m3 * x * x * x;
-  if (m.friction_force_n != 0) force -= m.friction_force_n * std::tanh(v / m.friction_velocity_m_per_s);
+  if (m.friction_force_n != 0) force -= m.friction_force_n * friction_shape;
   if (m.quadratic_damping_n_s2_per_m2 != 0) force -= m.quadratic_damping_n_s2_per_m2 * v * std::abs(v);
   // In a pushing mode the stop force is used unclamped: the mode switch at its zero is the clamp.
   if (mode.lower) force += StopForceUnclamped(m, m.lower_stop_m - x, -v);
   if (mode.upper) force -= StopForceUnclamped(m, x - m.upper_stop_m, v);
   return force;
 }
+}  // namespace
+
+double BlockedForce(const ActuatorModel& m, double drive_voltage_v, const State& y, ContactMode mode) {
+  return BlockedForceWith(m, drive_voltage_v, y, mode, FrictionShape(m, y.v_m_per_s));
+}
 
 ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_v, const State& y,
                                    ContactMode mode) {
   const double x = y.x_m, v = y.v_m_per_s;
   ForceJacobian j;
-  j.force_n = BlockedForce(m, drive_voltage_v, y, mode);
+  j.friction_shape = FrictionShape(m, v);
+  j.force_n = BlockedForceWith(m, drive_voltage_v, y, mode, j.friction_shape);
   const double phi = ForceFactorShape(m, x);
   j.d_dx_n_per_m = -m.stiffness_n_per_m - 2.0 * m.quadratic_stiffness_n_per_m2 * x - 3.0 * m.cubic_stiffness_n_per_m3 * x * x +
                    ForcePerForceFactorShape(m, drive_voltage_v, y) * ForceFactorSlope(m, x);
@@ -152,7 +166,7 @@ ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_
     j.d_dv_n_s_per_m = -m.damping_n_s_per_m - m.back_emf_damping_n_s_per_m * (phi * phi - 1.0);
   }
   if (m.friction_force_n != 0) {
-    const double th = std::tanh(v / m.friction_velocity_m_per_s);
+    const double th = j.friction_shape;
     j.d_dv_n_s_per_m -= m.friction_force_n / m.friction_velocity_m_per_s * (1.0 - th * th);
   }
   j.d_dv_n_s_per_m -= 2.0 * m.quadratic_damping_n_s2_per_m2 * std::abs(v);  // d(v|v|)/dv = 2|v|
@@ -169,7 +183,8 @@ ForceJacobian BlockedForceJacobian(const ActuatorModel& m, double drive_voltage_
 }
 
 double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorModel::*parameter,
-                                       double drive_voltage_v, const State& y, ContactMode mode) {
+                                       double drive_voltage_v, const State& y, ContactMode mode,
+                                       const ForceJacobian& at) {
   using M = ActuatorModel;
   const double x = y.x_m, v = y.v_m_per_s;
   const bool pole = m.HasCoilPole();
@@ -190,10 +205,14 @@ double BlockedForceParameterDerivative(const ActuatorModel& m, double ActuatorMo
     const double phi = ForceFactorShape(m, x);
     return -(phi * phi - 1.0) * v;
   }
-  if (parameter == &M::friction_force_n) return -std::tanh(v / m.friction_velocity_m_per_s);
+  // (At F_c = 0 the Jacobian holds no shape: d f / d F_c is -tanh(v / v_s) all the same.)
+  const auto friction_shape = [&] {
+    return m.friction_force_n != 0 ? at.friction_shape : std::tanh(v / m.friction_velocity_m_per_s);
+  };
+  if (parameter == &M::friction_force_n) return -friction_shape();
   if (parameter == &M::quadratic_damping_n_s2_per_m2) return -v * std::abs(v);
   if (parameter == &M::friction_velocity_m_per_s) {
-    const double vs = m.friction_velocity_m_per_s, th = std::tanh(v / vs);
+    const double vs = m.friction_velocity_m_per_s, th = friction_shape();
     return m.friction_force_n * (1.0 - th * th) * v / (vs * vs);
   }
   if (parameter == &M::amplifier_limit_v)

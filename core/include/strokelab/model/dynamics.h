@@ -84,14 +84,19 @@ struct ForceJacobian {
   double d_dx_n_per_m = 0.0;
   double d_dv_n_s_per_m = 0.0;
   double d_dcoil = 0.0;  // d f / d F_e (phi) with the coil's pole, else 0
+  // tanh(v / v_s), the smoothed friction's shape, where F_c != 0 (else 0): computed once for the force,
+  // its slope and its parameter derivatives (the field's costliest term on a friction model).
+  double friction_shape = 0.0;
 };
 ForceJacobian BlockedForceJacobian(const ActuatorModel& model, double drive_voltage_v, const State& y,
                                    ContactMode mode);
 
 // d BlockedForce / d parameter at a fixed state, drive and mode, for a parameter named by its field in
-// ActuatorModel [N per the parameter's unit]. The mass gives 0: f does not depend on m_p, x'' = f / m_p does.
+// ActuatorModel [N per the parameter's unit]; `at` is BlockedForceJacobian there. The mass gives 0: f
+// does not depend on m_p, x'' = f / m_p does.
 double BlockedForceParameterDerivative(const ActuatorModel& model, double ActuatorModel::*parameter,
-                                       double drive_voltage_v, const State& y, ContactMode mode);
+                                       double drive_voltage_v, const State& y, ContactMode mode,
+                                       const ForceJacobian& at);
 
 // With the coil's pole: F_e' = (g u - c_emf phi v - F_e) / tau_e [N/s] (model.h), with its partial
 // derivatives. It does not depend on the contact mode, so it never jumps at a switch.
