@@ -15,6 +15,12 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 
+def multisine_lines(low_hz, high_hz, period_s, odd):
+    """The line numbers k of a multisine: k / period_s in [low_hz, high_hz], odd k only on the odd grid."""
+    first = max(1, math.ceil(low_hz * period_s - 1e-9))
+    return [k for k in range(first, math.floor(high_hz * period_s + 1e-9) + 1) if not odd or k % 2 == 1]
+
+
 class MultisineDrive:
     """A multisine as a rig's generator makes it: sum_k a sin(2 pi f_k t + phi_k), continuous in t (the
     recording samples it; strokelab joins the samples by straight lines, so its drive differs from this
@@ -24,8 +30,7 @@ class MultisineDrive:
     100 Exercises", 2012, Sec. 2.2: the random-phase multisine)."""
 
     def __init__(self, level_v_rms, low_hz, high_hz, period_s, odd, rng):
-        first = max(1, math.ceil(low_hz * period_s - 1e-9))
-        ks = [k for k in range(first, math.floor(high_hz * period_s + 1e-9) + 1) if not odd or k % 2 == 1]
+        ks = multisine_lines(low_hz, high_hz, period_s, odd)
         if not ks:
             raise ValueError(f"no multisine line in [{low_hz}, {high_hz}] Hz for a period of {period_s} s")
         self.omegas = 2 * math.pi * np.array(ks, dtype=float) / period_s

@@ -118,6 +118,9 @@ def parse_args(argv):
         (len(a.band_hz) == 2 and 0 < a.band_hz[0] < a.band_hz[1] < nyquist,
          f"--band-hz must be LOW:HIGH with 0 < LOW < HIGH < {nyquist}"),
         (a.duration_s > 0 and round(a.duration_s * a.sample_rate_hz) >= 2, "--duration-s must hold 2 samples"),
+        (a.excitation != "multisine" or len(a.band_hz) != 2 or
+         gen2_integrate.multisine_lines(a.band_hz[0], a.band_hz[1], a.duration_s, a.grid == "odd"),
+         "--band-hz holds no multisine line k / duration (odd k on the odd grid)"),
         (a.settle_s >= 0, "--settle-s must be >= 0"),
         (min(a.noise_rms, a.voltage_noise_rms, a.hum_v) >= 0, "noise and hum must be >= 0"),
         (a.jobs >= 1, "--jobs must be >= 1"),
